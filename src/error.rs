@@ -1,0 +1,64 @@
+//! One error type for the library; the command line maps it to exit codes.
+
+use std::path::PathBuf;
+
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// The file system refused a read or write.
+    #[error("{}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// A file was read but its content is unusable (bad image, malformed JSON, wrong size ...).
+    #[error("{}: {msg}", path.display())]
+    BadFile { path: PathBuf, msg: String },
+    /// An argument or in-memory input is unusable.
+    #[error("{0}")]
+    Invalid(String),
+    /// A buffer would exceed a device or format limit and cannot be split further.
+    #[error("{what} needs {needed} bytes, over the {limit_name} of {limit} bytes")]
+    TooLarge {
+        what: String,
+        needed: u64,
+        limit: u64,
+        limit_name: String,
+    },
+    /// No adapter matched the request (exit code 69, EX_UNAVAILABLE).
+    #[error("no GPU adapter: {0}")]
+    NoAdapter(String),
+    /// The device reported an error (validation, out of memory, lost device).
+    #[error("GPU error: {0}")]
+    Gpu(String),
+}
+
+impl Error {
+    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        Error::Io {
+            path: path.into(),
+            source,
+        }
+    }
+
+    pub fn bad_file(path: impl Into<PathBuf>, msg: impl Into<String>) -> Self {
+        Error::BadFile {
+            path: path.into(),
+            msg: msg.into(),
+        }
+    }
+
+    /// Exit code for the command line: sysexits.h where one fits.
+    pub fn exit_code(&self) -> i32 {
+        match self {
+            Error::NoAdapter(_) => 69,   // EX_UNAVAILABLE
+            Error::Io { .. } => 74,      // EX_IOERR
+            Error::BadFile { .. } => 65, // EX_DATAERR
+            Error::Invalid(_) => 64,     // EX_USAGE
+            Error::TooLarge { .. } => 65,
+            Error::Gpu(_) => 70, // EX_SOFTWARE
+        }
+    }
+}

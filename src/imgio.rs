@@ -1,0 +1,73 @@
+//! Reading images and masks with messages that name the file and the problem.
+
+use crate::error::{Error, Result};
+use std::path::Path;
+
+/// Largest image accepted, in pixels: beyond it one f32 plane alone passes 1 GiB.
+pub const MAX_PIXELS: u64 = 1 << 28;
+
+fn open(path: &Path) -> Result<image::DynamicImage> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let reader = image::ImageReader::new(std::io::Cursor::new(bytes))
+        .with_guessed_format()
+        .map_err(|e| Error::io(path, e))?;
+    if reader.format().is_none() {
+        return Err(Error::bad_file(
+            path,
+            "not an image this build reads (PNG expected)",
+        ));
+    }
+    let (w, h) = reader
+        .into_dimensions()
+        .map_err(|e| Error::bad_file(path, format!("cannot read the image header: {e}")))?;
+    if w as u64 * h as u64 > MAX_PIXELS {
+        return Err(Error::TooLarge {
+            what: format!("{} ({w}x{h} px)", path.display()),
+            needed: w as u64 * h as u64,
+            limit: MAX_PIXELS,
+            limit_name: "image size limit in pixels".into(),
+        });
+    }
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
+        .with_guessed_format()
+        .map_err(|e| Error::io(path, e))?;
+    reader.no_limits();
+    let img = reader
+        .decode()
+        .map_err(|e| Error::bad_file(path, format!("cannot decode the image: {e}")))?;
+    if img.width() == 0 || img.height() == 0 {
+        return Err(Error::bad_file(path, "the image has no pixels"));
+    }
+    Ok(img)
+}
+
+/// An 8-bit RGB image (alpha dropped, 16-bit reduced).
+pub fn load_rgb(path: &Path) -> Result<image::RgbImage> {
+    Ok(open(path)?.to_rgb8())
+}
+
+/// A hair mask of the given size: one byte per pixel, 1 where the mask is > 127.
+/// `image_path` names the image it must match in the error message.
+pub fn load_mask(path: &Path, width: u32, height: u32, image_path: &Path) -> Result<Vec<u8>> {
+    let m = open(path)?.to_luma8();
+    if m.dimensions() != (width, height) {
+        return Err(Error::bad_file(
+            path,
+            format!(
+                "mask is {}x{} px but {} is {width}x{height} px",
+                m.width(),
+                m.height(),
+                image_path.display()
+            ),
+        ));
+    }
+    let px: Vec<u8> = m.pixels().map(|p| (p[0] > 127) as u8).collect();
+    if !px.contains(&1) {
+        return Err(Error::bad_file(
+            path,
+            "mask is empty: no pixel is above 127, so there is no hair to analyse",
+        ));
+    }
+    Ok(px)
+}

@@ -1,0 +1,18 @@
+//! coif: single-view 3D strand hair modelling after Chai et al. 2013, with the Chen-Zhu 2006
+//! generative sketch model. Every heavy stage is a WGSL pass with a CPU mirror; see
+//! [`engine`] for how one recording runs on either.
+
+pub mod assets;
+pub mod engine;
+pub mod error;
+pub mod gpu;
+pub mod imgio;
+pub mod io;
+pub mod metrics;
+pub mod orient;
+pub mod stages;
+pub mod testing;
+pub mod vis;
+
+pub use engine::{BackendChoice, Engine};
+pub use error::{Error, Result};

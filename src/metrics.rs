@@ -1,0 +1,73 @@
+//! Accuracy figures against ground truth.
+
+use crate::orient::OrientMap;
+
+/// Mean orientation error in degrees over hair pixels at least `inset` px inside the mask.
+#[derive(Clone, Copy, Debug)]
+pub struct OrientError {
+    pub mean_deg: f64,
+    /// Share of scored pixels within 5 degrees.
+    pub within_5deg: f64,
+    pub count: usize,
+}
+
+/// Pixels whose Chebyshev distance to the nearest non-hair pixel (or the image border) is at
+/// least `inset`: a square erosion of the mask, separable so it costs O(n) per radius.
+pub fn erode(mask: &image::GrayImage, inset: u32) -> Vec<bool> {
+    let (w, h) = (mask.width() as usize, mask.height() as usize);
+    let r = inset as i64;
+    let on: Vec<bool> = mask.pixels().map(|p| p[0] > 127).collect();
+    let mut rows = vec![false; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            rows[y * w + x] = (-r..=r).all(|d| {
+                let xx = x as i64 + d;
+                xx >= 0 && (xx as usize) < w && on[y * w + xx as usize]
+            });
+        }
+    }
+    let mut out = vec![false; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            out[y * w + x] = (-r..=r).all(|d| {
+                let yy = y as i64 + d;
+                yy >= 0 && (yy as usize) < h && rows[yy as usize * w + x]
+            });
+        }
+    }
+    out
+}
+
+/// Angular distance of two orientations modulo π, in radians.
+pub fn orient_diff(a: f32, b: f32) -> f32 {
+    let d = (a - b).abs() % std::f32::consts::PI;
+    d.min(std::f32::consts::PI - d)
+}
+
+pub fn orientation_error(
+    map: &OrientMap,
+    gt_theta: &[f32],
+    mask: &image::GrayImage,
+    inset: u32,
+) -> OrientError {
+    let inner = erode(mask, inset);
+    let (mut sum, mut n, mut good) = (0.0f64, 0usize, 0usize);
+    for (i, &keep) in inner.iter().enumerate() {
+        if !keep || !gt_theta[i].is_finite() {
+            continue;
+        }
+        let d = if map.theta[i].is_finite() {
+            orient_diff(map.theta[i], gt_theta[i]).to_degrees() as f64
+        } else {
+            90.0
+        };
+        sum += d;
+        n += 1;
+        good += (d <= 5.0) as usize;
+    }
+    OrientError {
+        mean_deg: if n > 0 { sum / n as f64 } else { f64::NAN },
+        within_5deg: if n > 0 { good as f64 / n as f64 } else { 0.0 },
+        count: n,
+    }
+}

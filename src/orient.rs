@@ -1,0 +1,375 @@
+//! Orientation stage (C13 §2.1 after Chai et al. 2012): DoG prefilter, Gabor bank, iterative
+//! refinement on the confidence map, confidence-weighted smoothing of the double-angle field.
+//!
+//! The host records the passes; the engine runs them on the GPU or on the CPU mirrors. Images
+//! whose buffers would exceed the largest binding are processed in tiles with a halo wide
+//! enough that every kept pixel sees the same neighbourhood as in one piece.
+
+use crate::engine::{BufProxy, Engine, Recording};
+use crate::error::{Error, Result};
+use crate::stages::{gabor, orient_resolve, sep_blur};
+
+/// Word every output buffer is filled with before a pass runs: a quiet NaN with a payload
+/// that no arithmetic produces, so "never written" differs from any written value.
+pub const SENTINEL: u32 = 0x7fc0_c01f;
+
+/// Parameters of the orientation stage; defaults from DESIGN.md and C13 / Chai 2012.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct OrientParams {
+    /// Fine and coarse sigmas of the difference-of-Gaussians prefilter; coarse 0 disables it.
+    pub dog_sigma_fine: f32,
+    pub dog_sigma_coarse: f32,
+    pub kernel: gabor::Kernel,
+    /// Refinement passes: the Gabor bank re-applied to the previous confidence map.
+    pub refine_iters: u32,
+    /// Sigma of the confidence-weighted smoothing of the double-angle field; 0 disables it.
+    pub smooth_sigma: f32,
+    /// Responses at or below this are treated as no texture (confidence 0). Input gray
+    /// values are in [0, 1].
+    pub min_response: f32,
+    /// A pixel whose responses spread by at most this share of the strongest is isotropic
+    /// (flat, or only the kernels' DC response): no orientation, confidence 0.
+    pub min_contrast: f32,
+}
+
+impl Default for OrientParams {
+    fn default() -> Self {
+        OrientParams {
+            dog_sigma_fine: 0.4,
+            dog_sigma_coarse: 10.0,
+            kernel: gabor::Kernel {
+                sigma_x: 1.8,
+                sigma_y: 2.4,
+                lambda: 4.0,
+                ksize: 17,
+                n_orient: 32,
+            },
+            refine_iters: 3,
+            smooth_sigma: 1.5,
+            min_response: 1e-5,
+            min_contrast: 1e-3,
+        }
+    }
+}
+
+impl OrientParams {
+    pub fn validate(&self) -> Result<()> {
+        let k = &self.kernel;
+        let bad = |m: String| Err(Error::Invalid(m));
+        if k.n_orient < 4 || k.n_orient > gabor::MAX_ORIENT || k.n_orient % 4 != 0 {
+            return bad(format!(
+                "--orientations {} must be a multiple of 4 in 4..={}",
+                k.n_orient,
+                gabor::MAX_ORIENT
+            ));
+        }
+        if k.ksize < 3 || k.ksize % 2 == 0 || k.ksize > 63 {
+            return bad(format!("--ksize {} must be odd and in 3..=63", k.ksize));
+        }
+        if (k.n_pairs() * k.n_orient) as usize > gabor::WEIGHT_CAPACITY {
+            return bad(format!(
+                "--ksize {} with {} orientations needs {} weights; the bank holds {} \
+                 (one 64 KiB uniform buffer)",
+                k.ksize,
+                k.n_orient,
+                k.n_pairs() * k.n_orient,
+                gabor::WEIGHT_CAPACITY
+            ));
+        }
+        for (name, v) in [
+            ("--sigma-x", k.sigma_x),
+            ("--sigma-y", k.sigma_y),
+            ("--lambda", k.lambda),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return bad(format!("{name} must be a positive number, got {v}"));
+            }
+        }
+        for (name, v) in [
+            ("--dog-fine", self.dog_sigma_fine),
+            ("--dog-coarse", self.dog_sigma_coarse),
+            ("--smooth", self.smooth_sigma),
+        ] {
+            if !(v.is_finite() && (0.0..=64.0).contains(&v)) {
+                return bad(format!("{name} must be in 0..=64, got {v}"));
+            }
+        }
+        if self.dog_sigma_coarse > 0.0 && self.dog_sigma_fine <= 0.0 {
+            return bad("--dog-fine must be positive when --dog-coarse is".into());
+        }
+        if self.refine_iters > 16 {
+            return bad(format!("--refine {} is over 16", self.refine_iters));
+        }
+        Ok(())
+    }
+
+    /// Pixels a tile needs beyond what it keeps so kept pixels match a one-piece run.
+    pub fn halo(&self) -> u32 {
+        let blur_r = |s: f32| {
+            if s > 0.0 {
+                (3.0 * s).ceil().max(1.0) as u32
+            } else {
+                0
+            }
+        };
+        let dog = if self.dog_sigma_coarse > 0.0 {
+            blur_r(self.dog_sigma_coarse).max(blur_r(self.dog_sigma_fine))
+        } else {
+            0
+        };
+        dog + (self.refine_iters + 1) * self.kernel.half() + blur_r(self.smooth_sigma)
+    }
+}
+
+/// A single-channel f32 image, row-major.
+#[derive(Clone, Debug)]
+pub struct GrayImage {
+    pub width: u32,
+    pub height: u32,
+    pub data: Vec<f32>,
+}
+
+impl GrayImage {
+    /// Rec. 709 luma of an 8-bit sRGB image, in [0, 1].
+    pub fn from_rgb(img: &image::RgbImage) -> Self {
+        let data = img
+            .pixels()
+            .map(|p| (0.2126 * p[0] as f32 + 0.7152 * p[1] as f32 + 0.0722 * p[2] as f32) / 255.0)
+            .collect();
+        GrayImage {
+            width: img.width(),
+            height: img.height(),
+            data,
+        }
+    }
+
+    fn crop(&self, x0: u32, y0: u32, w: u32, h: u32) -> Vec<f32> {
+        let mut out = Vec::with_capacity((w * h) as usize);
+        for y in y0..y0 + h {
+            let s = (y * self.width + x0) as usize;
+            out.extend_from_slice(&self.data[s..s + w as usize]);
+        }
+        out
+    }
+}
+
+/// Orientation θ in [0, π) (x right, y down; NaN off the mask) and confidence (0 off it).
+#[derive(Clone, Debug)]
+pub struct OrientMap {
+    pub width: u32,
+    pub height: u32,
+    pub theta: Vec<f32>,
+    pub confidence: Vec<f32>,
+}
+
+fn blur(
+    rec: &mut Recording,
+    src: BufProxy,
+    minus: Option<BufProxy>,
+    sigma: f32,
+    w: u32,
+    h: u32,
+) -> BufProxy {
+    let (radius, weights) = sep_blur::gaussian_weights(sigma);
+    let wbuf = rec.upload("coif.blur.weights", &weights);
+    let bytes = w as u64 * h as u64 * 4;
+    let tmp = rec.alloc("coif.blur.tmp", bytes, SENTINEL);
+    let out = rec.alloc("coif.blur.out", bytes, SENTINEL);
+    for (axis, from, to) in [(0u32, src, tmp), (1, tmp, out)] {
+        let sub = axis == 1 && minus.is_some();
+        let cfg = sep_blur::Config {
+            width: w,
+            height: h,
+            radius,
+            axis,
+            subtract: sub as u32,
+            ..Default::default()
+        };
+        let ubuf = rec.uniform("coif.blur.cfg", &cfg);
+        // An unused binding still needs a buffer; `from` is as good as any.
+        let m = if sub { minus.unwrap() } else { from };
+        rec.dispatch(
+            &sep_blur::STAGE,
+            sep_blur::workgroups(&cfg),
+            &[ubuf, wbuf, from, m, to],
+            &[],
+        );
+    }
+    out
+}
+
+/// Records the whole stage for one tile and returns (theta, confidence) buffers.
+fn record_tile(
+    rec: &mut Recording,
+    p: &OrientParams,
+    gray: &[f32],
+    mask: &[u32],
+    w: u32,
+    h: u32,
+) -> (BufProxy, BufProxy) {
+    let bytes = w as u64 * h as u64 * 4;
+    let src = rec.upload("coif.orient.gray", gray);
+    let mut cur = if p.dog_sigma_coarse > 0.0 {
+        let coarse = blur(rec, src, None, p.dog_sigma_coarse, w, h);
+        blur(rec, src, Some(coarse), p.dog_sigma_fine, w, h)
+    } else {
+        src
+    };
+    let k = &p.kernel;
+    let weights = rec.upload("coif.gabor.weights", &k.pair_weights_padded());
+    let cfg = gabor::Config {
+        width: w,
+        height: h,
+        half: k.half(),
+        n_orient: k.n_orient,
+        min_response: p.min_response,
+        min_contrast: p.min_contrast,
+        ..Default::default()
+    };
+    let ubuf = rec.uniform("coif.gabor.cfg", &cfg);
+    let constants = [
+        ("N_ORIENT", k.n_orient as f64),
+        ("N_VEC", (k.n_orient / 4) as f64),
+        ("N_PAIRS", k.n_pairs() as f64),
+    ];
+    let (mut dx, mut dy, mut conf) = (cur, cur, cur);
+    for _ in 0..=p.refine_iters {
+        dx = rec.alloc("coif.gabor.dx", bytes, SENTINEL);
+        dy = rec.alloc("coif.gabor.dy", bytes, SENTINEL);
+        conf = rec.alloc("coif.gabor.conf", bytes, SENTINEL);
+        rec.dispatch(
+            &gabor::STAGE,
+            gabor::workgroups(&cfg),
+            &[ubuf, weights, cur, dx, dy, conf],
+            &constants,
+        );
+        cur = conf;
+    }
+    if p.smooth_sigma > 0.0 {
+        dx = blur(rec, dx, None, p.smooth_sigma, w, h);
+        dy = blur(rec, dy, None, p.smooth_sigma, w, h);
+    }
+    let mbuf = rec.upload("coif.orient.mask", mask);
+    let rcfg = orient_resolve::Config {
+        width: w,
+        height: h,
+        ..Default::default()
+    };
+    let rbuf = rec.uniform("coif.resolve.cfg", &rcfg);
+    let theta = rec.alloc("coif.orient.theta", bytes, SENTINEL);
+    let conf_out = rec.alloc("coif.orient.conf", bytes, SENTINEL);
+    rec.dispatch(
+        &orient_resolve::STAGE,
+        orient_resolve::workgroups(&rcfg),
+        &[rbuf, dx, dy, conf, mbuf, theta, conf_out],
+        &[],
+    );
+    rec.download(theta);
+    rec.download(conf_out);
+    (theta, conf_out)
+}
+
+/// Largest tile side (kept pixels) whose padded buffers fit in `max_binding` bytes.
+fn tile_side(max_binding: u64, halo: u32) -> Option<u32> {
+    let max_px = max_binding / 4;
+    let side = (max_px as f64).sqrt().floor() as u64;
+    let keep = side.checked_sub(2 * halo as u64)?;
+    (keep >= 16).then_some(keep.min(u32::MAX as u64) as u32)
+}
+
+/// Runs the orientation stage. `mask` (one byte per pixel, nonzero on hair) limits the
+/// output; without it every pixel is hair.
+pub fn orient(
+    engine: &Engine,
+    img: &GrayImage,
+    mask: Option<&[u8]>,
+    p: &OrientParams,
+) -> Result<OrientMap> {
+    p.validate()?;
+    let (w, h) = (img.width, img.height);
+    if w == 0 || h == 0 {
+        return Err(Error::Invalid("the image is empty (0 pixels)".into()));
+    }
+    if let Some(m) = mask {
+        if m.len() != (w * h) as usize {
+            return Err(Error::Invalid(format!(
+                "mask has {} pixels, image has {}",
+                m.len(),
+                w * h
+            )));
+        }
+    }
+    if img.data.iter().any(|v| !v.is_finite()) {
+        return Err(Error::Invalid(
+            "the image has NaN or infinite values".into(),
+        ));
+    }
+    let halo = p.halo();
+    let limit = engine.max_binding_bytes();
+    let full_bytes = w as u64 * h as u64 * 4;
+    let (tw, th) = if full_bytes <= limit {
+        (w, h)
+    } else {
+        let side = tile_side(limit, halo).ok_or_else(|| Error::TooLarge {
+            what: format!(
+                "an orientation tile of {0}x{0} px (16 kept + a {1} px halo each side)",
+                16 + 2 * halo,
+                halo
+            ),
+            needed: (16 + 2 * halo as u64).pow(2) * 4,
+            limit,
+            limit_name: "largest buffer binding".into(),
+        })?;
+        (side.min(w), side.min(h))
+    };
+    let mut out = OrientMap {
+        width: w,
+        height: h,
+        theta: vec![f32::NAN; (w * h) as usize],
+        confidence: vec![0.0; (w * h) as usize],
+    };
+    let tiles: Vec<(u32, u32)> = (0..h.div_ceil(th))
+        .flat_map(|ty| (0..w.div_ceil(tw)).map(move |tx| (tx * tw, ty * th)))
+        .collect();
+    if tiles.len() > 1 {
+        log::info!(
+            "orientation: {}x{} image in {} tiles of {}x{} (+{} px halo) to stay within {} B per binding",
+            w,
+            h,
+            tiles.len(),
+            tw,
+            th,
+            halo,
+            limit
+        );
+    }
+    for (x0, y0) in tiles {
+        let (x1, y1) = ((x0 + tw).min(w), (y0 + th).min(h));
+        let (px0, py0) = (x0.saturating_sub(halo), y0.saturating_sub(halo));
+        let (px1, py1) = ((x1 + halo).min(w), (y1 + halo).min(h));
+        let (pw, ph) = (px1 - px0, py1 - py0);
+        let gray = img.crop(px0, py0, pw, ph);
+        let mut tmask = vec![1u32; (pw * ph) as usize];
+        if let Some(m) = mask {
+            for y in 0..ph {
+                for x in 0..pw {
+                    tmask[(y * pw + x) as usize] =
+                        (m[((py0 + y) * w + px0 + x) as usize] != 0) as u32;
+                }
+            }
+        }
+        let mut rec = Recording::default();
+        let (tb, cb) = record_tile(&mut rec, p, &gray, &tmask, pw, ph);
+        let dl = engine.run(rec)?;
+        let (theta, conf) = (dl.get::<f32>(tb), dl.get::<f32>(cb));
+        for y in y0..y1 {
+            for x in x0..x1 {
+                let s = ((y - py0) * pw + (x - px0)) as usize;
+                let d = (y * w + x) as usize;
+                out.theta[d] = theta[s];
+                out.confidence[d] = conf[s];
+            }
+        }
+    }
+    Ok(out)
+}

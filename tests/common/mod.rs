@@ -1,0 +1,52 @@
+//! Shared test fixtures.
+#![allow(dead_code)] // each test binary uses a different subset
+
+use coif::engine::{BackendChoice, Engine};
+use coif::orient::GrayImage;
+
+/// The lavapipe (or any) GPU engine. Parity and golden tests need it: without an adapter they
+/// fail and say how to get one, rather than pass without checking anything.
+pub fn gpu() -> Engine {
+    Engine::new(BackendChoice::Gpu).unwrap_or_else(|e| {
+        panic!("{e}\nthe GPU tests need a Vulkan adapter: apt-get install mesa-vulkan-drivers")
+    })
+}
+
+/// Deterministic hash noise in [0, 1).
+pub fn hash01(i: u64, seed: u64) -> f32 {
+    let mut z = i.wrapping_add(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15));
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^= z >> 31;
+    (z >> 40) as f32 / (1u64 << 24) as f32
+}
+
+/// A hair-like test texture: stripes with a slowly turning orientation plus noise.
+pub fn texture(w: u32, h: u32, seed: u64) -> GrayImage {
+    let data = (0..w * h)
+        .map(|i| {
+            let (x, y) = ((i % w) as f32, (i / w) as f32);
+            let a = 0.7 + 0.9 * (x / 97.0).sin() + 0.6 * (y / 71.0).cos() + seed as f32;
+            let u = -x * a.sin() + y * a.cos();
+            0.5 + 0.3 * (u * std::f32::consts::TAU / 4.3).sin()
+                + 0.2 * (hash01(i as u64, seed) - 0.5)
+        })
+        .collect();
+    GrayImage {
+        width: w,
+        height: h,
+        data,
+    }
+}
+
+/// A mask with a hole, so masked and unmasked pixels both occur.
+pub fn mask(w: u32, h: u32) -> Vec<u8> {
+    (0..w * h)
+        .map(|i| {
+            let (x, y) = ((i % w) as f32, (i / w) as f32);
+            let (cx, cy) = (w as f32 * 0.3, h as f32 * 0.6);
+            let r = 0.2 * w.min(h) as f32;
+            ((x - cx).powi(2) + (y - cy).powi(2) > r * r) as u8
+        })
+        .collect()
+}

@@ -1,0 +1,234 @@
+//! Each pass on lavapipe against its CPU mirror, with outputs pre-filled with a sentinel and
+//! sizes that straddle the workgroup sizes.
+//!
+//! Tolerances: blurs and resolve 1e-5 absolute + 1e-5 relative (the same sums in another
+//! order); Gabor responses are direct on the GPU and FFT on the CPU, so the confidence is
+//! compared with 1e-3 of its maximum and θ within 0.5°, each on 99.9% of pixels (the issue's
+//! acceptance figures). The rest are pixels where two distant orientations answer almost
+//! equally and rounding picks the other one; the argmax, and the confidence measured around
+//! it, then differ by design.
+
+mod common;
+
+use coif::engine::{BufProxy, Engine, Recording};
+use coif::orient::{orient, OrientParams, SENTINEL};
+use coif::stages::{gabor, orient_resolve, sep_blur};
+use coif::testing::{
+    assert_no_sentinel, compare_angles_mod_pi, compare_f32, compare_f32_fraction,
+    compare_f32_nan_eq, Tolerance, PARITY_SIZES,
+};
+
+fn run_both(build: impl Fn(&mut Recording) -> Vec<BufProxy>) -> (Vec<Vec<f32>>, Vec<Vec<f32>>) {
+    let run = |e: &Engine| {
+        let mut rec = Recording::default();
+        let outs = build(&mut rec);
+        for &o in &outs {
+            rec.download(o);
+        }
+        let dl = e.run(rec).unwrap();
+        outs.iter().map(|&o| dl.get::<f32>(o)).collect::<Vec<_>>()
+    };
+    (run(&common::gpu()), run(&Engine::cpu()))
+}
+
+#[test]
+fn sep_blur_matches_cpu() {
+    for &(w, h) in PARITY_SIZES {
+        for (axis, subtract, sigma) in [(0u32, 0u32, 1.5f32), (1, 1, 10.0), (0, 1, 0.4)] {
+            let img = common::texture(w, h, 3);
+            let other = common::texture(w, h, 4);
+            let (g, c) = run_both(|rec| {
+                let (radius, weights) = sep_blur::gaussian_weights(sigma);
+                let cfg = sep_blur::Config {
+                    width: w,
+                    height: h,
+                    radius,
+                    axis,
+                    subtract,
+                    ..Default::default()
+                };
+                let u = rec.uniform("cfg", &cfg);
+                let wb = rec.upload("w", &weights);
+                let s = rec.upload("src", &img.data);
+                let m = rec.upload("minus", &other.data);
+                let out = rec.alloc("out", w as u64 * h as u64 * 4, SENTINEL);
+                rec.dispatch(
+                    &sep_blur::STAGE,
+                    sep_blur::workgroups(&cfg),
+                    &[u, wb, s, m, out],
+                    &[],
+                );
+                vec![out]
+            });
+            let name = format!("sep_blur {w}x{h} axis {axis} sub {subtract} sigma {sigma}");
+            assert_no_sentinel(&name, &g[0]).unwrap();
+            compare_f32(&name, &g[0], &c[0], Tolerance::new(1e-5, 1e-5)).unwrap();
+        }
+    }
+}
+
+#[test]
+fn gabor_matches_cpu() {
+    let k = OrientParams::default().kernel;
+    for &(w, h) in PARITY_SIZES {
+        let img = common::texture(w, h, 5);
+        let (g, c) = run_both(|rec| {
+            let cfg = gabor::Config {
+                width: w,
+                height: h,
+                half: k.half(),
+                n_orient: k.n_orient,
+                min_response: 1e-5,
+                min_contrast: 1e-3,
+                ..Default::default()
+            };
+            let u = rec.uniform("cfg", &cfg);
+            let wb = rec.upload("w", &k.pair_weights_padded());
+            let s = rec.upload("src", &img.data);
+            let bytes = w as u64 * h as u64 * 4;
+            let outs = [
+                rec.alloc("dx", bytes, SENTINEL),
+                rec.alloc("dy", bytes, SENTINEL),
+                rec.alloc("conf", bytes, SENTINEL),
+            ];
+            rec.dispatch(
+                &gabor::STAGE,
+                gabor::workgroups(&cfg),
+                &[u, wb, s, outs[0], outs[1], outs[2]],
+                &[
+                    ("N_ORIENT", k.n_orient as f64),
+                    ("N_VEC", (k.n_orient / 4) as f64),
+                    ("N_PAIRS", k.n_pairs() as f64),
+                ],
+            );
+            outs.to_vec()
+        });
+        let cmax = c[2].iter().fold(0.0f32, |a, &b| a.max(b)).max(1e-12);
+        for (i, name) in ["dx", "dy", "conf"].iter().enumerate() {
+            let name = format!("gabor {name} {w}x{h}");
+            assert_no_sentinel(&name, &g[i]).unwrap();
+            compare_f32_fraction(&name, &g[i], &c[i], Tolerance::new(1e-3 * cmax, 0.0), 0.999)
+                .unwrap();
+        }
+    }
+}
+
+#[test]
+fn orient_resolve_matches_cpu() {
+    for &(w, h) in PARITY_SIZES {
+        let n = (w * h) as usize;
+        let dx: Vec<f32> = (0..n).map(|i| common::hash01(i as u64, 1) - 0.5).collect();
+        let mut dy: Vec<f32> = (0..n).map(|i| common::hash01(i as u64, 2) - 0.5).collect();
+        dy[0] = 0.0; // the zero vector has its own rule
+        let mut dx0 = dx.clone();
+        dx0[0] = 0.0;
+        let conf: Vec<f32> = (0..n).map(|i| common::hash01(i as u64, 3)).collect();
+        let mask: Vec<u32> = common::mask(w, h).iter().map(|&m| m as u32).collect();
+        let (g, c) = run_both(|rec| {
+            let cfg = orient_resolve::Config {
+                width: w,
+                height: h,
+                ..Default::default()
+            };
+            let u = rec.uniform("cfg", &cfg);
+            let b = [
+                rec.upload("dx", &dx0),
+                rec.upload("dy", &dy),
+                rec.upload("conf", &conf),
+                rec.upload("mask", &mask),
+            ];
+            let t = rec.alloc("theta", n as u64 * 4, SENTINEL);
+            let co = rec.alloc("conf_out", n as u64 * 4, SENTINEL);
+            rec.dispatch(
+                &orient_resolve::STAGE,
+                orient_resolve::workgroups(&cfg),
+                &[u, b[0], b[1], b[2], b[3], t, co],
+                &[],
+            );
+            vec![t, co]
+        });
+        let name = format!("orient_resolve {w}x{h}");
+        assert_no_sentinel(&name, &g[1]).unwrap();
+        // θ is NaN off the mask by design, so the sentinel check goes through the NaN-aware
+        // compare: a sentinel NaN would still differ from the CPU's plain NaN in the count
+        // of written pixels below.
+        compare_f32_nan_eq(&name, &g[0], &c[0], Tolerance::new(1e-5, 1e-5)).unwrap();
+        let written = g[0].iter().filter(|v| v.to_bits() != SENTINEL).count();
+        assert_eq!(written, n, "{name}: theta not written everywhere");
+        compare_f32(&name, &g[1], &c[1], Tolerance::new(0.0, 0.0)).unwrap();
+    }
+}
+
+#[test]
+fn whole_orientation_stage_matches_cpu() {
+    let p = OrientParams::default();
+    let gpu = common::gpu();
+    let cpu = Engine::cpu();
+    for &(w, h) in PARITY_SIZES {
+        let img = common::texture(w, h, 7);
+        let mask = common::mask(w, h);
+        let g = orient(&gpu, &img, Some(&mask), &p).unwrap();
+        let c = orient(&cpu, &img, Some(&mask), &p).unwrap();
+        let name = format!("orientation {w}x{h}");
+        let st =
+            compare_angles_mod_pi(&name, &g.theta, &c.theta, 0.5f32.to_radians(), 0.999).unwrap();
+        let cmax = c
+            .confidence
+            .iter()
+            .fold(0.0f32, |a, &b| a.max(b))
+            .max(1e-12);
+        let st2 = compare_f32_fraction(
+            &format!("confidence {w}x{h}"),
+            &g.confidence,
+            &c.confidence,
+            Tolerance::new(1e-3 * cmax, 0.0),
+            0.999,
+        )
+        .unwrap();
+        println!("{name}: theta {st}; confidence {st2}");
+    }
+}
+
+#[test]
+fn tiled_run_matches_one_piece() {
+    // A binding limit far below the image forces several tiles with halos.
+    let p = OrientParams::default();
+    let (w, h) = (300, 220);
+    let img = common::texture(w, h, 9);
+    let mask = common::mask(w, h);
+    for mut engine in [Engine::cpu(), common::gpu()] {
+        let whole = orient(&engine, &img, Some(&mask), &p).unwrap();
+        let side = 2 * p.halo() as u64 + 64;
+        engine.set_max_binding_bytes(side * side * 4);
+        let tiled = orient(&engine, &img, Some(&mask), &p).unwrap();
+        compare_angles_mod_pi(
+            "tiled theta",
+            &tiled.theta,
+            &whole.theta,
+            0.5f32.to_radians(),
+            0.999,
+        )
+        .unwrap();
+        let cmax = whole.confidence.iter().fold(0.0f32, |a, &b| a.max(b));
+        compare_f32(
+            "tiled confidence",
+            &tiled.confidence,
+            &whole.confidence,
+            Tolerance::new(1e-4 * cmax, 0.0),
+        )
+        .unwrap();
+    }
+}
+
+#[test]
+fn binding_too_small_for_any_tile_is_a_clear_error() {
+    let mut engine = Engine::cpu();
+    engine.set_max_binding_bytes(1000);
+    let img = common::texture(64, 64, 1);
+    let err = orient(&engine, &img, None, &OrientParams::default()).unwrap_err();
+    let msg = err.to_string();
+    assert!(
+        matches!(err, coif::Error::TooLarge { .. }) && msg.contains("1000 bytes"),
+        "{msg}"
+    );
+}

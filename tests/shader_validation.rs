@@ -1,0 +1,205 @@
+//! Every WGSL file parses and validates with naga, every file is a registered stage, and
+//! every uniform struct has the same size and member offsets on both sides. No GPU needed.
+
+use coif::stages;
+use std::path::Path;
+
+fn wgsl_files() -> Vec<std::path::PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("wgsl");
+    let mut v: Vec<_> = std::fs::read_dir(&dir)
+        .expect("wgsl/ exists")
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "wgsl"))
+        .collect();
+    v.sort();
+    v
+}
+
+fn parse(name: &str, src: &str) -> Result<naga::Module, String> {
+    let module = naga::front::wgsl::parse_str(src)
+        .map_err(|e| format!("{name}: parse error:\n{}", e.emit_to_string(src)))?;
+    naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::default(),
+    )
+    .validate(&module)
+    .map_err(|e| format!("{name}: validation error: {:?}", e.into_inner()))?;
+    Ok(module)
+}
+
+#[test]
+fn every_wgsl_file_validates() {
+    let files = wgsl_files();
+    assert!(!files.is_empty(), "no shader found under wgsl/");
+    let failures: Vec<String> = files
+        .iter()
+        .filter_map(|p| {
+            let src = std::fs::read_to_string(p).unwrap();
+            parse(&p.display().to_string(), &src).err()
+        })
+        .collect();
+    assert!(
+        failures.is_empty(),
+        "{} of {} shaders fail:\n{}",
+        failures.len(),
+        files.len(),
+        failures.join("\n")
+    );
+}
+
+#[test]
+fn every_wgsl_file_is_a_registered_stage_and_back() {
+    let names: Vec<String> = wgsl_files()
+        .iter()
+        .map(|p| p.file_stem().unwrap().to_string_lossy().into_owned())
+        .collect();
+    for n in &names {
+        assert!(
+            stages::ALL.iter().any(|s| s.name == n),
+            "wgsl/{n}.wgsl is not registered in stages::ALL"
+        );
+    }
+    for s in stages::ALL {
+        assert!(
+            names.iter().any(|n| n == s.name),
+            "stage {} has no wgsl/{}.wgsl",
+            s.name,
+            s.name
+        );
+        let on_disk = std::fs::read_to_string(
+            Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("wgsl/{}.wgsl", s.name)),
+        )
+        .unwrap();
+        assert_eq!(
+            on_disk, s.wgsl,
+            "stage {} embeds a stale copy of its shader",
+            s.name
+        );
+    }
+}
+
+#[test]
+fn every_stage_declares_the_bindings_its_shader_has() {
+    for s in stages::ALL {
+        let m = parse(s.name, s.wgsl).unwrap();
+        let mut bindings: Vec<(u32, String)> = m
+            .global_variables
+            .iter()
+            .filter_map(|(_, g)| {
+                g.binding
+                    .as_ref()
+                    .map(|b| (b.binding, format!("{:?}", g.space)))
+            })
+            .collect();
+        bindings.sort();
+        assert_eq!(bindings.len(), s.bindings.len(), "stage {}", s.name);
+        for ((i, space), decl) in bindings.iter().zip(s.bindings) {
+            let want = match decl {
+                coif::engine::Bind::Uniform => "Uniform",
+                coif::engine::Bind::Read => "Storage { access: StorageAccess(LOAD) }",
+                coif::engine::Bind::ReadWrite => "Storage { access: StorageAccess(LOAD | STORE) }",
+            };
+            assert_eq!(space, want, "stage {} binding {i}", s.name);
+        }
+        assert!(
+            m.entry_points.iter().any(|e| e.name == "main"),
+            "stage {} has no `main` entry point",
+            s.name
+        );
+    }
+}
+
+/// Writes a value whose k-th field holds the bits k+1 and checks that naga puts member k of
+/// the WGSL struct `Config` at the byte that holds k+1, with the same total size.
+fn check_layout(stage: &str, wgsl: &str, bytes: Vec<u8>, n_fields: usize) {
+    let m = parse(stage, wgsl).unwrap();
+    let (_, ty) = m
+        .types
+        .iter()
+        .find(|(_, t)| t.name.as_deref() == Some("Config"))
+        .unwrap_or_else(|| panic!("{stage}: no struct Config"));
+    let naga::TypeInner::Struct { members, span } = &ty.inner else {
+        panic!("{stage}: Config is not a struct")
+    };
+    assert_eq!(*span as usize, bytes.len(), "{stage}: Config size differs");
+    assert_eq!(
+        members.len(),
+        n_fields,
+        "{stage}: Config member count differs"
+    );
+    for (k, mem) in members.iter().enumerate() {
+        let o = mem.offset as usize;
+        let got = u32::from_le_bytes(bytes[o..o + 4].try_into().unwrap());
+        assert_eq!(
+            got,
+            k as u32 + 1,
+            "{stage}: member {:?} at offset {o} does not hold Rust field {k}",
+            mem.name
+        );
+    }
+}
+
+fn encase_bytes<T: encase::ShaderType + encase::internal::WriteInto>(v: &T) -> Vec<u8> {
+    let mut b = encase::UniformBuffer::new(Vec::<u8>::new());
+    b.write(v).unwrap();
+    b.into_inner()
+}
+
+#[test]
+fn uniform_structs_match_wgsl() {
+    use stages::{gabor, orient_resolve, sep_blur};
+    let f = |k: u32| f32::from_bits(k);
+    check_layout(
+        "sep_blur",
+        sep_blur::STAGE.wgsl,
+        encase_bytes(&sep_blur::Config {
+            width: 1,
+            height: 2,
+            radius: 3,
+            axis: 4,
+            subtract: 5,
+            _pad0: 6,
+            _pad1: 7,
+            _pad2: 8,
+        }),
+        8,
+    );
+    check_layout(
+        "gabor",
+        gabor::STAGE.wgsl,
+        encase_bytes(&gabor::Config {
+            width: 1,
+            height: 2,
+            half: 3,
+            n_orient: 4,
+            min_response: f(5),
+            min_contrast: f(6),
+            _pad1: 7,
+            _pad2: 8,
+        }),
+        8,
+    );
+    check_layout(
+        "orient_resolve",
+        orient_resolve::STAGE.wgsl,
+        encase_bytes(&orient_resolve::Config {
+            width: 1,
+            height: 2,
+            _pad0: 3,
+            _pad1: 4,
+        }),
+        4,
+    );
+}
+
+#[test]
+fn layout_check_fails_on_a_swapped_field() {
+    // The helper above must be able to fail: feed it a struct with two fields swapped.
+    let wgsl = "struct Config { a: u32, b: u32, }\n@group(0) @binding(0) var<uniform> cfg: Config;\n@compute @workgroup_size(1) fn main() { _ = cfg.a; }";
+    let mut bytes = Vec::new();
+    for v in [2u32, 1] {
+        bytes.extend_from_slice(&v.to_le_bytes());
+    }
+    let r = std::panic::catch_unwind(|| check_layout("swapped", wgsl, bytes, 2));
+    assert!(r.is_err(), "a swapped field went unnoticed");
+}
