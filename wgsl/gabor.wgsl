@@ -71,24 +71,44 @@ fn ang_dist(a: f32, b: f32) -> f32 {
     return min(d, PI - d);
 }
 
+// Outputs per invocation along x: each uniform weight load then feeds PX pixels, which
+// halves the dominant cost on lavapipe (more pixels spill the accumulators and lose).
+const PX: u32 = 2u;
+
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if gid.x >= cfg.width || gid.y >= cfg.height {
+    let x0 = gid.x * PX;
+    if x0 >= cfg.width || gid.y >= cfg.height {
         return;
     }
-    let p = vec2<i32>(i32(gid.x), i32(gid.y));
-    var acc4: array<vec4<f32>, 16>;
+    let y = i32(gid.y);
+    let xa = i32(x0);
+    let xb = xa + 1;
+    var acc_a: array<vec4<f32>, 16>;
+    var acc_b: array<vec4<f32>, 16>;
     for (var q = 0u; q < N_VEC; q++) {
-        acc4[q] = vec4<f32>(0.0);
+        acc_a[q] = vec4<f32>(0.0);
+        acc_b[q] = vec4<f32>(0.0);
     }
     for (var j = 0u; j < N_PAIRS; j++) {
         let d = pair_offset(j);
-        let s = load(p.x + d.x, p.y + d.y) + load(p.x - d.x, p.y - d.y);
+        let sa = load(xa + d.x, y + d.y) + load(xa - d.x, y - d.y);
+        let sb = load(xb + d.x, y + d.y) + load(xb - d.x, y - d.y);
         let base = j * N_VEC;
         for (var q = 0u; q < N_VEC; q++) {
-            acc4[q] += weights[base + q] * s;
+            let w = weights[base + q];
+            acc_a[q] += w * sa;
+            acc_b[q] += w * sb;
         }
     }
+    finish(acc_a, gid.y * cfg.width + x0);
+    if x0 + 1u < cfg.width {
+        finish(acc_b, gid.y * cfg.width + x0 + 1u);
+    }
+}
+
+// Argmax, sub-bin refinement and confidence of one pixel; writes its three outputs.
+fn finish(acc4: array<vec4<f32>, 16>, i: u32) {
     var acc: array<f32, MAX_ORIENT>;
     for (var q = 0u; q < N_VEC; q++) {
         acc[4u * q] = acc4[q].x;
@@ -108,7 +128,6 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
         rmin = min(rmin, r);
     }
-    let i = gid.y * cfg.width + gid.x;
     if rmax <= cfg.min_response || rmax - rmin <= cfg.min_contrast * rmax {
         out_dx[i] = 0.0;
         out_dy[i] = 0.0;

@@ -114,9 +114,12 @@ pub fn pair_offset(half: u32, j: u32) -> (i32, i32) {
     ((r % w) as i32 - half as i32, (r / w) as i32 + 1)
 }
 
+/// Pixels one invocation computes along x (`PX` in the shader).
+pub const PX: u32 = 2;
+
 pub fn workgroups(cfg: &Config) -> [u32; 3] {
     [
-        crate::engine::groups(cfg.width, 8),
+        crate::engine::groups(cfg.width.div_ceil(PX), 8),
         crate::engine::groups(cfg.height, 8),
         1,
     ]

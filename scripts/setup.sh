@@ -1,0 +1,38 @@
+#!/usr/bin/env bash
+# Installs what coif's tests need on Debian/Ubuntu: a Vulkan driver (Mesa lavapipe, the
+# software GPU the parity and golden tests run on) when none is present, and numpy (the .npy
+# interoperability test). Safe to run again; does nothing when all is there.
+set -euo pipefail
+
+as_root() {
+  if [ "$(id -u)" = 0 ]; then "$@"; elif command -v sudo >/dev/null; then sudo "$@"; else
+    echo "setup: need root for: $*" >&2; return 1; fi
+}
+
+have_vulkan_icd() {
+  ls /usr/share/vulkan/icd.d/*.json /etc/vulkan/icd.d/*.json >/dev/null 2>&1
+}
+
+apt_updated=0
+apt_install() {
+  if [ "$apt_updated" = 0 ]; then
+    as_root apt-get update -qq
+    apt_updated=1
+  fi
+  as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "$@" >/dev/null
+}
+
+if ! command -v cargo >/dev/null; then
+  echo "setup: cargo not found; install Rust (https://rustup.rs) and run again" >&2
+  exit 1
+fi
+
+if ! have_vulkan_icd || ! ldconfig -p | grep -q 'libvulkan\.so\.1'; then
+  echo "setup: installing Mesa's software Vulkan driver (lavapipe)"
+  apt_install mesa-vulkan-drivers libvulkan1
+fi
+
+if ! python3 -c 'import numpy' >/dev/null 2>&1; then
+  echo "setup: installing numpy"
+  python3 -m pip install -q numpy 2>/dev/null || apt_install python3-numpy
+fi

@@ -1,0 +1,50 @@
+//! Orientation accuracy against the exact ground truth of `coif synth`: every style, seeds
+//! 1-3, both backends. Acceptance: mean error <= 2° over hair pixels >= 5 px inside the mask.
+
+mod common;
+
+use coif::engine::Engine;
+use coif::metrics::orientation_error;
+use coif::orient::{orient, GrayImage, OrientParams};
+use coif::synth::{synth, Style, SynthParams};
+
+#[test]
+fn orientation_error_on_synthetic_portraits() {
+    let engines = [("cpu", Engine::cpu()), ("gpu", common::gpu())];
+    let p = OrientParams::default();
+    let mut worst = 0.0f64;
+    let mut report = Vec::new();
+    for style in Style::ALL {
+        for seed in 1..=3 {
+            let case = synth(&SynthParams {
+                style,
+                seed,
+                width: 512,
+                height: 512,
+            });
+            let gray = GrayImage::from_rgb(&case.image);
+            let mask: Vec<u8> = case.mask.pixels().map(|m| (m[0] > 127) as u8).collect();
+            for (name, e) in &engines {
+                let map = orient(e, &gray, Some(&mask), &p).unwrap();
+                let err = orientation_error(&map, &case.gt_theta, &case.mask, 5);
+                let line = format!(
+                    "{style:<9} seed {seed} {name}: mean {:.3} deg, {:.1}% within 5 deg, {} px",
+                    err.mean_deg,
+                    100.0 * err.within_5deg,
+                    err.count
+                );
+                println!("{line}");
+                assert!(err.count > 1000, "{line}: too few scored pixels");
+                worst = worst.max(err.mean_deg);
+                report.push((line, err.mean_deg));
+            }
+        }
+    }
+    println!("worst mean orientation error: {worst:.3} deg (limit 2)");
+    let bad: Vec<_> = report
+        .iter()
+        .filter(|(_, e)| *e > 2.0)
+        .map(|(l, _)| l.clone())
+        .collect();
+    assert!(bad.is_empty(), "over 2 degrees:\n{}", bad.join("\n"));
+}

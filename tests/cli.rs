@@ -1,0 +1,384 @@
+//! The command line on good and bad input: clear messages naming the file or limit, the
+//! documented exit codes, and no half-written output.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn coif(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_coif"))
+        .args(args)
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .output()
+        .expect("coif runs")
+}
+
+fn coif_env(args: &[&str], key: &str, val: &str) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_coif"))
+        .args(args)
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .env(key, val)
+        .output()
+        .expect("coif runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Asserts a failure with `code` whose message contains every needle.
+fn fails(o: &Output, code: i32, needles: &[&str]) {
+    let e = stderr(o);
+    assert_eq!(o.status.code(), Some(code), "exit code; stderr:\n{e}");
+    for n in needles {
+        assert!(e.contains(n), "stderr lacks {n:?}:\n{e}");
+    }
+}
+
+fn write_png(path: &Path, w: u32, h: u32, f: impl Fn(u32, u32) -> [u8; 3]) {
+    image::RgbImage::from_fn(w, h, |x, y| image::Rgb(f(x, y)))
+        .save(path)
+        .unwrap();
+}
+
+fn stripes(x: u32, y: u32) -> [u8; 3] {
+    let v = if (x + y) % 4 < 2 { 200 } else { 60 };
+    [v, v, v]
+}
+
+struct Case {
+    dir: tempfile::TempDir,
+}
+
+impl Case {
+    fn new() -> Self {
+        let c = Case {
+            dir: tempfile::tempdir().unwrap(),
+        };
+        write_png(&c.p("img.png"), 64, 48, stripes);
+        write_png(&c.p("mask.png"), 64, 48, |x, _| {
+            if x > 10 {
+                [255; 3]
+            } else {
+                [0; 3]
+            }
+        });
+        c
+    }
+    fn p(&self, name: &str) -> PathBuf {
+        self.dir.path().join(name)
+    }
+    fn s(&self, name: &str) -> String {
+        self.p(name).display().to_string()
+    }
+}
+
+#[test]
+fn orient_writes_every_output_and_no_temporary_file() {
+    let c = Case::new();
+    let o = coif(&[
+        "orient",
+        "--image",
+        &c.s("img.png"),
+        "--mask",
+        &c.s("mask.png"),
+        "--out",
+        &c.s("out"),
+        "--backend",
+        "cpu",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for f in [
+        "orientation.npy",
+        "confidence.npy",
+        "orientation.png",
+        "confidence.png",
+        "orient.json",
+    ] {
+        assert!(c.p("out").join(f).is_file(), "{f} missing");
+    }
+    let (shape, theta) = coif::npy::read_f32(&c.p("out/orientation.npy")).unwrap();
+    assert_eq!(shape, vec![48, 64]);
+    // Off the mask NaN, on it [0, π).
+    assert!(theta[0].is_nan());
+    let on = theta[20 * 64 + 40];
+    assert!((0.0..std::f32::consts::PI).contains(&on), "{on}");
+    let leftovers: Vec<_> = std::fs::read_dir(c.p("out"))
+        .unwrap()
+        .filter_map(|e| {
+            let n = e.unwrap().file_name().to_string_lossy().into_owned();
+            n.ends_with(".tmp").then_some(n)
+        })
+        .collect();
+    assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
+}
+
+#[test]
+fn missing_image_names_the_file() {
+    let c = Case::new();
+    let o = coif(&[
+        "orient",
+        "--image",
+        &c.s("nope.png"),
+        "--out",
+        &c.s("out"),
+        "--backend",
+        "cpu",
+    ]);
+    fails(&o, 74, &["nope.png"]);
+    assert!(
+        !c.p("out").exists(),
+        "a failed run created its output folder"
+    );
+}
+
+#[test]
+fn a_file_that_is_not_an_image_is_rejected() {
+    let c = Case::new();
+    std::fs::write(c.p("bad.png"), b"this is not a png").unwrap();
+    let o = coif(&[
+        "orient",
+        "--image",
+        &c.s("bad.png"),
+        "--out",
+        &c.s("out"),
+        "--backend",
+        "cpu",
+    ]);
+    fails(&o, 65, &["bad.png"]);
+}
+
+#[test]
+fn truncated_png_is_rejected() {
+    let c = Case::new();
+    let bytes = std::fs::read(c.p("img.png")).unwrap();
+    std::fs::write(c.p("cut.png"), &bytes[..bytes.len() / 2]).unwrap();
+    let o = coif(&[
+        "orient",
+        "--image",
+        &c.s("cut.png"),
+        "--out",
+        &c.s("out"),
+        "--backend",
+        "cpu",
+    ]);
+    fails(&o, 65, &["cut.png", "decode"]);
+}
+
+#[test]
+fn mask_of_another_size_names_both_sizes() {
+    let c = Case::new();
+    write_png(&c.p("small.png"), 32, 32, |_, _| [255; 3]);
+    let o = coif(&[
+        "orient",
+        "--image",
+        &c.s("img.png"),
+        "--mask",
+        &c.s("small.png"),
+        "--out",
+        &c.s("out"),
+        "--backend",
+        "cpu",
+    ]);
+    fails(&o, 65, &["small.png", "32x32", "64x48"]);
+}
+
+#[test]
+fn empty_mask_is_rejected() {
+    let c = Case::new();
+    write_png(&c.p("empty.png"), 64, 48, |_, _| [0; 3]);
+    let o = coif(&[
+        "orient",
+        "--image",
+        &c.s("img.png"),
+        "--mask",
+        &c.s("empty.png"),
+        "--out",
+        &c.s("out"),
+        "--backend",
+        "cpu",
+    ]);
+    fails(&o, 65, &["empty.png", "empty"]);
+}
+
+#[test]
+fn one_pixel_image_is_rejected() {
+    let c = Case::new();
+    write_png(&c.p("dot.png"), 1, 1, |_, _| [9; 3]);
+    let o = coif(&[
+        "orient",
+        "--image",
+        &c.s("dot.png"),
+        "--out",
+        &c.s("out"),
+        "--backend",
+        "cpu",
+    ]);
+    fails(&o, 65, &["dot.png", "1x1", "17x17"]);
+}
+
+#[test]
+fn image_over_the_binding_limit_names_the_limit() {
+    let c = Case::new();
+    let o = coif(&[
+        "orient",
+        "--image",
+        &c.s("img.png"),
+        "--out",
+        &c.s("out"),
+        "--backend",
+        "cpu",
+        "--max-binding-bytes",
+        "1000",
+    ]);
+    fails(&o, 65, &["1000 bytes", "largest buffer binding"]);
+}
+
+#[test]
+fn large_image_is_tiled_under_a_small_binding_limit() {
+    let c = Case::new();
+    write_png(&c.p("wide.png"), 400, 300, stripes);
+    let o = coif(&[
+        "orient",
+        "--image",
+        &c.s("wide.png"),
+        "--out",
+        &c.s("out"),
+        "--backend",
+        "cpu",
+        "--max-binding-bytes",
+        "200000",
+        "-v",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("tiles"), "{}", stderr(&o));
+}
+
+#[test]
+fn gpu_backend_without_adapter_exits_69() {
+    let c = Case::new();
+    let o = coif_env(
+        &[
+            "orient",
+            "--image",
+            &c.s("img.png"),
+            "--out",
+            &c.s("out"),
+            "--backend",
+            "gpu",
+        ],
+        "WGPU_ADAPTER_NAME",
+        "no-such-adapter-anywhere",
+    );
+    fails(&o, 69, &["no GPU adapter", "no-such-adapter-anywhere"]);
+}
+
+#[test]
+fn bad_parameter_is_a_usage_error() {
+    let c = Case::new();
+    let o = coif(&[
+        "orient",
+        "--image",
+        &c.s("img.png"),
+        "--out",
+        &c.s("out"),
+        "--backend",
+        "cpu",
+        "--orientations",
+        "30",
+    ]);
+    fails(&o, 64, &["--orientations 30"]);
+}
+
+#[test]
+fn failed_run_keeps_earlier_outputs_intact() {
+    let c = Case::new();
+    let ok = coif(&[
+        "orient",
+        "--image",
+        &c.s("img.png"),
+        "--out",
+        &c.s("out"),
+        "--backend",
+        "cpu",
+    ]);
+    assert!(ok.status.success(), "{}", stderr(&ok));
+    let before = std::fs::read(c.p("out/orientation.npy")).unwrap();
+    write_png(&c.p("small.png"), 32, 32, |_, _| [255; 3]);
+    let bad = coif(&[
+        "orient",
+        "--image",
+        &c.s("img.png"),
+        "--mask",
+        &c.s("small.png"),
+        "--out",
+        &c.s("out"),
+        "--backend",
+        "cpu",
+    ]);
+    assert_eq!(bad.status.code(), Some(65));
+    assert_eq!(std::fs::read(c.p("out/orientation.npy")).unwrap(), before);
+}
+
+#[test]
+fn output_under_a_file_names_the_path() {
+    let c = Case::new();
+    std::fs::write(c.p("afile"), b"x").unwrap();
+    let o = coif(&[
+        "orient",
+        "--image",
+        &c.s("img.png"),
+        "--out",
+        &c.s("afile/sub"),
+        "--backend",
+        "cpu",
+    ]);
+    fails(&o, 74, &["afile"]);
+}
+
+#[test]
+fn synth_writes_a_case() {
+    let c = Case::new();
+    let o = coif(&[
+        "synth",
+        "--out",
+        &c.s("case"),
+        "--style",
+        "sidepart",
+        "--seed",
+        "2",
+        "--size",
+        "128",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for f in [
+        "image.png",
+        "mask.png",
+        "strokes.json",
+        "landmarks.json",
+        "gt_theta.npy",
+        "gt_dir.npy",
+    ] {
+        assert!(c.p("case").join(f).is_file(), "{f} missing");
+    }
+    let (shape, _) = coif::npy::read_f32(&c.p("case/gt_dir.npy")).unwrap();
+    assert_eq!(shape, vec![128, 128, 2]);
+    let bad = coif(&["synth", "--out", &c.s("case2"), "--style", "mohawk"]);
+    assert_ne!(bad.status.code(), Some(0));
+    assert!(stderr(&bad).contains("mohawk"), "{}", stderr(&bad));
+}
+
+#[test]
+fn demo_runs_on_the_cpu_backend() {
+    let c = Case::new();
+    let o = coif(&["demo", "--out", &c.s("demo"), "--backend", "cpu"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("mean error"), "{out}");
+    for f in [
+        "orient-synth-long/orientation.npy",
+        "orient-astronaut/orientation.png",
+        "synth-long/image.png",
+    ] {
+        assert!(c.p("demo").join(f).is_file(), "{f} missing");
+    }
+}
