@@ -41,12 +41,13 @@ fn bank_once(engine: &Engine, img: &GrayImage, p: &OrientParams) {
     let u = rec.uniform("cfg", &cfg);
     let wb = rec.upload("w", &k.pair_weights_padded());
     let s = rec.upload("src", &img.data);
+    let m = rec.upload("mask", &vec![1u32; (w * h) as usize]);
     let bytes = w as u64 * h as u64 * 4;
     let o: Vec<_> = (0..3).map(|_| rec.alloc("out", bytes, SENTINEL)).collect();
     rec.dispatch(
         &gabor::STAGE,
         gabor::workgroups(&cfg),
-        &[u, wb, s, o[0], o[1], o[2]],
+        &[u, wb, s, m, s, s, o[0], o[1], o[2]],
         &[
             ("N_ORIENT", k.n_orient as f64),
             ("N_VEC", (k.n_orient / 4) as f64),

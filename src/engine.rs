@@ -382,7 +382,7 @@ impl Engine {
                     let mut usage = wgpu::BufferUsages::STORAGE
                         | wgpu::BufferUsages::COPY_SRC
                         | wgpu::BufferUsages::COPY_DST;
-                    if buf.size <= g.limits.max_uniform_buffer_binding_size as u64 {
+                    if buf.size <= g.limits.max_uniform_buffer_binding_size {
                         usage |= wgpu::BufferUsages::UNIFORM;
                     }
                     let b = g.device.create_buffer(&wgpu::BufferDescriptor {

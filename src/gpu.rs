@@ -139,7 +139,9 @@ impl GpuContext {
 
     /// Largest buffer one binding may hold.
     pub fn max_binding_bytes(&self) -> u64 {
-        (self.limits.max_storage_buffer_binding_size as u64).min(self.limits.max_buffer_size)
+        self.limits
+            .max_storage_buffer_binding_size
+            .min(self.limits.max_buffer_size)
     }
 
     /// Turns errors the device raised outside a scope into an `Error`.

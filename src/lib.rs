@@ -2,6 +2,7 @@
 //! generative sketch model. Every heavy stage is a WGSL pass with a CPU mirror; see
 //! [`engine`] for how one recording runs on either.
 
+pub mod annot;
 pub mod assets;
 pub mod engine;
 pub mod error;
@@ -9,8 +10,11 @@ pub mod gpu;
 pub mod imgio;
 pub mod io;
 pub mod metrics;
+pub mod npy;
 pub mod orient;
+pub mod rng;
 pub mod stages;
+pub mod synth;
 pub mod testing;
 pub mod vis;
 

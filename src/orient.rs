@@ -45,7 +45,7 @@ impl Default for OrientParams {
                 n_orient: 32,
             },
             refine_iters: 3,
-            smooth_sigma: 1.5,
+            smooth_sigma: 3.0,
             min_response: 1e-5,
             min_contrast: 1e-3,
         }
@@ -56,14 +56,14 @@ impl OrientParams {
     pub fn validate(&self) -> Result<()> {
         let k = &self.kernel;
         let bad = |m: String| Err(Error::Invalid(m));
-        if k.n_orient < 4 || k.n_orient > gabor::MAX_ORIENT || k.n_orient % 4 != 0 {
+        if k.n_orient < 4 || k.n_orient > gabor::MAX_ORIENT || !k.n_orient.is_multiple_of(4) {
             return bad(format!(
                 "--orientations {} must be a multiple of 4 in 4..={}",
                 k.n_orient,
                 gabor::MAX_ORIENT
             ));
         }
-        if k.ksize < 3 || k.ksize % 2 == 0 || k.ksize > 63 {
+        if k.ksize < 3 || k.ksize.is_multiple_of(2) || k.ksize > 63 {
             return bad(format!("--ksize {} must be odd and in 3..=63", k.ksize));
         }
         if (k.n_pairs() * k.n_orient) as usize > gabor::WEIGHT_CAPACITY {
@@ -209,7 +209,7 @@ fn record_tile(
 ) -> (BufProxy, BufProxy) {
     let bytes = w as u64 * h as u64 * 4;
     let src = rec.upload("coif.orient.gray", gray);
-    let mut cur = if p.dog_sigma_coarse > 0.0 {
+    let cur = if p.dog_sigma_coarse > 0.0 {
         let coarse = blur(rec, src, None, p.dog_sigma_coarse, w, h);
         blur(rec, src, Some(coarse), p.dog_sigma_fine, w, h)
     } else {
@@ -227,29 +227,49 @@ fn record_tile(
         ..Default::default()
     };
     let ubuf = rec.uniform("coif.gabor.cfg", &cfg);
+    let last_cfg = rec.uniform(
+        "coif.gabor.cfg.final",
+        &gabor::Config {
+            final_pass: 1,
+            ..cfg
+        },
+    );
+    let mbuf = rec.upload("coif.orient.mask", mask);
     let constants = [
         ("N_ORIENT", k.n_orient as f64),
         ("N_VEC", (k.n_orient / 4) as f64),
         ("N_PAIRS", k.n_pairs() as f64),
     ];
-    let (mut dx, mut dy, mut conf) = (cur, cur, cur);
-    for _ in 0..=p.refine_iters {
-        dx = rec.alloc("coif.gabor.dx", bytes, SENTINEL);
-        dy = rec.alloc("coif.gabor.dy", bytes, SENTINEL);
-        conf = rec.alloc("coif.gabor.conf", bytes, SENTINEL);
+    let pass = |rec: &mut Recording, u, src, first: Option<(BufProxy, BufProxy)>| {
+        let outs = [
+            rec.alloc("coif.gabor.dx", bytes, SENTINEL),
+            rec.alloc("coif.gabor.dy", bytes, SENTINEL),
+            rec.alloc("coif.gabor.conf", bytes, SENTINEL),
+        ];
+        // Unread bindings still need a buffer; the source is as good as any.
+        let (fx, fy) = first.unwrap_or((src, src));
         rec.dispatch(
             &gabor::STAGE,
             gabor::workgroups(&cfg),
-            &[ubuf, weights, cur, dx, dy, conf],
+            &[u, weights, src, mbuf, fx, fy, outs[0], outs[1], outs[2]],
             &constants,
         );
-        cur = conf;
+        outs
+    };
+    // Pass 0 filters the image; refinement passes filter the previous confidence map, and
+    // the last one weights pass 0's orientation by the refined confidence (C13 §2.1: the
+    // orientation and confidence maps refined reciprocally).
+    let [dx0, dy0, mut conf] = pass(rec, ubuf, cur, None);
+    for _ in 1..p.refine_iters {
+        conf = pass(rec, ubuf, conf, None)[2];
     }
+    // With no refinement the final pass re-filters the image, so the weight is w0².
+    let last_src = if p.refine_iters == 0 { cur } else { conf };
+    let [mut dx, mut dy, conf] = pass(rec, last_cfg, last_src, Some((dx0, dy0)));
     if p.smooth_sigma > 0.0 {
         dx = blur(rec, dx, None, p.smooth_sigma, w, h);
         dy = blur(rec, dy, None, p.smooth_sigma, w, h);
     }
-    let mbuf = rec.upload("coif.orient.mask", mask);
     let rcfg = orient_resolve::Config {
         width: w,
         height: h,

@@ -35,12 +35,21 @@ fn orientation_and_confidence_goldens() {
 #[test]
 fn a_changed_picture_fails_its_golden() {
     let (mut o, _) = pictures();
+    let tmp = tempfile::tempdir().unwrap();
+    // The unchanged picture passes (so the failure below is the change, not a missing file).
+    check_golden_in(
+        &golden_dir(),
+        tmp.path(),
+        "orient_synth_long_256",
+        &rgb_to_rgba(&o),
+        false,
+    )
+    .unwrap();
     for y in 100..140 {
         for x in 100..140 {
             o.put_pixel(x, y, image::Rgb([255, 255, 255]));
         }
     }
-    let tmp = tempfile::tempdir().unwrap();
     let r = check_golden_in(
         &golden_dir(),
         tmp.path(),

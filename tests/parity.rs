@@ -70,8 +70,9 @@ fn sep_blur_matches_cpu() {
 #[test]
 fn gabor_matches_cpu() {
     let k = OrientParams::default().kernel;
-    for &(w, h) in PARITY_SIZES {
+    for (&(w, h), final_pass) in PARITY_SIZES.iter().zip([0u32, 1, 0, 1]) {
         let img = common::texture(w, h, 5);
+        let mask: Vec<u32> = common::mask(w, h).iter().map(|&m| m as u32).collect();
         let (g, c) = run_both(|rec| {
             let cfg = gabor::Config {
                 width: w,
@@ -80,11 +81,15 @@ fn gabor_matches_cpu() {
                 n_orient: k.n_orient,
                 min_response: 1e-5,
                 min_contrast: 1e-3,
+                final_pass,
                 ..Default::default()
             };
             let u = rec.uniform("cfg", &cfg);
             let wb = rec.upload("w", &k.pair_weights_padded());
             let s = rec.upload("src", &img.data);
+            let m = rec.upload("mask", &mask);
+            let fx = rec.upload("first_dx", &common::texture(w, h, 11).data);
+            let fy = rec.upload("first_dy", &common::texture(w, h, 12).data);
             let bytes = w as u64 * h as u64 * 4;
             let outs = [
                 rec.alloc("dx", bytes, SENTINEL),
@@ -94,7 +99,7 @@ fn gabor_matches_cpu() {
             rec.dispatch(
                 &gabor::STAGE,
                 gabor::workgroups(&cfg),
-                &[u, wb, s, outs[0], outs[1], outs[2]],
+                &[u, wb, s, m, fx, fy, outs[0], outs[1], outs[2]],
                 &[
                     ("N_ORIENT", k.n_orient as f64),
                     ("N_VEC", (k.n_orient / 4) as f64),
@@ -105,7 +110,7 @@ fn gabor_matches_cpu() {
         });
         let cmax = c[2].iter().fold(0.0f32, |a, &b| a.max(b)).max(1e-12);
         for (i, name) in ["dx", "dy", "conf"].iter().enumerate() {
-            let name = format!("gabor {name} {w}x{h}");
+            let name = format!("gabor {name} {w}x{h} final_pass {final_pass}");
             assert_no_sentinel(&name, &g[i]).unwrap();
             compare_f32_fraction(&name, &g[i], &c[i], Tolerance::new(1e-3 * cmax, 0.0), 0.999)
                 .unwrap();

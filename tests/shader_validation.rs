@@ -174,7 +174,7 @@ fn uniform_structs_match_wgsl() {
             n_orient: 4,
             min_response: f(5),
             min_contrast: f(6),
-            _pad1: 7,
+            final_pass: 7,
             _pad2: 8,
         }),
         8,

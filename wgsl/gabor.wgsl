@@ -31,7 +31,12 @@ struct Config {
     // A pixel whose responses spread by at most this share of the strongest is isotropic
     // (flat or DC only): no orientation, confidence 0.
     min_contrast: f32,
-    _pad1: u32,
+    // 1 on the last refinement pass: instead of its own orientation, write the first pass's
+    // double-angle vector (orientation from the image, weighted by the image confidence)
+    // times this pass's refined confidence, zeroed off the hair mask. The refined confidence
+    // is what marks reliable strand pixels; the mask keeps the face and background edges out
+    // of the smoothing that follows.
+    final_pass: u32,
     _pad2: u32,
 }
 
@@ -41,9 +46,14 @@ struct Config {
 // uniform address once per SIMD batch instead of once per lane (6x faster than storage).
 @group(0) @binding(1) var<uniform> weights: array<vec4<f32>, 4096>;
 @group(0) @binding(2) var<storage, read> src: array<f32>;
-@group(0) @binding(3) var<storage, read_write> out_dx: array<f32>;
-@group(0) @binding(4) var<storage, read_write> out_dy: array<f32>;
-@group(0) @binding(5) var<storage, read_write> out_conf: array<f32>;
+// Read only when cfg.final_pass == 1: the hair mask (one word per pixel, nonzero on hair)
+// and the first pass's double-angle output.
+@group(0) @binding(3) var<storage, read> mask: array<u32>;
+@group(0) @binding(4) var<storage, read> first_dx: array<f32>;
+@group(0) @binding(5) var<storage, read> first_dy: array<f32>;
+@group(0) @binding(6) var<storage, read_write> out_dx: array<f32>;
+@group(0) @binding(7) var<storage, read_write> out_dy: array<f32>;
+@group(0) @binding(8) var<storage, read_write> out_conf: array<f32>;
 
 fn load(x: i32, y: i32) -> f32 {
     let cx = u32(clamp(x, 0, i32(cfg.width) - 1));
@@ -128,33 +138,42 @@ fn finish(acc4: array<vec4<f32>, 16>, i: u32) {
         }
         rmin = min(rmin, r);
     }
-    if rmax <= cfg.min_response || rmax - rmin <= cfg.min_contrast * rmax {
-        out_dx[i] = 0.0;
-        out_dy[i] = 0.0;
-        out_conf[i] = 0.0;
-        return;
+    var dx = 0.0;
+    var dy = 0.0;
+    var conf = 0.0;
+    if rmax > cfg.min_response && rmax - rmin > cfg.min_contrast * rmax {
+        let n = N_ORIENT;
+        let a = max(acc[(best + n - 1u) % n], 0.0);
+        let c = max(acc[(best + 1u) % n], 0.0);
+        let denom = a - 2.0 * rmax + c;
+        var delta = 0.0;
+        if denom < 0.0 {
+            delta = clamp(0.5 * (a - c) / denom, -0.5, 0.5);
+        }
+        let step = PI / f32(n);
+        var theta = (f32(best) + delta) * step;
+        theta = theta - PI * floor(theta / PI);
+        var num = 0.0;
+        var den = 0.0;
+        for (var o = 0u; o < N_ORIENT; o++) {
+            let d = ang_dist(f32(o) * step, theta);
+            let diff = max(acc[o], 0.0) - rmax;
+            num = num + d * d * diff * diff;
+            den = den + d * d;
+        }
+        conf = sqrt(num / max(den, 1e-12));
+        dx = conf * cos(2.0 * theta);
+        dy = conf * sin(2.0 * theta);
     }
-    let n = N_ORIENT;
-    let a = max(acc[(best + n - 1u) % n], 0.0);
-    let c = max(acc[(best + 1u) % n], 0.0);
-    let denom = a - 2.0 * rmax + c;
-    var delta = 0.0;
-    if denom < 0.0 {
-        delta = clamp(0.5 * (a - c) / denom, -0.5, 0.5);
+    if cfg.final_pass == 1u {
+        var keep = 0.0;
+        if mask[i] != 0u {
+            keep = conf;
+        }
+        dx = keep * first_dx[i];
+        dy = keep * first_dy[i];
     }
-    let step = PI / f32(n);
-    var theta = (f32(best) + delta) * step;
-    theta = theta - PI * floor(theta / PI);
-    var num = 0.0;
-    var den = 0.0;
-    for (var o = 0u; o < N_ORIENT; o++) {
-        let d = ang_dist(f32(o) * step, theta);
-        let diff = max(acc[o], 0.0) - rmax;
-        num = num + d * d * diff * diff;
-        den = den + d * d;
-    }
-    let conf = sqrt(num / max(den, 1e-12));
-    out_dx[i] = conf * cos(2.0 * theta);
-    out_dy[i] = conf * sin(2.0 * theta);
+    out_dx[i] = dx;
+    out_dy[i] = dy;
     out_conf[i] = conf;
 }

@@ -19,6 +19,9 @@ pub const STAGE: StageDef = StageDef {
         Bind::Uniform,
         Bind::Uniform,
         Bind::Read,
+        Bind::Read,
+        Bind::Read,
+        Bind::Read,
         Bind::ReadWrite,
         Bind::ReadWrite,
         Bind::ReadWrite,
@@ -39,7 +42,7 @@ pub struct Config {
     pub n_orient: u32,
     pub min_response: f32,
     pub min_contrast: f32,
-    pub _pad1: u32,
+    pub final_pass: u32,
     pub _pad2: u32,
 }
 
@@ -175,7 +178,7 @@ pub fn fft_size(n: usize) -> usize {
     loop {
         let mut k = m;
         for p in [2, 3, 5] {
-            while k % p == 0 {
+            while k.is_multiple_of(p) {
                 k /= p;
             }
         }
@@ -315,9 +318,11 @@ fn gabor_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
             v
         })
         .collect();
-    let mut dxo = b[3].get_mut::<f32>();
-    let mut dyo = b[4].get_mut::<f32>();
-    let mut co = b[5].get_mut::<f32>();
+    let (mask, first_dx, first_dy) = (b[3].get::<u32>(), b[4].get::<f32>(), b[5].get::<f32>());
+    let (mask, first_dx, first_dy): (&[u32], &[f32], &[f32]) = (&mask, &first_dx, &first_dy);
+    let mut dxo = b[6].get_mut::<f32>();
+    let mut dyo = b[7].get_mut::<f32>();
+    let mut co = b[8].get_mut::<f32>();
     dxo[..w * h]
         .par_iter_mut()
         .zip(dyo[..w * h].par_iter_mut())
@@ -330,8 +335,14 @@ fn gabor_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
                     *a = responses[o][i];
                 }
                 let (x, y, z) = orient_from_responses(acc, cfg.min_response, cfg.min_contrast);
-                *dx = x;
-                *dy = y;
+                if cfg.final_pass == 1 {
+                    let keep = if mask[i] != 0 { z } else { 0.0 };
+                    *dx = keep * first_dx[i];
+                    *dy = keep * first_dy[i];
+                } else {
+                    *dx = x;
+                    *dy = y;
+                }
                 *c = z;
             },
         );
