@@ -10,7 +10,7 @@ use rayon::prelude::*;
 use rustfft::num_complex::Complex32;
 use rustfft::{Fft, FftPlanner};
 use std::f32::consts::PI;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 pub const STAGE: StageDef = StageDef {
     name: "gabor",
@@ -245,6 +245,55 @@ impl Fft2 {
     }
 }
 
+type SpectraKey = (usize, usize, u32, usize, u64);
+type Spectra = Arc<Vec<Vec<Complex32>>>;
+
+/// The last bank's kernel spectra: the refinement passes filter with the same kernels at
+/// the same size, so keeping one set halves the FFTs per pass.
+static SPECTRA: Mutex<Option<(SpectraKey, Spectra)>> = Mutex::new(None);
+
+/// Spectra of the kernels packed two per complex transform: Ka + i Kb.
+fn kernel_spectra(f: &Fft2, weights: &[f32], half: u32, no: usize) -> Spectra {
+    let k = 2 * half as usize + 1;
+    let np = (k * k).div_ceil(2);
+    let used = &weights[..np * no];
+    let hash = used.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, w| {
+        (h ^ w.to_bits() as u64).wrapping_mul(0x0100_0000_01b3)
+    });
+    let key = (f.nx, f.ny, half, no, hash);
+    if let Some((k0, s)) = SPECTRA.lock().unwrap().as_ref() {
+        if *k0 == key {
+            return s.clone();
+        }
+    }
+    let (nx, ny) = (f.nx, f.ny);
+    let spectra: Vec<Vec<Complex32>> = (0..no.div_ceil(2))
+        .map(|pair| {
+            let (oa, ob) = (2 * pair, 2 * pair + 1);
+            let mut ker = vec![Complex32::new(0.0, 0.0); nx * ny];
+            for j in 0..np {
+                let (dx, dy) = pair_offset(half, j as u32);
+                let scale = if j == 0 { 2.0 } else { 1.0 };
+                let wa = scale * used[j * no + oa];
+                let wb = if ob < no {
+                    scale * used[j * no + ob]
+                } else {
+                    0.0
+                };
+                for (sx, sy) in [(dx, dy), (-dx, -dy)] {
+                    let x = sx.rem_euclid(nx as i32) as usize;
+                    let y = sy.rem_euclid(ny as i32) as usize;
+                    ker[y * nx + x] = Complex32::new(wa, wb);
+                }
+            }
+            f.forward(ker)
+        })
+        .collect();
+    let spectra = Arc::new(spectra);
+    *SPECTRA.lock().unwrap() = Some((key, spectra.clone()));
+    spectra
+}
+
 fn gabor_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
     let cfg: Config = b[0].uniform();
     let (weights, src) = (b[1].get::<f32>(), b[2].get::<f32>());
@@ -253,8 +302,6 @@ fn gabor_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
     let (w, h) = (cfg.width as usize, cfg.height as usize);
     let half = cfg.half as usize;
     let no = cfg.n_orient as usize;
-    let k = 2 * half + 1;
-    let np = (k * k).div_ceil(2);
     // Clamp-to-edge padding by `half` makes circular convolution equal the shader's direct
     // filter on the valid region; the FFT size only needs to avoid wrap-around into it.
     let (pw, ph) = (w + 2 * half, h + 2 * half);
@@ -274,26 +321,11 @@ fn gabor_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
         });
     let spec = f.forward(padded);
     // Two real kernels per complex transform: conv(P, Ka + i Kb) = conv(P, Ka) + i conv(P, Kb).
+    let kspecs = kernel_spectra(&f, weights, cfg.half, no);
     let responses: Vec<Vec<f32>> = (0..no.div_ceil(2))
         .flat_map(|pair| {
-            let (oa, ob) = (2 * pair, 2 * pair + 1);
-            let mut ker = vec![Complex32::new(0.0, 0.0); nx * ny];
-            for j in 0..np {
-                let (dx, dy) = pair_offset(cfg.half, j as u32);
-                let scale = if j == 0 { 2.0 } else { 1.0 };
-                let wa = scale * weights[j * no + oa];
-                let wb = if ob < no {
-                    scale * weights[j * no + ob]
-                } else {
-                    0.0
-                };
-                for (sx, sy) in [(dx, dy), (-dx, -dy)] {
-                    let x = sx.rem_euclid(nx as i32) as usize;
-                    let y = sy.rem_euclid(ny as i32) as usize;
-                    ker[y * nx + x] = Complex32::new(wa, wb);
-                }
-            }
-            let kspec = f.forward(ker);
+            let ob = 2 * pair + 1;
+            let kspec = &kspecs[pair];
             let prod: Vec<Complex32> = spec
                 .par_iter()
                 .zip(kspec.par_iter())
