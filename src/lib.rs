@@ -4,6 +4,7 @@
 
 pub mod annot;
 pub mod assets;
+pub mod direction;
 pub mod engine;
 pub mod error;
 pub mod gpu;

@@ -59,31 +59,31 @@ struct BackendArgs {
 #[derive(Args, Clone)]
 struct OrientOpts {
     /// Gabor orientations (multiple of 4, up to 64).
-    #[arg(long, default_value_t = 32)]
+    #[arg(long, default_value_t = OrientParams::default().kernel.n_orient)]
     orientations: u32,
     /// Gabor sigma across the strand (px).
-    #[arg(long, default_value_t = 1.8)]
+    #[arg(long, default_value_t = OrientParams::default().kernel.sigma_x)]
     sigma_x: f32,
     /// Gabor sigma along the strand (px).
-    #[arg(long, default_value_t = 2.4)]
+    #[arg(long, default_value_t = OrientParams::default().kernel.sigma_y)]
     sigma_y: f32,
     /// Gabor wavelength (px).
-    #[arg(long, default_value_t = 4.0)]
+    #[arg(long, default_value_t = OrientParams::default().kernel.lambda)]
     lambda: f32,
     /// Gabor kernel size (odd).
-    #[arg(long, default_value_t = 17)]
+    #[arg(long, default_value_t = OrientParams::default().kernel.ksize)]
     ksize: u32,
     /// DoG prefilter: fine sigma (px).
-    #[arg(long, default_value_t = 0.4)]
+    #[arg(long, default_value_t = OrientParams::default().dog_sigma_fine)]
     dog_fine: f32,
     /// DoG prefilter: coarse sigma (px); 0 disables the prefilter.
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = OrientParams::default().dog_sigma_coarse)]
     dog_coarse: f32,
     /// Refinement passes (Gabor bank re-applied to the confidence map).
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = OrientParams::default().refine_iters)]
     refine: u32,
     /// Sigma of the confidence-weighted double-angle smoothing (px); 0 disables it.
-    #[arg(long, default_value_t = 1.5)]
+    #[arg(long, default_value_t = OrientParams::default().smooth_sigma)]
     smooth: f32,
 }
 

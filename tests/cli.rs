@@ -382,3 +382,50 @@ fn demo_runs_on_the_cpu_backend() {
         assert!(c.p("demo").join(f).is_file(), "{f} missing");
     }
 }
+
+#[test]
+fn command_line_defaults_are_the_library_defaults() {
+    let c = Case::new();
+    let o = coif(&[
+        "synth",
+        "--out",
+        &c.s("case"),
+        "--style",
+        "long",
+        "--seed",
+        "1",
+        "--size",
+        "128",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = coif(&[
+        "orient",
+        "--image",
+        &c.s("case/image.png"),
+        "--mask",
+        &c.s("case/mask.png"),
+        "--out",
+        &c.s("out"),
+        "--backend",
+        "cpu",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (_, theta) = coif::npy::read_f32(&c.p("out/orientation.npy")).unwrap();
+    let rgb = coif::imgio::load_rgb(&c.p("case/image.png")).unwrap();
+    let mask =
+        coif::imgio::load_mask(&c.p("case/mask.png"), 128, 128, &c.p("case/image.png")).unwrap();
+    let lib = coif::orient::orient(
+        &coif::Engine::cpu(),
+        &coif::orient::GrayImage::from_rgb(&rgb),
+        Some(&mask),
+        &coif::orient::OrientParams::default(),
+    )
+    .unwrap();
+    coif::testing::compare_f32_nan_eq(
+        "cli vs library theta",
+        &theta,
+        &lib.theta,
+        coif::testing::Tolerance::EXACT,
+    )
+    .unwrap();
+}

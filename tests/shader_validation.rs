@@ -180,6 +180,17 @@ fn uniform_structs_match_wgsl() {
         8,
     );
     check_layout(
+        "dir_diffuse",
+        stages::dir_diffuse::STAGE.wgsl,
+        encase_bytes(&stages::dir_diffuse::Config {
+            width: 1,
+            height: 2,
+            lambda: f(3),
+            use_orient: 4,
+        }),
+        4,
+    );
+    check_layout(
         "orient_resolve",
         orient_resolve::STAGE.wgsl,
         encase_bytes(&orient_resolve::Config {

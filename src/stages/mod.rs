@@ -1,6 +1,7 @@
 //! Every compute stage: its WGSL file, its bindings, its uniform struct and its CPU mirror.
 //! Each file here pairs with `wgsl/<name>.wgsl`; the mirror reads like the shader.
 
+pub mod dir_diffuse;
 pub mod gabor;
 pub mod orient_resolve;
 pub mod sep_blur;
@@ -8,4 +9,9 @@ pub mod sep_blur;
 use crate::engine::StageDef;
 
 /// Every registered stage, for shader validation and layout tests.
-pub const ALL: &[&StageDef] = &[&sep_blur::STAGE, &gabor::STAGE, &orient_resolve::STAGE];
+pub const ALL: &[&StageDef] = &[
+    &sep_blur::STAGE,
+    &gabor::STAGE,
+    &orient_resolve::STAGE,
+    &dir_diffuse::STAGE,
+];
