@@ -133,6 +133,11 @@ struct DemoArgs {
 }
 
 fn main() {
+    // Headless Vulkan loaders print "XDG_RUNTIME_DIR is invalid" to stderr for every
+    // instance; pointing it at the temp folder keeps batch logs clean. Single-threaded here.
+    if std::env::var_os("XDG_RUNTIME_DIR").is_none_or(|d| !Path::new(&d).is_dir()) {
+        std::env::set_var("XDG_RUNTIME_DIR", std::env::temp_dir());
+    }
     let cli = Cli::parse();
     let level = match cli.verbose {
         0 => "warn",
