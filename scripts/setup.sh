@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs what coif's tests need on Debian/Ubuntu: a Vulkan driver (Mesa lavapipe, the
-# software GPU the parity and golden tests run on) when none is present, and numpy (the .npy
-# interoperability test). Safe to run again; does nothing when all is there.
+# software GPU the parity and golden tests run on) when none is present, numpy (the .npy
+# interoperability test) and usd-core (the .usda export test).
+# Safe to run again; does nothing when all is there.
 set -euo pipefail
 
 as_root() {
@@ -35,4 +36,11 @@ fi
 if ! python3 -c 'import numpy' >/dev/null 2>&1; then
   echo "setup: installing numpy"
   python3 -m pip install -q numpy 2>/dev/null || apt_install python3-numpy
+fi
+
+# The .usda export is checked by opening it with the real USD library.
+if ! python3 -c 'from pxr import Usd, UsdGeom' >/dev/null 2>&1; then
+  echo "setup: installing usd-core"
+  python3 -m pip install -q usd-core 2>/dev/null ||
+    python3 -m pip install -q --break-system-packages usd-core
 fi

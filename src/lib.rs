@@ -15,6 +15,7 @@ pub mod npy;
 pub mod orient;
 pub mod rng;
 pub mod stages;
+pub mod strands;
 pub mod synth;
 pub mod testing;
 pub mod vis;

@@ -33,6 +33,16 @@ enum Command {
     Demo(DemoArgs),
     /// Adapters, the backend `auto` would choose, and limits.
     Info,
+    /// Converts a strand file: .hair .data .ply .obj in; .hair .data .ply .obj .usda out.
+    Convert(ConvertArgs),
+}
+
+#[derive(Args)]
+struct ConvertArgs {
+    /// Strand file to read.
+    input: PathBuf,
+    /// Strand file to write; the format follows the extension.
+    output: PathBuf,
 }
 
 #[derive(Args)]
@@ -163,6 +173,7 @@ fn run(cmd: Command) -> anyhow::Result<()> {
         Command::Orient(a) => cmd_orient(a),
         Command::Demo(a) => cmd_demo(a),
         Command::Info => cmd_info(),
+        Command::Convert(a) => cmd_convert(a),
     }
 }
 
@@ -337,6 +348,21 @@ fn cmd_demo(a: DemoArgs) -> anyhow::Result<()> {
         "  astronaut photo     {}  ({:.2} s)",
         astro_out.display(),
         r2.seconds
+    );
+    Ok(())
+}
+
+fn cmd_convert(a: ConvertArgs) -> anyhow::Result<()> {
+    // Check the output format before reading, so a typo fails fast.
+    coif::strands::Format::from_path(&a.output)?;
+    let s = coif::strands::read(&a.input)?;
+    coif::strands::write(&a.output, &s)?;
+    println!(
+        "convert: {} strands, {} vertices: {} -> {}",
+        s.counts.len(),
+        s.points.len(),
+        a.input.display(),
+        a.output.display()
     );
     Ok(())
 }

@@ -56,3 +56,105 @@ pub fn confidence(width: u32, height: u32, conf: &[f32]) -> RgbImage {
         Rgb([g, g, g])
     })
 }
+
+/// The photo, dimmed and desaturated, as a backdrop for curves.
+pub fn dimmed(img: &RgbImage, amount: f32) -> RgbImage {
+    RgbImage::from_fn(img.width(), img.height(), |x, y| {
+        let p = img.get_pixel(x, y);
+        let l = 0.2126 * p[0] as f32 + 0.7152 * p[1] as f32 + 0.0722 * p[2] as f32;
+        let v = (l * (1.0 - amount)).round().clamp(0.0, 255.0) as u8;
+        Rgb([v, v, v])
+    })
+}
+
+/// Colour of a growth direction on the hue ring: hue = angle of (dx, dy), x right, y down
+/// (0° right = red, 90° down = yellow-green, 180° left = cyan, 270° up = violet).
+pub fn direction_colour(dx: f32, dy: f32) -> Rgb<u8> {
+    hsv(dy.atan2(dx).to_degrees(), 0.9, 1.0)
+}
+
+fn blend_px(img: &mut RgbImage, x: i64, y: i64, c: Rgb<u8>, a: f32) {
+    if x < 0 || y < 0 || x >= img.width() as i64 || y >= img.height() as i64 || a <= 0.0 {
+        return;
+    }
+    let p = img.get_pixel_mut(x as u32, y as u32);
+    for k in 0..3 {
+        p[k] = (p[k] as f32 * (1.0 - a) + c[k] as f32 * a).round() as u8;
+    }
+}
+
+/// Anti-aliased polyline: coverage from the distance to each segment, one pass per segment.
+pub fn draw_polyline(
+    img: &mut RgbImage,
+    pts: &[[f32; 2]],
+    width: f32,
+    colour: impl Fn(usize) -> Rgb<u8>,
+) {
+    let r = 0.5 * width;
+    for (k, s) in pts.windows(2).enumerate() {
+        let (a, b) = (s[0], s[1]);
+        let c = colour(k);
+        let (x0, x1) = (a[0].min(b[0]) - r - 1.0, a[0].max(b[0]) + r + 1.0);
+        let (y0, y1) = (a[1].min(b[1]) - r - 1.0, a[1].max(b[1]) + r + 1.0);
+        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+        let l2 = (dx * dx + dy * dy).max(1e-12);
+        for y in y0.floor() as i64..=y1.ceil() as i64 {
+            for x in x0.floor() as i64..=x1.ceil() as i64 {
+                let (px, py) = (x as f32 + 0.5, y as f32 + 0.5);
+                let t = (((px - a[0]) * dx + (py - a[1]) * dy) / l2).clamp(0.0, 1.0);
+                let d = (px - a[0] - t * dx).hypot(py - a[1] - t * dy);
+                // Segments share end points; only the first one draws the shared end.
+                if k > 0 && t == 0.0 {
+                    continue;
+                }
+                blend_px(img, x, y, c, (r + 0.5 - d).clamp(0.0, 1.0));
+            }
+        }
+    }
+}
+
+/// Directed polylines coloured by the direction of each segment, with a hue-ring legend in
+/// the top-left corner (as C13 Fig. 2).
+pub fn directed_curves(backdrop: &RgbImage, curves: &[&[[f32; 2]]], width: f32) -> RgbImage {
+    let mut img = backdrop.clone();
+    for pts in curves {
+        draw_polyline(&mut img, pts, width, |k| {
+            let (a, b) = (pts[k], pts[k + 1]);
+            direction_colour(b[0] - a[0], b[1] - a[1])
+        });
+    }
+    hue_ring(&mut img);
+    img
+}
+
+/// A hue ring legend: the colour at angle φ is the colour of a curve heading at φ.
+pub fn hue_ring(img: &mut RgbImage) {
+    let s = (img.width().min(img.height()) as f32 * 0.09).clamp(12.0, 48.0);
+    let (cx, cy) = (s + 4.0, s + 4.0);
+    for y in 0..(2.0 * s + 8.0) as i64 {
+        for x in 0..(2.0 * s + 8.0) as i64 {
+            let (dx, dy) = (x as f32 + 0.5 - cx, y as f32 + 0.5 - cy);
+            let d = dx.hypot(dy);
+            let a = (0.5 - (d - 0.8 * s).abs() + 0.2 * s).clamp(0.0, 1.0);
+            blend_px(img, x, y, direction_colour(dx, dy), a);
+        }
+    }
+}
+
+/// A dense direction field (H x W x 2, NaN off hair) as hue over the dimmed photo.
+pub fn direction_field(backdrop: &RgbImage, dir: &[f32]) -> RgbImage {
+    let mut img = backdrop.clone();
+    let w = img.width();
+    for (x, y, p) in img.enumerate_pixels_mut() {
+        let i = (y * w + x) as usize;
+        let (dx, dy) = (dir[2 * i], dir[2 * i + 1]);
+        if dx.is_finite() && dy.is_finite() {
+            let c = direction_colour(dx, dy);
+            for k in 0..3 {
+                p[k] = ((p[k] as f32 * 0.35) + c[k] as f32 * 0.65).round() as u8;
+            }
+        }
+    }
+    hue_ring(&mut img);
+    img
+}

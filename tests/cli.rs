@@ -429,3 +429,20 @@ fn command_line_defaults_are_the_library_defaults() {
     )
     .unwrap();
 }
+
+#[test]
+fn convert_round_trips_a_strand_file() {
+    let c = Case::new();
+    let src = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/data/strands/Bangs_100.data"
+    );
+    let o = coif(&["convert", src, &c.s("b.hair")]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let a = coif::strands::read(Path::new(src)).unwrap();
+    let b = coif::strands::read(&c.p("b.hair")).unwrap();
+    assert_eq!(a.points, b.points);
+    assert_eq!(a.counts, b.counts);
+    let bad = coif(&["convert", src, &c.s("b.xyz")]);
+    fails(&bad, 64, &["b.xyz"]);
+}
