@@ -2,6 +2,7 @@
 //! generative sketch model. Every heavy stage is a WGSL pass with a CPU mirror; see
 //! [`engine`] for how one recording runs on either.
 
+pub mod analyze;
 pub mod annot;
 pub mod assets;
 pub mod direction;
@@ -13,11 +14,13 @@ pub mod io;
 pub mod metrics;
 pub mod npy;
 pub mod orient;
+pub mod resolve;
 pub mod rng;
 pub mod stages;
 pub mod strands;
 pub mod synth;
 pub mod testing;
+pub mod trace;
 pub mod vis;
 
 pub use engine::{BackendChoice, Engine};

@@ -31,6 +31,9 @@ enum Command {
     /// The main job on the embedded default inputs: synth + orient on a synthetic case and on
     /// the embedded astronaut photo.
     Demo(DemoArgs),
+    /// Directed hair from a photo, its hair mask and direction strokes (C13 §2.1): traced
+    /// curves, their growth direction (Eq. 1-2) and a dense direction field.
+    Analyze(AnalyzeArgs),
     /// Adapters, the backend `auto` would choose, and limits.
     Info,
     /// Converts a strand file: .hair .data .ply .obj in; .hair .data .ply .obj .usda out.
@@ -172,6 +175,7 @@ fn run(cmd: Command) -> anyhow::Result<()> {
         Command::Synth(a) => cmd_synth(a),
         Command::Orient(a) => cmd_orient(a),
         Command::Demo(a) => cmd_demo(a),
+        Command::Analyze(a) => cmd_analyze(a),
         Command::Info => cmd_info(),
         Command::Convert(a) => cmd_convert(a),
     }
@@ -348,6 +352,182 @@ fn cmd_demo(a: DemoArgs) -> anyhow::Result<()> {
         "  astronaut photo     {}  ({:.2} s)",
         astro_out.display(),
         r2.seconds
+    );
+    Ok(())
+}
+
+#[derive(Args)]
+struct AnalyzeArgs {
+    /// Portrait (PNG).
+    #[arg(long)]
+    image: PathBuf,
+    /// strokes.json (version 1): direction strokes root to tip.
+    #[arg(long)]
+    strokes: PathBuf,
+    /// Hair mask, same size, > 127 on hair. (Segmentation from the strokes alone is not
+    /// in this version yet.)
+    #[arg(long)]
+    mask: PathBuf,
+    /// Output folder (created).
+    #[arg(long)]
+    out: PathBuf,
+    #[command(flatten)]
+    backend: BackendArgs,
+    #[command(flatten)]
+    opts: OrientOpts,
+    /// Neighbourhood radius of the direction vote, C13 Eq. (1) (px).
+    #[arg(long, default_value_t = coif::resolve::ResolveParams::default().radius)]
+    radius: f32,
+    /// Weight of a user stroke in the vote, C13's w_m.
+    #[arg(long, default_value_t = coif::resolve::ResolveParams::default().stroke_weight)]
+    stroke_weight: f32,
+}
+
+fn load_strokes(path: &Path, size: (u32, u32)) -> anyhow::Result<coif::annot::Strokes> {
+    Ok(coif::annot::Strokes::load(path, Some(size))?)
+}
+
+fn write_analysis(
+    out: &Path,
+    image: &Path,
+    rgb: &image::RgbImage,
+    an: &coif::analyze::Analysis,
+    backend: &str,
+) -> anyhow::Result<()> {
+    use coif::vis;
+    coif::io::ensure_dir(out)?;
+    let (w, h) = (an.width, an.height);
+    let shape = [h as usize, w as usize];
+    let mask_img = image::GrayImage::from_fn(w, h, |x, y| {
+        image::Luma([if an.mask[(y * w + x) as usize] != 0 {
+            255
+        } else {
+            0
+        }])
+    });
+    coif::io::write_png(&out.join("mask.png"), &mask_img)?;
+    coif::npy::write_f32(&out.join("orientation.npy"), &shape, &an.orient.theta)?;
+    coif::npy::write_f32(&out.join("confidence.npy"), &shape, &an.orient.confidence)?;
+    coif::npy::write_f32(
+        &out.join("direction.npy"),
+        &[h as usize, w as usize, 2],
+        &an.direction,
+    )?;
+    let mut curves: Vec<serde_json::Value> = an
+        .resolved
+        .curves
+        .iter()
+        .map(|c| serde_json::json!({"points": c.points, "source": "traced"}))
+        .collect();
+    curves.extend(
+        an.strokes
+            .iter()
+            .map(|s| serde_json::json!({"points": s, "source": "stroke"})),
+    );
+    let doc = serde_json::json!({"version": 1, "curves": curves});
+    coif::io::write_atomic(
+        &out.join("curves.json"),
+        serde_json::to_string(&doc)?.as_bytes(),
+    )?;
+    let back = vis::dimmed(rgb, 0.55);
+    let before: Vec<&[[f32; 2]]> = an.traced.iter().map(|c| c.points.as_slice()).collect();
+    let after: Vec<&[[f32; 2]]> = an
+        .resolved
+        .curves
+        .iter()
+        .map(|c| c.points.as_slice())
+        .collect();
+    coif::io::write_png(
+        &out.join("curves_before.png"),
+        &vis::directed_curves(&back, &before, 1.5),
+    )?;
+    let mut after_img = vis::directed_curves(&back, &after, 1.5);
+    for s in &an.strokes {
+        vis::draw_polyline(&mut after_img, s, 4.0, |_| image::Rgb([255, 255, 255]));
+    }
+    let sdraw: Vec<&[[f32; 2]]> = an.strokes.iter().map(|s| s.as_slice()).collect();
+    let after_img = vis::directed_curves(&after_img, &sdraw, 2.0);
+    coif::io::write_png(&out.join("curves_after.png"), &after_img)?;
+    coif::io::write_png(
+        &out.join("direction.png"),
+        &vis::direction_field(&back, &an.direction),
+    )?;
+    coif::io::write_png(
+        &out.join("orientation.png"),
+        &vis::orientation(w, h, &an.orient.theta, &an.orient.confidence),
+    )?;
+    let meta = serde_json::json!({
+        "version": 1,
+        "coif": env!("CARGO_PKG_VERSION"),
+        "image": image.display().to_string(),
+        "backend": backend,
+        "curves": an.traced.len(),
+        "unreachable_curves": an.resolved.unreachable.len(),
+        "warnings": an.warnings,
+        "seconds": an.timings.iter().map(|(k, v)| (k.to_string(), serde_json::json!(v))).collect::<serde_json::Map<_, _>>(),
+        "direction": "unit growth direction, H x W x 2, x right, y down, NaN off hair",
+    });
+    coif::io::write_atomic(
+        &out.join("analyze.json"),
+        serde_json::to_string_pretty(&meta)?.as_bytes(),
+    )?;
+    Ok(())
+}
+
+fn run_analyze(
+    engine: &Engine,
+    image: &Path,
+    strokes: &Path,
+    mask: &Path,
+    params: &coif::analyze::AnalyzeParams,
+) -> anyhow::Result<(image::RgbImage, coif::analyze::Analysis)> {
+    let rgb = imgio::load_rgb(image)?;
+    let min = params.orient.kernel.ksize;
+    if rgb.width() < min || rgb.height() < min {
+        return Err(Error::bad_file(
+            image,
+            format!(
+                "image is {}x{} px, smaller than the {min}x{min} Gabor kernel",
+                rgb.width(),
+                rgb.height()
+            ),
+        )
+        .into());
+    }
+    let s = load_strokes(strokes, rgb.dimensions())?;
+    let m = imgio::load_mask(mask, rgb.width(), rgb.height(), image)?;
+    let an = coif::analyze::analyze(engine, &rgb, &s, m, params)
+        .with_context(|| format!("analysis of {} with {}", image.display(), strokes.display()))?;
+    for w in &an.warnings {
+        log::warn!("{w}");
+        eprintln!("coif: warning: {w}");
+    }
+    Ok((rgb, an))
+}
+
+fn cmd_analyze(a: AnalyzeArgs) -> anyhow::Result<()> {
+    let mut params = coif::analyze::AnalyzeParams {
+        orient: a.opts.params(),
+        ..Default::default()
+    };
+    params.orient.validate()?;
+    params.resolve.radius = a.radius;
+    params.resolve.stroke_weight = a.stroke_weight;
+    let positive = |v: f32| v.is_finite() && v > 0.0;
+    if !positive(a.radius) || !positive(a.stroke_weight) {
+        return Err(Error::Invalid("--radius and --stroke-weight must be positive".into()).into());
+    }
+    let engine = Engine::new(a.backend.backend)?;
+    let t = Instant::now();
+    let (rgb, an) = run_analyze(&engine, &a.image, &a.strokes, &a.mask, &params)?;
+    write_analysis(&a.out, &a.image, &rgb, &an, &engine.describe())?;
+    println!(
+        "analyze: {} curve pieces ({} unreachable from strokes) -> {} ({:.2} s on {})",
+        an.traced.len(),
+        an.resolved.unreachable.len(),
+        a.out.display(),
+        t.elapsed().as_secs_f64(),
+        engine.describe()
     );
     Ok(())
 }

@@ -1,0 +1,171 @@
+//! From a photo, a hair mask and strokes to directed hair (issue 3, C13 §2.1): orientation,
+//! 2D tracing, growth-direction resolution (Eq. 1-2) and the dense direction field.
+
+use crate::annot::{StrokeKind, Strokes};
+use crate::direction::{dense_direction, DirectionParams, Domain};
+use crate::engine::Engine;
+use crate::error::{Error, Result};
+use crate::orient::{orient, GrayImage, OrientMap, OrientParams};
+use crate::resolve::{resolve_directions, ResolveParams, Resolved};
+use crate::trace::{split_curves, trace_curves, Curve, TraceParams};
+use std::time::Instant;
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct AnalyzeParams {
+    pub orient: OrientParams,
+    pub trace: TraceParams,
+    /// Traced curves are resolved in pieces of at most this many vertices (0: whole); see
+    /// [`split_curves`].
+    pub piece_vertices: usize,
+    pub resolve: ResolveParams,
+    pub direction: DirectionParams,
+}
+
+impl Default for AnalyzeParams {
+    fn default() -> Self {
+        AnalyzeParams {
+            orient: OrientParams::default(),
+            trace: TraceParams::default(),
+            piece_vertices: 10,
+            resolve: ResolveParams::default(),
+            direction: DirectionParams::default(),
+        }
+    }
+}
+
+pub struct Analysis {
+    pub width: u32,
+    pub height: u32,
+    /// One byte per pixel, 1 on hair.
+    pub mask: Vec<u8>,
+    pub orient: OrientMap,
+    /// Curves as traced (split into pieces), before their direction is known.
+    pub traced: Vec<Curve>,
+    pub resolved: Resolved,
+    /// The direction strokes, root→tip.
+    pub strokes: Vec<Vec<[f32; 2]>>,
+    /// Unit growth direction, H x W x 2 (x right, y down), NaN off hair.
+    pub direction: Vec<f32>,
+    /// Things the user should know that did not stop the run.
+    pub warnings: Vec<String>,
+    /// Seconds per stage.
+    pub timings: Vec<(&'static str, f64)>,
+}
+
+/// Share of a polyline's points that fall on hair.
+fn share_on_hair(pts: &[[f32; 2]], mask: &[u8], w: u32, h: u32) -> f32 {
+    let on = pts
+        .iter()
+        .filter(|p| {
+            let (x, y) = (p[0].floor(), p[1].floor());
+            x >= 0.0 && y >= 0.0 && x < w as f32 && y < h as f32 && {
+                mask[(y as u32 * w + x as u32) as usize] != 0
+            }
+        })
+        .count();
+    on as f32 / pts.len().max(1) as f32
+}
+
+pub fn analyze(
+    engine: &Engine,
+    image: &image::RgbImage,
+    strokes: &Strokes,
+    mask: Vec<u8>,
+    p: &AnalyzeParams,
+) -> Result<Analysis> {
+    let (w, h) = image.dimensions();
+    let mut timings = Vec::new();
+    let mut warnings = Vec::new();
+    let dir_strokes: Vec<Vec<[f32; 2]>> = strokes
+        .strokes
+        .iter()
+        .filter(|s| s.kind == StrokeKind::Direction)
+        .map(|s| s.points.clone())
+        .collect();
+    if dir_strokes.is_empty() {
+        return Err(Error::Invalid(
+            "the strokes have no \"direction\" stroke; draw at least one along the hair, root to tip"
+                .into(),
+        ));
+    }
+    if mask.len() != (w * h) as usize {
+        return Err(Error::Invalid(format!(
+            "mask has {} pixels, the image {}",
+            mask.len(),
+            w * h
+        )));
+    }
+    if !mask.iter().any(|&m| m != 0) {
+        return Err(Error::Invalid("the hair mask is empty".into()));
+    }
+    let shares: Vec<f32> = dir_strokes
+        .iter()
+        .map(|s| share_on_hair(s, &mask, w, h))
+        .collect();
+    if shares.iter().all(|&s| s < 0.5) {
+        return Err(Error::Invalid(
+            "none of the direction strokes lies on the hair mask (each has under half of its \
+             points on hair); draw them over the hair"
+                .into(),
+        ));
+    }
+    for (i, s) in shares.iter().enumerate() {
+        if *s < 0.5 {
+            warnings.push(format!(
+                "direction stroke {i} lies mostly off the hair ({:.0}% of its points on hair); \
+                 it still votes within the {} px radius",
+                100.0 * s,
+                p.resolve.radius
+            ));
+        }
+    }
+    let t = Instant::now();
+    let om = orient(engine, &GrayImage::from_rgb(image), Some(&mask), &p.orient)?;
+    timings.push(("orientation", t.elapsed().as_secs_f64()));
+    let t = Instant::now();
+    let traced = split_curves(
+        &trace_curves(&om.theta, &om.confidence, &mask, w, h, &p.trace),
+        p.piece_vertices,
+    );
+    timings.push(("trace", t.elapsed().as_secs_f64()));
+    let t = Instant::now();
+    let resolved = resolve_directions(&traced, &dir_strokes, &p.resolve);
+    timings.push(("resolve", t.elapsed().as_secs_f64()));
+    if !resolved.unreachable.is_empty() {
+        warnings.push(format!(
+            "{} of {} curves had no resolved neighbour within {} px of any stroke and were \
+             resolved through other curves or left to the rule of the paper; a stroke near \
+             them would make them certain",
+            resolved.unreachable.len(),
+            traced.len(),
+            p.resolve.radius
+        ));
+    }
+    let t = Instant::now();
+    let curves: Vec<Vec<[f32; 2]>> = resolved.curves.iter().map(|c| c.points.clone()).collect();
+    let direction = dense_direction(
+        engine,
+        &Domain {
+            width: w,
+            height: h,
+            mask: &mask,
+            theta: Some(&om.theta),
+        },
+        &curves,
+        &dir_strokes,
+        &p.direction,
+    )?;
+    timings.push(("direction", t.elapsed().as_secs_f64()));
+    Ok(Analysis {
+        width: w,
+        height: h,
+        mask,
+        orient: om,
+        traced,
+        resolved,
+        strokes: dir_strokes,
+        direction,
+        warnings,
+        timings,
+    })
+}
