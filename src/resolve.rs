@@ -56,37 +56,63 @@ fn tangents(pts: &[[f32; 2]]) -> Vec<[f32; 2]> {
         .collect()
 }
 
-/// Vertices bucketed in square cells of the radius: neighbours lie in the 3x3 block.
+/// Cells per radius: a vertex's neighbourhood spans (2 CELLS + 1)² cells, most of them
+/// entirely inside its disc, where a curve's vertices count as one precomputed tangent sum.
+const CELLS: i64 = 6;
+
+/// Vertices bucketed in square cells of radius / CELLS, with per-cell, per-polyline sums of
+/// the tangents so fully covered cells cost one product per polyline.
 struct Grid {
     cell: f32,
     nx: usize,
     ny: usize,
-    /// Per cell, (polyline index, vertex index).
-    cells: Vec<Vec<(u32, u32)>>,
+    /// Per cell: (polyline, Σ tangent, range into `verts`).
+    entries: Vec<Vec<(u32, [f32; 2], std::ops::Range<u32>)>>,
+    /// Vertex positions and tangents, grouped by cell and polyline.
+    verts: Vec<([f32; 2], [f32; 2])>,
 }
 
 impl Grid {
-    fn new(lines: &[&[[f32; 2]]], cell: f32) -> Self {
+    fn new(lines: &[&[[f32; 2]]], tans: &[Vec<[f32; 2]>], cell: f32) -> Self {
         let (mut x1, mut y1) = (0.0f32, 0.0f32);
         for p in lines.iter().flat_map(|l| l.iter()) {
             x1 = x1.max(p[0]);
             y1 = y1.max(p[1]);
         }
         // Image coordinates are >= 0; the grid covers [0, max] (negatives clamp to cell 0).
-        let nx = ((x1 / cell) as usize + 2).min(1 << 16);
-        let ny = ((y1 / cell) as usize + 2).min(1 << 16);
-        let mut cells = vec![Vec::new(); nx * ny];
-        for (li, l) in lines.iter().enumerate() {
-            for (vi, p) in l.iter().enumerate() {
-                let c = Self::cell_of(cell, nx, ny, *p);
-                cells[c].push((li as u32, vi as u32));
+        let nx = ((x1 / cell) as usize + 2).min(1 << 14);
+        let ny = ((y1 / cell) as usize + 2).min(1 << 14);
+        let mut keyed: Vec<(usize, u32, [f32; 2], [f32; 2])> = lines
+            .iter()
+            .enumerate()
+            .flat_map(|(li, l)| {
+                l.iter().enumerate().map(move |(vi, p)| {
+                    (Self::cell_of(cell, nx, ny, *p), li as u32, *p, tans[li][vi])
+                })
+            })
+            .collect();
+        keyed.sort_by_key(|k| (k.0, k.1));
+        let mut entries = vec![Vec::new(); nx * ny];
+        let mut verts = Vec::with_capacity(keyed.len());
+        let mut k = 0;
+        while k < keyed.len() {
+            let (c, l) = (keyed[k].0, keyed[k].1);
+            let start = verts.len() as u32;
+            let mut sum = [0.0f32; 2];
+            while k < keyed.len() && keyed[k].0 == c && keyed[k].1 == l {
+                sum[0] += keyed[k].3[0];
+                sum[1] += keyed[k].3[1];
+                verts.push((keyed[k].2, keyed[k].3));
+                k += 1;
             }
+            entries[c].push((l, sum, start..verts.len() as u32));
         }
         Grid {
             cell,
             nx,
             ny,
-            cells,
+            entries,
+            verts,
         }
     }
 
@@ -99,45 +125,117 @@ impl Grid {
 
 /// For every curve, Σ over its vertex pairs with each other polyline within the radius of
 /// t̃_a · t̃_b, as a sparse row: (other polyline, sum).
+///
+/// Cell against cell: where every point of one cell is within the radius of every point of
+/// the other, the pairs contribute the product of the two cells' tangent sums at once; only
+/// cell pairs the radius cuts through are summed vertex by vertex.
 fn pair_sums(
     lines: &[&[[f32; 2]]],
     tans: &[Vec<[f32; 2]>],
     n_curves: usize,
     radius: f32,
 ) -> Vec<Vec<(u32, f32)>> {
-    let grid = Grid::new(lines, radius);
+    let grid = Grid::new(lines, tans, radius / CELLS as f32);
     let r2 = radius * radius;
+    let cs = grid.cell;
+    // The cells each curve has vertices in, with the entry index there.
+    let mut own: Vec<Vec<(u32, u32)>> = vec![Vec::new(); n_curves];
+    for (c, es) in grid.entries.iter().enumerate() {
+        for (k, e) in es.iter().enumerate() {
+            if (e.0 as usize) < n_curves {
+                own[e.0 as usize].push((c as u32, k as u32));
+            }
+        }
+    }
     (0..n_curves)
         .into_par_iter()
-        .map(|i| {
-            let mut acc: std::collections::HashMap<u32, f32> = std::collections::HashMap::new();
-            for (a, pa) in lines[i].iter().enumerate() {
-                let ta = tans[i][a];
-                let c = Grid::cell_of(grid.cell, grid.nx, grid.ny, *pa);
-                let (cx, cy) = ((c % grid.nx) as i64, (c / grid.nx) as i64);
-                for gy in cy - 1..=cy + 1 {
-                    for gx in cx - 1..=cx + 1 {
-                        if gx < 0 || gy < 0 || gx >= grid.nx as i64 || gy >= grid.ny as i64 {
-                            continue;
-                        }
-                        for &(l, v) in &grid.cells[gy as usize * grid.nx + gx as usize] {
-                            if l as usize == i {
+        .map_init(
+            || {
+                (
+                    vec![0.0f32; lines.len()],
+                    vec![u32::MAX; lines.len()],
+                    Vec::<u32>::new(),
+                )
+            },
+            |(acc, stamp, touched), i| {
+                let mut add = |l: usize, s: f32| {
+                    // Stamps mark the polylines this curve touched, once each.
+                    if stamp[l] != i as u32 {
+                        stamp[l] = i as u32;
+                        acc[l] = 0.0;
+                        touched.push(l as u32);
+                    }
+                    acc[l] += s;
+                };
+                for &(ci, k) in &own[i] {
+                    let (_, ti, ref vi) = grid.entries[ci as usize][k as usize];
+                    let (cx, cy) = (
+                        (ci as usize % grid.nx) as i64,
+                        (ci as usize / grid.nx) as i64,
+                    );
+                    for gy in (cy - CELLS - 1).max(0)..=(cy + CELLS + 1).min(grid.ny as i64 - 1) {
+                        let oy = (gy - cy).abs();
+                        // Nearest and farthest gaps between the two cells along y.
+                        let (ny_, fy) = ((oy - 1).max(0) as f32 * cs, (oy + 1) as f32 * cs);
+                        for gx in (cx - CELLS - 1).max(0)..=(cx + CELLS + 1).min(grid.nx as i64 - 1)
+                        {
+                            let ox = (gx - cx).abs();
+                            let (nx_, fx) = ((ox - 1).max(0) as f32 * cs, (ox + 1) as f32 * cs);
+                            if nx_ * nx_ + ny_ * ny_ > r2 {
                                 continue;
                             }
-                            let pb = lines[l as usize][v as usize];
-                            let (dx, dy) = (pa[0] - pb[0], pa[1] - pb[1]);
-                            if dx * dx + dy * dy <= r2 {
-                                let tb = tans[l as usize][v as usize];
-                                *acc.entry(l).or_insert(0.0) += ta[0] * tb[0] + ta[1] * tb[1];
+                            let inside = fx * fx + fy * fy <= r2;
+                            for (l, tl, vl) in &grid.entries[gy as usize * grid.nx + gx as usize] {
+                                let l = *l as usize;
+                                if l == i {
+                                    continue;
+                                }
+                                let s = if inside {
+                                    ti[0] * tl[0] + ti[1] * tl[1]
+                                } else {
+                                    // The radius cuts through: decide per vertex of this
+                                    // curve against the whole cell first.
+                                    let (bx0, by0) = (gx as f32 * cs, gy as f32 * cs);
+                                    let (bx1, by1) = (bx0 + cs, by0 + cs);
+                                    let bs = &grid.verts[vl.start as usize..vl.end as usize];
+                                    let mut s = 0.0;
+                                    for (pa, ta) in &grid.verts[vi.start as usize..vi.end as usize]
+                                    {
+                                        let ddx = (bx0 - pa[0]).max(pa[0] - bx1).max(0.0);
+                                        let ddy = (by0 - pa[1]).max(pa[1] - by1).max(0.0);
+                                        if ddx * ddx + ddy * ddy > r2 {
+                                            continue;
+                                        }
+                                        let fdx = (pa[0] - bx0).abs().max((pa[0] - bx1).abs());
+                                        let fdy = (pa[1] - by0).abs().max((pa[1] - by1).abs());
+                                        if fdx * fdx + fdy * fdy <= r2 {
+                                            s += ta[0] * tl[0] + ta[1] * tl[1];
+                                            continue;
+                                        }
+                                        for (pb, tb) in bs {
+                                            let (dx, dy) = (pa[0] - pb[0], pa[1] - pb[1]);
+                                            if dx * dx + dy * dy <= r2 {
+                                                s += ta[0] * tb[0] + ta[1] * tb[1];
+                                            }
+                                        }
+                                    }
+                                    s
+                                };
+                                add(l, s);
                             }
                         }
                     }
                 }
-            }
-            let mut row: Vec<(u32, f32)> = acc.into_iter().collect();
-            row.sort_unstable_by_key(|e| e.0);
-            row
-        })
+                touched.sort_unstable();
+                let row: Vec<(u32, f32)> = touched
+                    .iter()
+                    .map(|&l| (l, acc[l as usize]))
+                    .filter(|e| e.1 != 0.0)
+                    .collect();
+                touched.clear();
+                row
+            },
+        )
         .collect()
 }
 
