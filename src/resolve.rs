@@ -60,6 +60,9 @@ fn tangents(pts: &[[f32; 2]]) -> Vec<[f32; 2]> {
 /// entirely inside its disc, where a curve's vertices count as one precomputed tangent sum.
 const CELLS: i64 = 6;
 
+/// One polyline's vertices in one cell: (polyline, Σ tangent, range into `Grid::verts`).
+type CellEntry = (u32, [f32; 2], std::ops::Range<u32>);
+
 /// Vertices bucketed in square cells of radius / CELLS, with per-cell, per-polyline sums of
 /// the tangents so fully covered cells cost one product per polyline.
 struct Grid {
@@ -67,7 +70,7 @@ struct Grid {
     nx: usize,
     ny: usize,
     /// Per cell: (polyline, Σ tangent, range into `verts`).
-    entries: Vec<Vec<(u32, [f32; 2], std::ops::Range<u32>)>>,
+    entries: Vec<Vec<CellEntry>>,
     /// Vertex positions and tangents, grouped by cell and polyline.
     verts: Vec<([f32; 2], [f32; 2])>,
 }
