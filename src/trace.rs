@@ -116,7 +116,9 @@ fn arc_sample(m: &Maps, p: [f32; 2], d: [f32; 2], prm: &TraceParams) -> [f32; 2]
     let n_samples = prm.arc_len.ceil().max(2.0) as i32;
     for k in -N_ARCS / 2..=N_ARCS / 2 {
         let kappa = prm.max_curvature * k as f32 / (N_ARCS / 2) as f32;
-        let mut score = 0.0;
+        // Mean agreement over the samples on hair: samples past the mask edge neither count
+        // for nor against an arc, so curves do not curl along the hair boundary.
+        let (mut score, mut on) = (0.0, 0);
         for s in 1..=n_samples {
             let s = s as f32 * prm.arc_len / n_samples as f32;
             // Point and tangent after arc length s along a circle of curvature kappa.
@@ -133,8 +135,13 @@ fn arc_sample(m: &Maps, p: [f32; 2], d: [f32; 2], prm: &TraceParams) -> [f32; 2]
             if let Some(i) = m.index(q) {
                 let c = (ang - m.theta[i]).cos();
                 score += m.conf[i] * c * c;
+                on += 1;
             }
         }
+        if on == 0 {
+            continue;
+        }
+        let score = score / on as f32;
         if score > best_score {
             best_score = score;
             // Take the mid-step tangent: the arc's direction over the coming step.
