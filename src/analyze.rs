@@ -1,5 +1,6 @@
-//! From a photo, a hair mask and strokes to directed hair (issue 3, C13 §2.1): orientation,
-//! 2D tracing, growth-direction resolution (Eq. 1-2) and the dense direction field.
+//! From a photo and strokes to directed hair (issue 3, C13 §2.1): segmentation (when no mask
+//! is given), orientation, 2D tracing, growth-direction resolution (Eq. 1-2) and the dense
+//! direction field.
 
 use crate::annot::{StrokeKind, Strokes};
 use crate::direction::{dense_direction, DirectionParams, Domain};
@@ -7,11 +8,13 @@ use crate::engine::Engine;
 use crate::error::{Error, Result};
 use crate::orient::{orient, GrayImage, OrientMap, OrientParams};
 use crate::resolve::{resolve_directions, ResolveParams, Resolved};
+use crate::segment::{segment, SegmentParams};
 use crate::trace::{split_curves, trace_curves, Curve, TraceParams};
 use std::time::Instant;
 
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct AnalyzeParams {
+    pub segment: SegmentParams,
     pub orient: OrientParams,
     pub trace: TraceParams,
     /// Traced curves are resolved in pieces of at most this many vertices (0: whole); see
@@ -24,6 +27,7 @@ pub struct AnalyzeParams {
 impl Default for AnalyzeParams {
     fn default() -> Self {
         AnalyzeParams {
+            segment: SegmentParams::default(),
             orient: OrientParams::default(),
             trace: TraceParams::default(),
             piece_vertices: 10,
@@ -38,6 +42,8 @@ pub struct Analysis {
     pub height: u32,
     /// One byte per pixel, 1 on hair.
     pub mask: Vec<u8>,
+    /// Whether the mask was segmented from the strokes (no mask given).
+    pub mask_computed: bool,
     pub orient: OrientMap,
     /// Curves as traced (split into pieces), before their direction is known.
     pub traced: Vec<Curve>,
@@ -70,7 +76,7 @@ pub fn analyze(
     engine: &Engine,
     image: &image::RgbImage,
     strokes: &Strokes,
-    mask: Vec<u8>,
+    mask: Option<Vec<u8>>,
     p: &AnalyzeParams,
 ) -> Result<Analysis> {
     let (w, h) = image.dimensions();
@@ -88,6 +94,15 @@ pub fn analyze(
                 .into(),
         ));
     }
+    let t = Instant::now();
+    let (mask, mask_computed) = match mask {
+        Some(m) => (m, false),
+        None => {
+            let m = segment(image, strokes, &p.segment)?;
+            timings.push(("segment", t.elapsed().as_secs_f64()));
+            (m.pixels().map(|v| (v[0] > 127) as u8).collect(), true)
+        }
+    };
     if mask.len() != (w * h) as usize {
         return Err(Error::Invalid(format!(
             "mask has {} pixels, the image {}",
@@ -160,6 +175,7 @@ pub fn analyze(
         width: w,
         height: h,
         mask,
+        mask_computed,
         orient: om,
         traced,
         resolved,

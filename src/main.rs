@@ -300,7 +300,7 @@ fn cmd_demo(a: DemoArgs) -> anyhow::Result<()> {
     let engine = Engine::new(a.backend.backend)?;
     println!("coif demo on {}", engine.describe());
     let params = OrientParams::default();
-    let bar = indicatif::ProgressBar::new(3).with_style(
+    let bar = indicatif::ProgressBar::new(5).with_style(
         indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}")
             .expect("static template"),
     );
@@ -333,9 +333,36 @@ fn cmd_demo(a: DemoArgs) -> anyhow::Result<()> {
     coif::io::ensure_dir(&astro_dir)?;
     let astro_png = astro_dir.join("image.png");
     coif::io::write_atomic(&astro_png, coif::assets::ASTRONAUT_PNG)?;
+    let astro_strokes = astro_dir.join("strokes.json");
+    coif::io::write_atomic(&astro_strokes, coif::assets::ASTRONAUT_STROKES.as_bytes())?;
     let astro_out = a.out.join("orient-astronaut");
     let r2 = orient_files(&engine, &astro_png, None, &params)?;
     write_orient(&astro_out, &astro_png, &r2)?;
+    bar.inc(1);
+    // 4. Directed hair: the synthetic case (mask segmented from its strokes) and the photo.
+    let aparams = coif::analyze::AnalyzeParams::default();
+    let mut lines = Vec::new();
+    for (name, img, strokes) in [
+        (
+            "synth-long",
+            case_dir.join("image.png"),
+            case_dir.join("strokes.json"),
+        ),
+        ("astronaut", astro_png.clone(), astro_strokes.clone()),
+    ] {
+        bar.set_message(format!("directed hair of {name}"));
+        let out = a.out.join(format!("analyze-{name}"));
+        let t = Instant::now();
+        let (rgb, an) = run_analyze(&engine, &img, &strokes, None, &aparams)?;
+        write_analysis(&out, &img, &rgb, &an, &engine.describe())?;
+        lines.push(format!(
+            "  directed hair       {}  ({:.2} s; {} curve pieces, mask segmented from the strokes)",
+            out.display(),
+            t.elapsed().as_secs_f64(),
+            an.traced.len()
+        ));
+        bar.inc(1);
+    }
     bar.finish_and_clear();
     println!(
         "  synthetic case      {}  (image, mask, strokes, ground truth)",
@@ -353,6 +380,9 @@ fn cmd_demo(a: DemoArgs) -> anyhow::Result<()> {
         astro_out.display(),
         r2.seconds
     );
+    for l in lines {
+        println!("{l}");
+    }
     Ok(())
 }
 
@@ -364,10 +394,10 @@ struct AnalyzeArgs {
     /// strokes.json (version 1): direction strokes root to tip.
     #[arg(long)]
     strokes: PathBuf,
-    /// Hair mask, same size, > 127 on hair. (Segmentation from the strokes alone is not
-    /// in this version yet.)
+    /// Hair mask, same size, > 127 on hair; without it the hair is segmented from the
+    /// strokes (direction strokes are hair; background strokes, else the image border, are not).
     #[arg(long)]
-    mask: PathBuf,
+    mask: Option<PathBuf>,
     /// Output folder (created).
     #[arg(long)]
     out: PathBuf,
@@ -461,6 +491,7 @@ fn write_analysis(
         "coif": env!("CARGO_PKG_VERSION"),
         "image": image.display().to_string(),
         "backend": backend,
+        "mask": if an.mask_computed { "segmented from the strokes" } else { "given" },
         "curves": an.traced.len(),
         "unreachable_curves": an.resolved.unreachable.len(),
         "warnings": an.warnings,
@@ -478,7 +509,7 @@ fn run_analyze(
     engine: &Engine,
     image: &Path,
     strokes: &Path,
-    mask: &Path,
+    mask: Option<&Path>,
     params: &coif::analyze::AnalyzeParams,
 ) -> anyhow::Result<(image::RgbImage, coif::analyze::Analysis)> {
     let rgb = imgio::load_rgb(image)?;
@@ -495,7 +526,10 @@ fn run_analyze(
         .into());
     }
     let s = load_strokes(strokes, rgb.dimensions())?;
-    let m = imgio::load_mask(mask, rgb.width(), rgb.height(), image)?;
+    let m = match mask {
+        Some(m) => Some(imgio::load_mask(m, rgb.width(), rgb.height(), image)?),
+        None => None,
+    };
     let an = coif::analyze::analyze(engine, &rgb, &s, m, params)
         .with_context(|| format!("analysis of {} with {}", image.display(), strokes.display()))?;
     for w in &an.warnings {
@@ -519,10 +553,15 @@ fn cmd_analyze(a: AnalyzeArgs) -> anyhow::Result<()> {
     }
     let engine = Engine::new(a.backend.backend)?;
     let t = Instant::now();
-    let (rgb, an) = run_analyze(&engine, &a.image, &a.strokes, &a.mask, &params)?;
+    let (rgb, an) = run_analyze(&engine, &a.image, &a.strokes, a.mask.as_deref(), &params)?;
     write_analysis(&a.out, &a.image, &rgb, &an, &engine.describe())?;
     println!(
-        "analyze: {} curve pieces ({} unreachable from strokes) -> {} ({:.2} s on {})",
+        "analyze: mask {}, {} curve pieces ({} unreachable from strokes) -> {} ({:.2} s on {})",
+        if an.mask_computed {
+            "segmented"
+        } else {
+            "given"
+        },
         an.traced.len(),
         an.resolved.unreachable.len(),
         a.out.display(),

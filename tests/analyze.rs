@@ -50,7 +50,7 @@ fn directions_on_synthetic_portraits() {
                 height: 512,
             });
             let mask: Vec<u8> = case.mask.pixels().map(|m| (m[0] > 127) as u8).collect();
-            let an = analyze(&engine, &case.image, &case.strokes, mask, &p).unwrap();
+            let an = analyze(&engine, &case.image, &case.strokes, Some(mask), &p).unwrap();
             let (curve_ok, len) = curve_share(&an.resolved.curves, &case.gt_dir, 512);
             let inner = erode(&case.mask, 5);
             let (mut good, mut n) = (0usize, 0usize);
@@ -83,4 +83,40 @@ fn directions_on_synthetic_portraits() {
     }
     println!("{below_goal} of 12 cases below the issue's 98% goal");
     assert!(failures.is_empty(), "under 90%:\n{}", failures.join("\n"));
+}
+
+#[test]
+fn segmentation_from_strokes_matches_the_true_mask() {
+    let engine = Engine::cpu();
+    let p = AnalyzeParams::default();
+    let mut failures = Vec::new();
+    for style in Style::ALL {
+        for seed in 1..=3 {
+            let case = synth(&SynthParams {
+                style,
+                seed,
+                width: 512,
+                height: 512,
+            });
+            let an = analyze(&engine, &case.image, &case.strokes, None, &p).unwrap();
+            let (mut inter, mut uni) = (0usize, 0usize);
+            for (i, m) in case.mask.pixels().enumerate() {
+                let t = m[0] > 127;
+                let c = an.mask[i] != 0;
+                inter += (t && c) as usize;
+                uni += (t || c) as usize;
+            }
+            let iou = inter as f64 / uni as f64;
+            let line = format!("{style:<9} seed {seed}: mask IoU {iou:.4}");
+            println!("{line}");
+            if iou < 0.95 {
+                failures.push(line);
+            }
+        }
+    }
+    assert!(
+        failures.is_empty(),
+        "IoU under 0.95:\n{}",
+        failures.join("\n")
+    );
 }

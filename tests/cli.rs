@@ -446,3 +446,136 @@ fn convert_round_trips_a_strand_file() {
     let bad = coif(&["convert", src, &c.s("b.xyz")]);
     fails(&bad, 64, &["b.xyz"]);
 }
+
+fn synth_case(c: &Case) {
+    let o = coif(&[
+        "synth",
+        "--out",
+        &c.s("case"),
+        "--style",
+        "sidepart",
+        "--seed",
+        "1",
+        "--size",
+        "160",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+#[test]
+fn analyze_writes_directed_hair() {
+    let c = Case::new();
+    synth_case(&c);
+    let o = coif(&[
+        "analyze",
+        "--image",
+        &c.s("case/image.png"),
+        "--strokes",
+        &c.s("case/strokes.json"),
+        "--out",
+        &c.s("an"),
+        "--backend",
+        "cpu",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for f in [
+        "mask.png",
+        "orientation.npy",
+        "confidence.npy",
+        "curves.json",
+        "direction.npy",
+        "curves_before.png",
+        "curves_after.png",
+        "direction.png",
+        "analyze.json",
+    ] {
+        assert!(c.p("an").join(f).is_file(), "{f} missing");
+    }
+    let (shape, _) = coif::npy::read_f32(&c.p("an/direction.npy")).unwrap();
+    assert_eq!(shape, vec![160, 160, 2]);
+    let curves: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(c.p("an/curves.json")).unwrap()).unwrap();
+    assert_eq!(curves["version"], 1);
+    assert!(curves["curves"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .any(|c| c["source"] == "stroke"));
+}
+
+fn write_strokes(c: &Case, name: &str, json: &str) {
+    std::fs::write(c.p(name), json).unwrap();
+}
+
+#[test]
+fn analyze_rejects_bad_strokes_with_the_file_named() {
+    let c = Case::new();
+    synth_case(&c);
+    let cases = [
+        (
+            "outside.json",
+            r#"{"version":1,"strokes":[{"kind":"direction","points":[[10,10],[500,10]]}]}"#,
+            "outside",
+        ),
+        (
+            "one.json",
+            r#"{"version":1,"strokes":[{"kind":"direction","points":[[10,10]]}]}"#,
+            "point",
+        ),
+        (
+            "kind.json",
+            r#"{"version":1,"strokes":[{"kind":"swirl","points":[[10,10],[20,20]]}]}"#,
+            "swirl",
+        ),
+        ("version.json", r#"{"version":2,"strokes":[]}"#, "version 2"),
+        (
+            "nan.json",
+            r#"{"version":1,"strokes":[{"kind":"direction","points":[[NaN,10],[20,20]]}]}"#,
+            "nan.json",
+        ),
+    ];
+    for (name, json, needle) in cases {
+        write_strokes(&c, name, json);
+        let o = coif(&[
+            "analyze",
+            "--image",
+            &c.s("case/image.png"),
+            "--strokes",
+            &c.s(name),
+            "--mask",
+            &c.s("case/mask.png"),
+            "--out",
+            &c.s("an"),
+            "--backend",
+            "cpu",
+        ]);
+        fails(&o, 65, &[name, needle]);
+    }
+}
+
+#[test]
+fn analyze_with_strokes_off_the_hair() {
+    let c = Case::new();
+    synth_case(&c);
+    // Every stroke in the background corner: nothing to resolve from.
+    write_strokes(
+        &c,
+        "off.json",
+        r#"{"version":1,"strokes":[{"kind":"direction","points":[[2,2],[20,3]]}]}"#,
+    );
+    let o = coif(&[
+        "analyze",
+        "--image",
+        &c.s("case/image.png"),
+        "--strokes",
+        &c.s("off.json"),
+        "--mask",
+        &c.s("case/mask.png"),
+        "--out",
+        &c.s("an"),
+        "--backend",
+        "cpu",
+    ]);
+    fails(&o, 64, &["none of the direction strokes lies on the hair"]);
+    assert!(!c.p("an").exists());
+}
