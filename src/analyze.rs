@@ -12,29 +12,17 @@ use crate::segment::{segment, SegmentParams};
 use crate::trace::{split_curves, trace_curves, Curve, TraceParams};
 use std::time::Instant;
 
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct AnalyzeParams {
     pub segment: SegmentParams,
     pub orient: OrientParams,
     pub trace: TraceParams,
-    /// Traced curves are resolved in pieces of at most this many vertices (0: whole); see
+    /// Traced curves are resolved in pieces of at most this many vertices; 0 (default)
+    /// resolves them whole, since the tracer already cuts curves at a parting's apex. See
     /// [`split_curves`].
     pub piece_vertices: usize,
     pub resolve: ResolveParams,
     pub direction: DirectionParams,
-}
-
-impl Default for AnalyzeParams {
-    fn default() -> Self {
-        AnalyzeParams {
-            segment: SegmentParams::default(),
-            orient: OrientParams::default(),
-            trace: TraceParams::default(),
-            piece_vertices: 10,
-            resolve: ResolveParams::default(),
-            direction: DirectionParams::default(),
-        }
-    }
 }
 
 pub struct Analysis {

@@ -391,7 +391,8 @@ struct AnalyzeArgs {
     /// Portrait (PNG).
     #[arg(long)]
     image: PathBuf,
-    /// strokes.json (version 1): direction strokes root to tip.
+    /// strokes.json (version 1), or strokes drawn elsewhere: a labelme .json (linestrip
+    /// shapes) or an .svg (polylines, line-segment paths); direction strokes root to tip.
     #[arg(long)]
     strokes: PathBuf,
     /// Hair mask, same size, > 127 on hair; without it the hair is segmented from the
@@ -413,8 +414,33 @@ struct AnalyzeArgs {
     stroke_weight: f32,
 }
 
+/// strokes.json, or strokes drawn elsewhere: an .svg, or a labelme .json (it has "shapes").
 fn load_strokes(path: &Path, size: (u32, u32)) -> anyhow::Result<coif::annot::Strokes> {
-    Ok(coif::annot::Strokes::load(path, Some(size))?)
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_lowercase())
+        .unwrap_or_default();
+    let imported = if ext == "svg" {
+        Some(coif::import::strokes_from_svg(path)?)
+    } else {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let labelme = serde_json::from_str::<serde_json::Value>(&text)
+            .ok()
+            .is_some_and(|v| v.get("shapes").is_some() && v.get("strokes").is_none());
+        if labelme {
+            Some(coif::import::strokes_from_labelme(path)?)
+        } else {
+            None
+        }
+    };
+    match imported {
+        Some(s) => {
+            s.validate(Some(size))
+                .map_err(|m| Error::bad_file(path, m))?;
+            Ok(s)
+        }
+        None => Ok(coif::annot::Strokes::load(path, Some(size))?),
+    }
 }
 
 fn write_analysis(

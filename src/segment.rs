@@ -1,32 +1,45 @@
-//! Hair segmentation from strokes (C13 §2.1 uses Paint Selection; this is its GrabCut core):
-//! colour GMMs for hair (pixels under the direction strokes) and background (background
-//! strokes, else the image border), an edge-aware graph cut on the 8-connected pixel grid,
-//! re-estimated a few rounds, then holes filled and islands away from the strokes dropped.
-//! Graph cuts are sequential, so this stage stays on the CPU.
+//! Hair segmentation from user strokes (C13 §2.1 segments the hair with Paint Selection
+//! [Liu et al. 2009]; this is the GrabCut-style variant of that idea).
+//!
+//! Colour models are RGB Gaussian mixtures (full covariance): hair from the pixels under the
+//! `direction` strokes, background from the `background` strokes, the image border and a
+//! sparse sample of all unmarked pixels. A binary graph cut on the 8-connected pixel grid
+//! (edge-aware GrabCut smoothness, stroke pixels hard-constrained, Boykov-Kolmogorov
+//! max-flow) gives the labelling; the mixtures are re-fitted to it for a few rounds, and the
+//! final mask is cleaned of small holes and stray islands.
+//!
+//! Everything is deterministic: sampling uses a fixed-seed [`Rng`], parallel work is
+//! per-pixel and reductions run sequentially.
 
 use crate::annot::{StrokeKind, Strokes};
 use crate::error::{Error, Result};
-use crate::maxflow::Graph;
+use crate::rng::Rng;
 use image::{GrayImage, RgbImage};
+use rayon::prelude::*;
+use std::collections::VecDeque;
 
+/// Tuning of [`segment`].
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct SegmentParams {
-    /// Pixels within this distance of a stroke are taken as sure (px).
+    /// Pixels whose centre lies within this distance (px) of a stroke are sure hair
+    /// (direction strokes) or sure background (background strokes).
     pub brush_radius: f32,
-    /// Image border width used as background samples without background strokes (px).
+    /// Width (px) of the image border sampled for the background colour model (with any
+    /// background strokes and a sparse sample of the whole image). The border is only a
+    /// colour sample, not a constraint, so hair touching the image edge can still be hair.
     pub border: u32,
-    /// Gaussians per colour model.
+    /// Gaussian components per colour model.
     pub components: usize,
-    /// Rounds of graph cut and model re-estimation.
+    /// GrabCut-style rounds of re-fitting the colour models to the labelling; the graph is
+    /// cut `iterations + 1` times.
     pub iterations: usize,
-    /// Weight of the edge-aware smoothness term (GrabCut's gamma).
+    /// Smoothness weight gamma (GrabCut uses 50).
     pub smoothness: f32,
-    /// Holes smaller than this share of the hair area are filled.
-    pub max_hole_share: f32,
-    /// Weight of the uniform "any other colour" part of the background model.
-    pub outlier: f64,
-    /// Scale of the texture feature against the colour channels.
-    pub texture_weight: f64,
+    /// Hair islands touching no direction stroke and smaller than this (px) are dropped.
+    pub min_island: u32,
+    /// Enclosed non-hair regions smaller than this (px) and free of background strokes are
+    /// filled.
+    pub max_hole: u32,
 }
 
 impl Default for SegmentParams {
@@ -35,430 +48,1397 @@ impl Default for SegmentParams {
             brush_radius: 4.0,
             border: 3,
             components: 5,
-            iterations: 3,
+            iterations: 4,
             smoothness: 50.0,
-            max_hole_share: 0.02,
-            outlier: 0.05,
-            texture_weight: 4.0,
+            min_island: 2000,
+            max_hole: 500,
         }
     }
 }
 
-/// Features per pixel: R, G, B in [0, 1] and a texture energy. Colour alone cannot tell
-/// light strands from skin of the same tone; hair is textured, skin is smooth.
-const D: usize = 4;
-type Feat = [f64; D];
-
-/// A Gaussian mixture over the features (full covariance).
-struct Gmm {
-    weight: Vec<f64>,
-    mean: Vec<Feat>,
-    /// Inverse covariance and log normaliser per component.
-    inv: Vec<[Feat; D]>,
-    log_norm: Vec<f64>,
+impl SegmentParams {
+    fn validate(&self) -> Result<()> {
+        let bad = |m: String| Err(Error::Invalid(format!("segmentation parameters: {m}")));
+        if !(self.brush_radius.is_finite() && self.brush_radius >= 0.0) {
+            return bad(format!(
+                "brush_radius must be a finite number >= 0, got {}",
+                self.brush_radius
+            ));
+        }
+        if !(self.smoothness.is_finite() && self.smoothness >= 0.0) {
+            return bad(format!(
+                "smoothness must be a finite number >= 0, got {}",
+                self.smoothness
+            ));
+        }
+        if self.components == 0 || self.components > 64 {
+            return bad(format!(
+                "components must be in 1..=64, got {}",
+                self.components
+            ));
+        }
+        Ok(())
+    }
 }
 
-/// Inverse and determinant by Gauss-Jordan elimination with partial pivoting.
-fn inverse(m: &[Feat; D]) -> ([Feat; D], f64) {
-    let mut a = *m;
-    let mut r = [[0.0; D]; D];
-    for (i, row) in r.iter_mut().enumerate() {
-        row[i] = 1.0;
+/// Per-pixel seed label.
+const FREE: u8 = 0;
+const HAIR: u8 = 1;
+const BACK: u8 = 2;
+
+/// Segments the hair of `image` from the user's strokes: 255 = hair, 0 = not hair.
+///
+/// Needs at least one `direction` stroke touching the image. `comb` and `cut` strokes are
+/// ignored. Where strokes of different kinds overlap, the later stroke wins.
+pub fn segment(image: &RgbImage, strokes: &Strokes, p: &SegmentParams) -> Result<GrayImage> {
+    p.validate()?;
+    let (w, h) = image.dimensions();
+    if w == 0 || h == 0 {
+        return Err(Error::Invalid(format!(
+            "cannot segment an empty {w}x{h} image"
+        )));
     }
-    let mut det = 1.0;
-    for c in 0..D {
-        let piv = (c..D)
-            .max_by(|&x, &y| a[x][c].abs().total_cmp(&a[y][c].abs()))
-            .unwrap();
-        if piv != c {
-            a.swap(piv, c);
-            r.swap(piv, c);
-            det = -det;
+    strokes
+        .validate(None)
+        .map_err(|m| Error::Invalid(format!("strokes: {m}")))?;
+    if !strokes
+        .strokes
+        .iter()
+        .any(|s| s.kind == StrokeKind::Direction)
+    {
+        return Err(Error::Invalid(
+            "hair segmentation needs at least one direction stroke on the hair \
+             (there are none)"
+                .into(),
+        ));
+    }
+
+    let (wu, hu) = (w as usize, h as usize);
+    let n = wu * hu;
+    // Seeds, and for each direction-stroke pixel the index of its stroke (for the warning).
+    let mut seed = vec![FREE; n];
+    let mut owner = vec![u32::MAX; n];
+    for (si, s) in strokes.strokes.iter().enumerate() {
+        let lab = match s.kind {
+            StrokeKind::Direction => HAIR,
+            StrokeKind::Background => BACK,
+            StrokeKind::Comb | StrokeKind::Cut => continue,
+        };
+        raster_stroke(&s.points, p.brush_radius, w, h, |i| {
+            seed[i] = lab;
+            owner[i] = if lab == HAIR { si as u32 } else { u32::MAX };
+        });
+    }
+    if !seed.contains(&HAIR) {
+        return Err(Error::Invalid(format!(
+            "no direction stroke touches the {w}x{h} image (all lie outside it)"
+        )));
+    }
+
+    let rgb: Vec<[f32; 3]> = image
+        .pixels()
+        .map(|q| [q[0] as f32, q[1] as f32, q[2] as f32])
+        .collect();
+
+    // Initial background samples: pixels under background strokes, the image border, and a
+    // sparse sample of every pixel not marked as hair (Paint Selection's background model).
+    // The global sample matters: a border-only model leaves regions such as the face in
+    // neither model, the first cut gives them to whichever is less wrong (often the hair),
+    // and re-estimation then locks that in. Hair pixels in the global sample are a minority
+    // that the concentrated hair model still outweighs. Background strokes add to this
+    // rather than replace it, so that one stroke on a hair-coloured object does not leave
+    // the rest of the background unmodelled.
+    let b = p.border as usize;
+    let marked: Vec<usize> = (0..n).filter(|&i| seed[i] == BACK).collect();
+    let border: Vec<usize> = (0..n)
+        .filter(|&i| {
+            let (x, y) = (i % wu, i / wu);
+            seed[i] == FREE && (x < b || y < b || x + b >= wu || y + b >= hu)
+        })
+        .collect();
+    let back_init: Vec<usize> = if marked.is_empty() && border.is_empty() {
+        Vec::new()
+    } else {
+        // As many global samples as border or stroke pixels, on a fixed stride.
+        let stride = (n / border.len().max(marked.len())).max(1);
+        let global = (0..n).step_by(stride).filter(|&i| seed[i] == FREE);
+        marked
+            .iter()
+            .chain(&border)
+            .copied()
+            .chain(global)
+            .collect()
+    };
+    if back_init.is_empty() {
+        return Err(Error::Invalid(if p.border == 0 {
+            "no background colour samples: draw a background stroke or use a border > 0".into()
+        } else {
+            "no background colour samples: the direction strokes cover the whole image; \
+             draw a background stroke"
+                .into()
+        }));
+    }
+    let hair_init: Vec<usize> = (0..n).filter(|&i| seed[i] == HAIR).collect();
+
+    let mut rng = Rng::new(0x5e6_0001);
+    let mut fg = Gmm::fit(&sample(&rgb, &hair_init, &mut rng), p.components, &mut rng);
+    // The background is many materials (backdrop, skin, eyes, clothes) against the hair's
+    // one, so it gets twice the components; with as many as the hair, skin shares a broad
+    // component with clothes and loses to the hair's mid-tones on brown hair.
+    let mut bg = Gmm::fit(
+        &sample(&rgb, &back_init, &mut rng),
+        2 * p.components,
+        &mut rng,
+    );
+
+    let smooth = smoothness_weights(&rgb, wu, hu, p.smoothness);
+    let mut flow = GridFlow::new(wu, hu);
+    let mut label = vec![false; n];
+    for round in 0..=p.iterations {
+        if round > 0 {
+            // Re-fit to the labelling, warm-starting from the current mixtures.
+            let hair_px: Vec<usize> = (0..n).filter(|&i| label[i]).collect();
+            let back_px: Vec<usize> = (0..n).filter(|&i| !label[i]).collect();
+            if !hair_px.is_empty() {
+                fg.refine(&sample(&rgb, &hair_px, &mut rng));
+            }
+            if !back_px.is_empty() {
+                bg.refine(&sample(&rgb, &back_px, &mut rng));
+            }
         }
-        let d = a[c][c];
-        det *= d;
-        for k in 0..D {
-            a[c][k] /= d;
-            r[c][k] /= d;
+        let (dfg, dbg) = data_terms(&rgb, &fg, &bg);
+        flow.reset(&smooth, |i| match seed[i] {
+            HAIR => f32::INFINITY,
+            BACK => f32::NEG_INFINITY,
+            // Source = hair: the source link is paid when the pixel ends up background.
+            _ => dbg[i] - dfg[i],
+        });
+        flow.max_flow();
+        let new: Vec<bool> = (0..n).map(|i| flow.is_source(i)).collect();
+        let changed = new.iter().zip(&label).filter(|(a, b)| a != b).count();
+        label = new;
+        // Converged: fewer than 0.1% of the pixels moved.
+        if round > 0 && changed * 1000 < n {
+            break;
         }
-        for row in 0..D {
-            if row != c {
-                let f = a[row][c];
-                for k in 0..D {
-                    a[row][k] -= f * a[c][k];
-                    r[row][k] -= f * r[c][k];
+    }
+
+    for (s, off, total) in off_model_strokes(&rgb, &owner, strokes, &bg, p.components) {
+        log::warn!(
+            "direction stroke {s}: {off} of its {total} pixels look like background to the \
+             colour models (hair model from the other direction strokes); is it on the hair?"
+        );
+    }
+    clean(&mut label, &seed, wu, hu, p.min_island, p.max_hole);
+    let data = label.iter().map(|&l| if l { 255 } else { 0 }).collect();
+    Ok(GrayImage::from_raw(w, h, data).expect("w*h buffer"))
+}
+
+/// Calls `mark` for every pixel whose centre is within `r` of the polyline. Thin brushes
+/// still mark a connected line (radius at least half a pixel diagonal).
+fn raster_stroke(pts: &[[f32; 2]], r: f32, w: u32, h: u32, mut mark: impl FnMut(usize)) {
+    let r = r.max(std::f32::consts::FRAC_1_SQRT_2);
+    for seg in pts.windows(2) {
+        let (a, b) = (seg[0], seg[1]);
+        let x0 = (a[0].min(b[0]) - r - 0.5).floor().max(0.0);
+        let x1 = (a[0].max(b[0]) + r - 0.5).ceil().min(w as f32 - 1.0);
+        let y0 = (a[1].min(b[1]) - r - 0.5).floor().max(0.0);
+        let y1 = (a[1].max(b[1]) + r - 0.5).ceil().min(h as f32 - 1.0);
+        if x0 > x1 || y0 > y1 {
+            continue;
+        }
+        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+        let len2 = dx * dx + dy * dy;
+        for y in y0 as u32..=y1 as u32 {
+            for x in x0 as u32..=x1 as u32 {
+                let (px, py) = (x as f32 + 0.5, y as f32 + 0.5);
+                let t = if len2 > 0.0 {
+                    (((px - a[0]) * dx + (py - a[1]) * dy) / len2).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                let (ex, ey) = (px - a[0] - t * dx, py - a[1] - t * dy);
+                if ex * ex + ey * ey <= r * r {
+                    mark(y as usize * w as usize + x as usize);
                 }
             }
         }
     }
-    (r, det)
+}
+
+/// Colour samples for fitting, at most `MAX_SAMPLES` drawn uniformly so that large regions
+/// do not make fitting slow.
+const MAX_SAMPLES: usize = 20_000;
+
+fn sample(rgb: &[[f32; 3]], idx: &[usize], rng: &mut Rng) -> Vec<[f32; 3]> {
+    if idx.len() <= MAX_SAMPLES {
+        return idx.iter().map(|&i| rgb[i]).collect();
+    }
+    (0..MAX_SAMPLES)
+        .map(|_| rgb[idx[rng.below(idx.len() as u32) as usize]])
+        .collect()
+}
+
+/// Direction strokes that seem not to lie on hair, as (stroke, pixels off, pixels): at least
+/// 90% of the stroke's pixels are likelier under the background model than under a hair model
+/// fitted to the other direction strokes. (The full hair model contains the stroke's own
+/// colours, so it cannot tell.) Needs two or more direction strokes.
+fn off_model_strokes(
+    rgb: &[[f32; 3]],
+    owner: &[u32],
+    strokes: &Strokes,
+    bg: &Gmm,
+    components: usize,
+) -> Vec<(usize, usize, usize)> {
+    let mut by_stroke: Vec<Vec<usize>> = vec![Vec::new(); strokes.strokes.len()];
+    for (i, &o) in owner.iter().enumerate() {
+        if o != u32::MAX {
+            by_stroke[o as usize].push(i);
+        }
+    }
+    let used: Vec<usize> = (0..by_stroke.len())
+        .filter(|&s| !by_stroke[s].is_empty())
+        .collect();
+    if used.len() < 2 {
+        return Vec::new();
+    }
+    let mut out = Vec::new();
+    for &s in &used {
+        let others: Vec<usize> = used
+            .iter()
+            .filter(|&&o| o != s)
+            .flat_map(|&o| by_stroke[o].iter().copied())
+            .collect();
+        let mut rng = Rng::new(0x5e6_0002 + s as u64);
+        let fg = Gmm::fit(&sample(rgb, &others, &mut rng), components, &mut rng);
+        let off = by_stroke[s]
+            .iter()
+            .filter(|&&i| bg.nll(rgb[i]) < fg.nll(rgb[i]))
+            .count();
+        if off * 10 >= by_stroke[s].len() * 9 {
+            out.push((s, off, by_stroke[s].len()));
+        }
+    }
+    out
+}
+
+// ----------------------------------------------------------------------------------------
+// Gaussian mixtures
+
+/// Variance added to every covariance diagonal (8-bit RGB units): keeps flat regions and
+/// quantised colours from producing singular Gaussians.
+const COV_REG: f64 = 4.0;
+/// EM steps after k-means, and per re-estimation round.
+const EM_STEPS: usize = 4;
+const KMEANS_STEPS: usize = 8;
+
+#[derive(Clone, Debug)]
+struct Gauss {
+    mean: [f64; 3],
+    /// Lower-triangular Cholesky factor of the covariance.
+    chol: [[f64; 3]; 3],
+    /// log weight - 0.5 * log det(cov) - 1.5 * log(2 pi).
+    log_norm: f64,
+}
+
+#[derive(Clone, Debug)]
+struct Gmm {
+    comps: Vec<Gauss>,
 }
 
 impl Gmm {
-    /// Fits `k` components to `samples` (k-means from spread-out seeds, then covariances).
-    fn fit(samples: &[Feat], k: usize) -> Gmm {
-        let k = k.clamp(1, samples.len().max(1));
-        // Farthest-point seeds: deterministic and spread over the colours present.
-        let mut means = vec![samples[0]];
-        let d2 = |a: &Feat, b: &Feat| (0..D).map(|c| (a[c] - b[c]).powi(2)).sum::<f64>();
-        while means.len() < k {
-            let far = samples
-                .iter()
-                .max_by(|a, b| {
-                    let da = means.iter().map(|m| d2(a, m)).fold(f64::MAX, f64::min);
-                    let db = means.iter().map(|m| d2(b, m)).fold(f64::MAX, f64::min);
-                    da.total_cmp(&db)
-                })
-                .copied()
-                .unwrap();
-            means.push(far);
-        }
-        let mut label = vec![0usize; samples.len()];
-        for _ in 0..8 {
-            for (s, l) in samples.iter().zip(label.iter_mut()) {
-                *l = (0..k)
-                    .min_by(|&a, &b| d2(s, &means[a]).total_cmp(&d2(s, &means[b])))
-                    .unwrap();
+    /// k-means++ initialisation, Lloyd steps, then EM.
+    fn fit(xs: &[[f32; 3]], k: usize, rng: &mut Rng) -> Gmm {
+        let k = k.min(xs.len()).max(1);
+        let mut centres: Vec<[f64; 3]> = vec![to64(xs[rng.below(xs.len() as u32) as usize])];
+        let mut d2: Vec<f64> = xs.iter().map(|x| dist2(to64(*x), centres[0])).collect();
+        while centres.len() < k {
+            let sum: f64 = d2.iter().sum();
+            if sum <= 0.0 {
+                break; // fewer distinct colours than components
             }
-            let mut sum = vec![[0.0; D]; k];
-            let mut n = vec![0usize; k];
-            for (s, &l) in samples.iter().zip(&label) {
-                for c in 0..D {
-                    sum[l][c] += s[c];
-                }
-                n[l] += 1;
-            }
-            for j in 0..k {
-                if n[j] > 0 {
-                    for c in 0..D {
-                        means[j][c] = sum[j][c] / n[j] as f64;
-                    }
+            let mut t = rng.next_f32() as f64 * sum;
+            let mut pick = xs.len() - 1;
+            for (i, d) in d2.iter().enumerate() {
+                t -= d;
+                if t < 0.0 {
+                    pick = i;
+                    break;
                 }
             }
+            let c = to64(xs[pick]);
+            for (d, x) in d2.iter_mut().zip(xs) {
+                *d = d.min(dist2(to64(*x), c));
+            }
+            centres.push(c);
         }
-        let mut g = Gmm {
-            weight: Vec::new(),
-            mean: Vec::new(),
-            inv: Vec::new(),
-            log_norm: Vec::new(),
-        };
-        for (j, mean) in means.iter().enumerate() {
-            let members: Vec<&Feat> = samples
-                .iter()
-                .zip(&label)
-                .filter(|(_, &l)| l == j)
-                .map(|(s, _)| s)
-                .collect();
-            if members.is_empty() {
+        let mut assign = vec![0usize; xs.len()];
+        for _ in 0..KMEANS_STEPS {
+            for (a, x) in assign.iter_mut().zip(xs) {
+                let x = to64(*x);
+                *a = (0..centres.len())
+                    .min_by(|&i, &j| dist2(x, centres[i]).total_cmp(&dist2(x, centres[j])))
+                    .unwrap_or(0);
+            }
+            let mut sum = vec![[0.0f64; 3]; centres.len()];
+            let mut cnt = vec![0usize; centres.len()];
+            for (&a, x) in assign.iter().zip(xs) {
+                for c in 0..3 {
+                    sum[a][c] += x[c] as f64;
+                }
+                cnt[a] += 1;
+            }
+            for (i, c) in centres.iter_mut().enumerate() {
+                if cnt[i] > 0 {
+                    *c = sum[i].map(|s| s / cnt[i] as f64);
+                }
+            }
+        }
+        // Hard responsibilities from k-means start EM.
+        let resp: Vec<Vec<f64>> = (0..centres.len())
+            .map(|c| assign.iter().map(|&a| (a == c) as u8 as f64).collect())
+            .collect();
+        let mut g = Gmm::m_step(xs, &resp);
+        g.refine(xs);
+        g
+    }
+
+    /// EM steps on `xs` starting from the current components.
+    fn refine(&mut self, xs: &[[f32; 3]]) {
+        for _ in 0..EM_STEPS {
+            let k = self.comps.len();
+            let mut resp = vec![vec![0.0f64; xs.len()]; k];
+            let mut lp = vec![0.0f64; k];
+            for (i, x) in xs.iter().enumerate() {
+                let x = to64(*x);
+                for (c, g) in self.comps.iter().enumerate() {
+                    lp[c] = g.log_pdf(x);
+                }
+                let m = lp.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+                let s: f64 = lp.iter().map(|l| (l - m).exp()).sum();
+                for c in 0..k {
+                    resp[c][i] = (lp[c] - m).exp() / s;
+                }
+            }
+            *self = Gmm::m_step(xs, &resp);
+        }
+    }
+
+    /// Weighted means and covariances; components with (almost) no weight are dropped.
+    fn m_step(xs: &[[f32; 3]], resp: &[Vec<f64>]) -> Gmm {
+        let n = xs.len() as f64;
+        let mut comps = Vec::new();
+        for r in resp {
+            let wsum: f64 = r.iter().sum();
+            if wsum < 1e-3 * n.max(1.0) || wsum < 1.0 {
                 continue;
             }
-            let mut cov = [[0.0; D]; D];
-            for s in &members {
-                for a in 0..D {
-                    for b in 0..D {
-                        cov[a][b] += (s[a] - mean[a]) * (s[b] - mean[b]);
+            let mut mean = [0.0f64; 3];
+            for (x, &ri) in xs.iter().zip(r) {
+                for c in 0..3 {
+                    mean[c] += ri * x[c] as f64;
+                }
+            }
+            mean = mean.map(|m| m / wsum);
+            let mut cov = [[0.0f64; 3]; 3];
+            for (x, &ri) in xs.iter().zip(r) {
+                let d = [
+                    x[0] as f64 - mean[0],
+                    x[1] as f64 - mean[1],
+                    x[2] as f64 - mean[2],
+                ];
+                for (a, row) in cov.iter_mut().enumerate() {
+                    for (b, v) in row.iter_mut().enumerate() {
+                        *v += ri * d[a] * d[b];
                     }
                 }
             }
             for (a, row) in cov.iter_mut().enumerate() {
-                for v in row.iter_mut() {
-                    *v /= members.len() as f64;
-                }
-                // Regularise: 8-bit colours never vary by less than a level.
-                row[a] += 1e-4;
+                row.iter_mut().for_each(|v| *v /= wsum);
+                row[a] += COV_REG;
             }
-            let (inv, det) = inverse(&cov);
-            g.weight.push(members.len() as f64 / samples.len() as f64);
-            g.mean.push(*mean);
-            g.inv.push(inv);
-            g.log_norm
-                .push(-0.5 * (det.max(1e-30).ln() + D as f64 * (2.0 * std::f64::consts::PI).ln()));
+            let chol = cholesky(&cov);
+            let log_det = 2.0 * (0..3).map(|i| chol[i][i].ln()).sum::<f64>();
+            comps.push(Gauss {
+                mean,
+                chol,
+                log_norm: (wsum / n).ln() - 0.5 * log_det - 1.5 * (2.0 * std::f64::consts::PI).ln(),
+            });
         }
-        g
+        if comps.is_empty() {
+            // Unreachable for non-empty input (weights sum to n), but stay total.
+            comps.push(Gauss {
+                mean: [127.5; 3],
+                chol: [[128.0, 0.0, 0.0], [0.0, 128.0, 0.0], [0.0, 0.0, 128.0]],
+                log_norm: -3.0 * 128f64.ln() - 1.5 * (2.0 * std::f64::consts::PI).ln(),
+            });
+        }
+        Gmm { comps }
     }
 
-    /// −log p(x).
-    fn cost(&self, x: &Feat) -> f64 {
-        -(self.density(x).max(1e-300)).ln()
-    }
-
-    fn density(&self, x: &Feat) -> f64 {
-        let mut p = 0.0;
-        for j in 0..self.weight.len() {
-            let mut d = [0.0; D];
-            for c in 0..D {
-                d[c] = x[c] - self.mean[j][c];
-            }
-            let mut q = 0.0;
-            for a in 0..D {
-                for b in 0..D {
-                    q += d[a] * self.inv[j][a][b] * d[b];
-                }
-            }
-            p += self.weight[j] * (self.log_norm[j] - 0.5 * q).exp();
-        }
-        p
-    }
-}
-
-fn box_blur(v: &[f64], w: usize, h: usize, r: usize) -> Vec<f64> {
-    let mut t = vec![0.0; v.len()];
-    for y in 0..h {
-        for x in 0..w {
-            let (a, b) = (x.saturating_sub(r), (x + r).min(w - 1));
-            t[y * w + x] = v[y * w + a..=y * w + b].iter().sum::<f64>() / (b - a + 1) as f64;
-        }
-    }
-    let mut o = vec![0.0; v.len()];
-    for y in 0..h {
-        let (a, b) = (y.saturating_sub(r), (y + r).min(h - 1));
-        for x in 0..w {
-            o[y * w + x] = (a..=b).map(|yy| t[yy * w + x]).sum::<f64>() / (b - a + 1) as f64;
-        }
-    }
-    o
-}
-
-/// RGB in [0, 1] plus the local RMS of the luma's fine detail (luma minus a 3x3 mean,
-/// squared, averaged over 7x7), times `texture_weight`.
-fn features(image: &RgbImage, texture_weight: f64) -> Vec<Feat> {
-    let (w, h) = (image.width() as usize, image.height() as usize);
-    let luma: Vec<f64> = image
-        .pixels()
-        .map(|q| (0.2126 * q[0] as f64 + 0.7152 * q[1] as f64 + 0.0722 * q[2] as f64) / 255.0)
-        .collect();
-    let mean = box_blur(&luma, w, h, 1);
-    let hp: Vec<f64> = luma
-        .iter()
-        .zip(&mean)
-        .map(|(a, b)| (a - b) * (a - b))
-        .collect();
-    let energy = box_blur(&hp, w, h, 3);
-    image
-        .pixels()
-        .zip(&energy)
-        .map(|(q, e)| {
-            [
-                q[0] as f64 / 255.0,
-                q[1] as f64 / 255.0,
-                q[2] as f64 / 255.0,
-                texture_weight * e.sqrt(),
-            ]
-        })
-        .collect()
-}
-
-fn disc(mark: &mut [bool], w: usize, h: usize, p: [f32; 2], r: f32) {
-    let ri = r.ceil() as i64;
-    let (cx, cy) = (p[0].floor() as i64, p[1].floor() as i64);
-    for y in cy - ri..=cy + ri {
-        for x in cx - ri..=cx + ri {
-            if x >= 0 && y >= 0 && (x as usize) < w && (y as usize) < h {
-                let (dx, dy) = (x as f32 + 0.5 - p[0], y as f32 + 0.5 - p[1]);
-                if dx * dx + dy * dy <= r * r {
-                    mark[y as usize * w + x as usize] = true;
-                }
-            }
-        }
-    }
-}
-
-/// Marks pixels under the polylines of the given kind, `r` px around them.
-fn under_strokes(strokes: &Strokes, kind: StrokeKind, w: usize, h: usize, r: f32) -> Vec<bool> {
-    let mut mark = vec![false; w * h];
-    for s in strokes.strokes.iter().filter(|s| s.kind == kind) {
-        for seg in s.points.windows(2) {
-            let (a, b) = (seg[0], seg[1]);
-            let n = ((b[0] - a[0]).hypot(b[1] - a[1]) * 2.0).ceil().max(1.0) as usize;
-            for k in 0..=n {
-                let f = k as f32 / n as f32;
-                disc(
-                    &mut mark,
-                    w,
-                    h,
-                    [a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1])],
-                    r,
-                );
-            }
-        }
-    }
-    mark
-}
-
-/// Connected components (4-connected) of `on`; returns labels (0 = off) and sizes.
-fn components(on: &[bool], w: usize, h: usize) -> (Vec<u32>, Vec<usize>) {
-    let mut label = vec![0u32; w * h];
-    let mut sizes = vec![0usize];
-    let mut stack = Vec::new();
-    for start in 0..w * h {
-        if !on[start] || label[start] != 0 {
-            continue;
-        }
-        let id = sizes.len() as u32;
-        sizes.push(0);
-        label[start] = id;
-        stack.push(start);
-        while let Some(i) = stack.pop() {
-            sizes[id as usize] += 1;
-            let (x, y) = (i % w, i / w);
-            let mut visit = |j: usize| {
-                if on[j] && label[j] == 0 {
-                    label[j] = id;
-                    stack.push(j);
-                }
-            };
-            if x > 0 {
-                visit(i - 1);
-            }
-            if x + 1 < w {
-                visit(i + 1);
-            }
-            if y > 0 {
-                visit(i - w);
-            }
-            if y + 1 < h {
-                visit(i + w);
-            }
-        }
-    }
-    (label, sizes)
-}
-
-/// Segments the hair: 255 on hair, 0 elsewhere.
-pub fn segment(image: &RgbImage, strokes: &Strokes, p: &SegmentParams) -> Result<GrayImage> {
-    let (w, h) = (image.width() as usize, image.height() as usize);
-    let px = features(image, p.texture_weight);
-    let fg_seed = under_strokes(strokes, StrokeKind::Direction, w, h, p.brush_radius);
-    if !fg_seed.contains(&true) {
-        return Err(Error::Invalid(
-            "segmentation needs at least one direction stroke on the image".into(),
-        ));
-    }
-    let mut bg_seed = under_strokes(strokes, StrokeKind::Background, w, h, p.brush_radius);
-    if !bg_seed.contains(&true) {
-        let b = p.border as usize;
-        for y in 0..h {
-            for x in 0..w {
-                if x < b || y < b || x + b >= w || y + b >= h {
-                    bg_seed[y * w + x] = true;
-                }
-            }
-        }
-    }
-    for i in 0..w * h {
-        // A hair stroke wins over the border where both claim a pixel.
-        if fg_seed[i] {
-            bg_seed[i] = false;
-        }
-    }
-    // GrabCut's beta: the inverse of twice the mean squared neighbour difference.
-    let nbrs: [(i64, i64, f64); 4] = [
-        (1, 0, 1.0),
-        (0, 1, 1.0),
-        (1, 1, 0.5f64.sqrt()),
-        (-1, 1, 0.5f64.sqrt()),
-    ];
-    let (mut sum, mut cnt) = (0.0, 0usize);
-    for y in 0..h {
-        for x in 0..w {
-            for &(dx, dy, _) in &nbrs {
-                let (xx, yy) = (x as i64 + dx, y as i64 + dy);
-                if xx >= 0 && yy >= 0 && (xx as usize) < w && (yy as usize) < h {
-                    let (a, b) = (px[y * w + x], px[yy as usize * w + xx as usize]);
-                    sum += (0..3).map(|c| (a[c] - b[c]).powi(2)).sum::<f64>();
-                    cnt += 1;
-                }
-            }
-        }
-    }
-    let beta = 1.0 / (2.0 * (sum / cnt.max(1) as f64)).max(1e-12);
-    let mut hair: Vec<bool> = fg_seed.clone();
-    // As GrabCut starts from "outside the box is background": the first background model
-    // takes every pixel away from the strokes, so skin and clothes, which no stroke samples,
-    // are in it; the hair in it is outweighed by the sharper hair model from the strokes.
-    let near = under_strokes(strokes, StrokeKind::Direction, w, h, 4.0 * p.brush_radius);
-    let mut bg_samples: Vec<Feat> = (0..w * h)
-        .filter(|&i| bg_seed[i] || !near[i])
-        .map(|i| px[i])
-        .collect();
-    for round in 0..p.iterations.max(1) {
-        let fg_samples: Vec<Feat> = (0..w * h).filter(|&i| hair[i]).map(|i| px[i]).collect();
-        if round > 0 {
-            bg_samples = (0..w * h).filter(|&i| !hair[i]).map(|i| px[i]).collect();
-        }
-        // Subsample for speed; the models need thousands of samples, not millions.
-        let thin = |v: &[Feat]| -> Vec<Feat> {
-            let step = (v.len() / 4000).max(1);
-            v.iter().step_by(step).copied().collect()
-        };
-        let fg = Gmm::fit(&thin(&fg_samples), p.components);
-        let bg = Gmm::fit(&thin(&bg_samples), p.components);
-        let mut g = Graph::new(w * h);
-        let hard = 1e9f32;
-        for i in 0..w * h {
-            if fg_seed[i] {
-                g.add_terminal(i, hard, 0.0);
-            } else if bg_seed[i] {
-                g.add_terminal(i, 0.0, hard);
+    /// Negative log likelihood of a colour.
+    fn nll(&self, x: [f32; 3]) -> f32 {
+        let x = to64(x);
+        // Streaming log-sum-exp: no per-call buffer.
+        let (mut m, mut s) = (f64::NEG_INFINITY, 0.0f64);
+        for g in &self.comps {
+            let l = g.log_pdf(x);
+            if l > m {
+                s = s * (m - l).exp() + 1.0;
+                m = l;
             } else {
-                // Source side = hair: cutting the source link costs the hair likelihood.
-                // The background also takes any colour the hair model explains poorly (a
-                // uniform outlier term), so skin, which neither the strokes nor the border
-                // sample, does not become hair.
-                let pb = (1.0 - p.outlier) * bg.density(&px[i]) + p.outlier;
-                let cb = -(pb.max(1e-300)).ln();
-                g.add_terminal(i, cb as f32, fg.cost(&px[i]) as f32);
+                s += (l - m).exp();
             }
         }
-        for y in 0..h {
+        -(m + s.ln()) as f32
+    }
+}
+
+impl Gauss {
+    fn log_pdf(&self, x: [f64; 3]) -> f64 {
+        // Solve L z = x - mean; the Mahalanobis distance is |z|^2.
+        let l = &self.chol;
+        let d = [
+            x[0] - self.mean[0],
+            x[1] - self.mean[1],
+            x[2] - self.mean[2],
+        ];
+        let z0 = d[0] / l[0][0];
+        let z1 = (d[1] - l[1][0] * z0) / l[1][1];
+        let z2 = (d[2] - l[2][0] * z0 - l[2][1] * z1) / l[2][2];
+        self.log_norm - 0.5 * (z0 * z0 + z1 * z1 + z2 * z2)
+    }
+}
+
+/// Cholesky factor of a symmetric positive definite 3x3 matrix (positive definite here
+/// because of the diagonal regulariser).
+fn cholesky(a: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    let mut l = [[0.0f64; 3]; 3];
+    for i in 0..3 {
+        for j in 0..=i {
+            let s: f64 = (0..j).map(|k| l[i][k] * l[j][k]).sum();
+            if i == j {
+                l[i][i] = (a[i][i] - s).max(1e-9).sqrt();
+            } else {
+                l[i][j] = (a[i][j] - s) / l[j][j];
+            }
+        }
+    }
+    l
+}
+
+fn to64(x: [f32; 3]) -> [f64; 3] {
+    [x[0] as f64, x[1] as f64, x[2] as f64]
+}
+
+fn dist2(a: [f64; 3], b: [f64; 3]) -> f64 {
+    (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)
+}
+
+/// Per-pixel -log likelihood under the hair and background models. Capped so that one
+/// outlier colour cannot outweigh any amount of smoothness.
+fn data_terms(rgb: &[[f32; 3]], fg: &Gmm, bg: &Gmm) -> (Vec<f32>, Vec<f32>) {
+    const CAP: f32 = 60.0;
+    rgb.par_iter()
+        .map(|&c| (fg.nll(c).min(CAP), bg.nll(c).min(CAP)))
+        .unzip()
+}
+
+// ----------------------------------------------------------------------------------------
+// Graph
+
+/// Neighbour offsets (dx, dy); direction `7 - d` is the opposite of `d`.
+const DIRS: [(i32, i32); 8] = [
+    (-1, -1),
+    (0, -1),
+    (1, -1),
+    (-1, 0),
+    (1, 0),
+    (-1, 1),
+    (0, 1),
+    (1, 1),
+];
+
+/// GrabCut smoothness gamma * exp(-beta |dI|^2) / dist for every pixel and direction
+/// (`n * 8`, zero towards outside the image), with beta = 1 / (2 <|dI|^2>) over all
+/// neighbour pairs.
+fn smoothness_weights(rgb: &[[f32; 3]], w: usize, h: usize, gamma: f32) -> Vec<f32> {
+    let diff2 = |a: [f32; 3], b: [f32; 3]| {
+        (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)
+    };
+    let inside = |x: usize, y: usize, d: usize| {
+        let (nx, ny) = (x as i64 + DIRS[d].0 as i64, y as i64 + DIRS[d].1 as i64);
+        nx >= 0 && ny >= 0 && (nx as usize) < w && (ny as usize) < h
+    };
+    // Each unordered pair once (directions 4..8 point forward in raster order).
+    let (sum, cnt) = (0..h)
+        .into_par_iter()
+        .map(|y| {
+            let (mut s, mut c) = (0.0f64, 0u64);
             for x in 0..w {
-                let i = y * w + x;
-                for &(dx, dy, inv_dist) in &nbrs {
-                    let (xx, yy) = (x as i64 + dx, y as i64 + dy);
-                    if xx >= 0 && yy >= 0 && (xx as usize) < w && (yy as usize) < h {
-                        let j = yy as usize * w + xx as usize;
-                        let d2: f64 = (0..3).map(|c| (px[i][c] - px[j][c]).powi(2)).sum();
-                        let wgt = (p.smoothness as f64 * inv_dist * (-beta * d2).exp()) as f32;
-                        g.add_edge(i, j, wgt, wgt);
+                for (d, &(dx, dy)) in DIRS.iter().enumerate().skip(4) {
+                    if inside(x, y, d) {
+                        let j =
+                            (y as i64 + dy as i64) as usize * w + (x as i64 + dx as i64) as usize;
+                        s += diff2(rgb[y * w + x], rgb[j]) as f64;
+                        c += 1;
                     }
                 }
             }
-        }
-        hair = g.min_cut();
-    }
-    // Keep the hair regions that touch a direction stroke; fill small holes.
-    let (label, _) = components(&hair, w, h);
-    let mut keep = vec![false; label.len() + 1];
-    for i in 0..w * h {
-        if fg_seed[i] {
-            keep[label[i] as usize] = true;
-        }
-    }
-    let mut out: Vec<bool> = (0..w * h)
-        .map(|i| label[i] != 0 && keep[label[i] as usize])
-        .collect();
-    let area = out.iter().filter(|&&v| v).count();
-    let holes: Vec<bool> = out.iter().map(|&v| !v).collect();
-    let (hl, hs) = components(&holes, w, h);
-    let mut touches_border = vec![false; hs.len()];
-    for y in 0..h {
+            (s, c)
+        })
+        .collect::<Vec<_>>()
+        .into_iter()
+        .fold((0.0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+    let mean = if cnt > 0 { sum / cnt as f64 } else { 0.0 };
+    let beta = if mean > 0.0 { 0.5 / mean } else { 0.0 } as f32;
+    let mut out = vec![0.0f32; w * h * 8];
+    out.par_chunks_mut(w * 8).enumerate().for_each(|(y, row)| {
         for x in 0..w {
-            if x == 0 || y == 0 || x + 1 == w || y + 1 == h {
-                touches_border[hl[y * w + x] as usize] = true;
+            for (d, &(dx, dy)) in DIRS.iter().enumerate() {
+                if inside(x, y, d) {
+                    let j = (y as i64 + dy as i64) as usize * w + (x as i64 + dx as i64) as usize;
+                    let dist = if dx != 0 && dy != 0 {
+                        std::f32::consts::SQRT_2
+                    } else {
+                        1.0
+                    };
+                    row[x * 8 + d] = gamma * (-beta * diff2(rgb[y * w + x], rgb[j])).exp() / dist;
+                }
+            }
+        }
+    });
+    out
+}
+
+// ----------------------------------------------------------------------------------------
+// Max-flow: Boykov-Kolmogorov (PAMI 2004) on the 8-connected grid.
+//
+// The grid is padded with a one-pixel frame of nodes that never join a tree, so arc heads
+// need no bounds checks. Arc `a = node * 8 + d` goes from `node` towards `DIRS[d]`; its
+// reverse is `head(a) * 8 + 7 - d`. Terminal links are folded into one signed residual per
+// node (`tr > 0`: from the source, `tr < 0`: to the sink), as in Boykov's implementation.
+
+const NO_PARENT: u32 = u32::MAX;
+const TERMINAL: u32 = u32::MAX - 1;
+const ORPHAN: u32 = u32::MAX - 2;
+const T_FREE: u8 = 0;
+const T_SRC: u8 = 1;
+const T_SNK: u8 = 2;
+
+struct GridFlow {
+    w: usize,
+    h: usize,
+    /// Padded width.
+    pw: usize,
+    off: [isize; 8],
+    cap: Vec<f32>,
+    tr: Vec<f32>,
+    tree: Vec<u8>,
+    parent: Vec<u32>,
+    /// Timestamp and distance-to-terminal of the last validated path (BK's origin-search
+    /// shortcut).
+    ts: Vec<u32>,
+    dist: Vec<u32>,
+    time: u32,
+    active: VecDeque<u32>,
+    in_active: Vec<bool>,
+    orphans: VecDeque<u32>,
+}
+
+impl GridFlow {
+    fn new(w: usize, h: usize) -> GridFlow {
+        let pw = w + 2;
+        let n = pw * (h + 2);
+        let mut off = [0isize; 8];
+        for (o, &(dx, dy)) in off.iter_mut().zip(DIRS.iter()) {
+            *o = dy as isize * pw as isize + dx as isize;
+        }
+        GridFlow {
+            w,
+            h,
+            pw,
+            off,
+            cap: vec![0.0; n * 8],
+            tr: vec![0.0; n],
+            tree: vec![T_FREE; n],
+            parent: vec![NO_PARENT; n],
+            ts: vec![0; n],
+            dist: vec![0; n],
+            time: 0,
+            active: VecDeque::new(),
+            in_active: vec![false; n],
+            orphans: VecDeque::new(),
+        }
+    }
+
+    fn node(&self, i: usize) -> usize {
+        (i / self.w + 1) * self.pw + i % self.w + 1
+    }
+
+    /// Sets the arc capacities (`smooth`, per image pixel and direction) and terminal
+    /// residuals (`term(i)`: source minus sink capacity; +-inf for hard constraints) and
+    /// clears any previous flow.
+    fn reset(&mut self, smooth: &[f32], term: impl Fn(usize) -> f32) {
+        // Hard constraints: larger than any cut through the pixel's neighbourhood.
+        let hard = smooth.iter().fold(0.0f32, |a, &b| a.max(b)) * 16.0 + 1e4;
+        self.cap.iter_mut().for_each(|c| *c = 0.0);
+        self.tr.iter_mut().for_each(|c| *c = 0.0);
+        for i in 0..self.w * self.h {
+            let v = self.node(i);
+            self.cap[v * 8..v * 8 + 8].copy_from_slice(&smooth[i * 8..i * 8 + 8]);
+            let t = term(i);
+            self.tr[v] = if t.is_infinite() { hard.copysign(t) } else { t };
+        }
+        self.tree.iter_mut().for_each(|t| *t = T_FREE);
+        self.parent.iter_mut().for_each(|p| *p = NO_PARENT);
+        self.ts.iter_mut().for_each(|t| *t = 0);
+        self.dist.iter_mut().for_each(|d| *d = 0);
+        self.in_active.iter_mut().for_each(|a| *a = false);
+        self.active.clear();
+        self.orphans.clear();
+        self.time = 0;
+    }
+
+    fn head(&self, a: u32) -> usize {
+        (a as usize / 8).wrapping_add_signed(self.off[a as usize % 8])
+    }
+
+    fn sister(&self, a: u32) -> u32 {
+        (self.head(a) * 8 + 7 - a as usize % 8) as u32
+    }
+
+    fn activate(&mut self, v: usize) {
+        if !self.in_active[v] {
+            self.in_active[v] = true;
+            self.active.push_back(v as u32);
+        }
+    }
+
+    /// Whether image pixel `i` is on the source (hair) side of the minimum cut. Nodes in
+    /// neither tree go to the sink, as in Boykov's implementation.
+    fn is_source(&self, i: usize) -> bool {
+        self.tree[self.node(i)] == T_SRC
+    }
+
+    fn max_flow(&mut self) {
+        for v in 0..self.tr.len() {
+            if self.tr[v] != 0.0 {
+                self.tree[v] = if self.tr[v] > 0.0 { T_SRC } else { T_SNK };
+                self.parent[v] = TERMINAL;
+                self.dist[v] = 1;
+                self.activate(v);
+            }
+        }
+        let mut current: Option<usize> = None;
+        loop {
+            // Next active node still in a tree.
+            let v = match current.take() {
+                Some(v) if self.tree[v] != T_FREE => v,
+                _ => loop {
+                    match self.active.pop_front() {
+                        None => return,
+                        Some(v) => {
+                            let v = v as usize;
+                            self.in_active[v] = false;
+                            if self.tree[v] != T_FREE {
+                                break v;
+                            }
+                        }
+                    }
+                },
+            };
+            // Grow: find an arc joining the two trees (oriented source side -> sink side).
+            let mut bridge = None;
+            let src = self.tree[v] == T_SRC;
+            for d in 0..8 {
+                let a = (v * 8 + d) as u32;
+                let out = if src {
+                    self.cap[a as usize]
+                } else {
+                    self.cap[self.sister(a) as usize]
+                };
+                if out <= 0.0 {
+                    continue;
+                }
+                let j = self.head(a);
+                if self.tree[j] == T_FREE {
+                    self.tree[j] = self.tree[v];
+                    self.parent[j] = self.sister(a);
+                    self.ts[j] = self.ts[v];
+                    self.dist[j] = self.dist[v] + 1;
+                    self.activate(j);
+                } else if self.tree[j] != self.tree[v] {
+                    bridge = Some(if src { a } else { self.sister(a) });
+                    break;
+                } else if self.ts[j] <= self.ts[v] && self.dist[j] > self.dist[v] {
+                    // Shorter path to the terminal through v.
+                    self.parent[j] = self.sister(a);
+                    self.ts[j] = self.ts[v];
+                    self.dist[j] = self.dist[v] + 1;
+                }
+            }
+            let Some(bridge) = bridge else { continue };
+            // v may have more bridges: come back to it.
+            current = Some(v);
+            self.time += 1;
+            self.augment(bridge);
+            self.adopt();
+        }
+    }
+
+    fn augment(&mut self, bridge: u32) {
+        let s0 = bridge as usize / 8;
+        let t0 = self.head(bridge);
+        // Bottleneck.
+        let mut f = self.cap[bridge as usize];
+        let mut v = s0;
+        loop {
+            let p = self.parent[v];
+            if p == TERMINAL {
+                f = f.min(self.tr[v]);
+                break;
+            }
+            f = f.min(self.cap[self.sister(p) as usize]);
+            v = self.head(p);
+        }
+        let mut v = t0;
+        loop {
+            let p = self.parent[v];
+            if p == TERMINAL {
+                f = f.min(-self.tr[v]);
+                break;
+            }
+            f = f.min(self.cap[p as usize]);
+            v = self.head(p);
+        }
+        // Push.
+        self.cap[bridge as usize] -= f;
+        let sb = self.sister(bridge) as usize;
+        self.cap[sb] += f;
+        let mut v = s0;
+        loop {
+            let p = self.parent[v];
+            if p == TERMINAL {
+                self.tr[v] -= f;
+                if self.tr[v] <= 0.0 {
+                    self.make_orphan(v);
+                }
+                break;
+            }
+            let sp = self.sister(p) as usize;
+            self.cap[sp] -= f;
+            self.cap[p as usize] += f;
+            let next = self.head(p);
+            if self.cap[sp] <= 0.0 {
+                self.make_orphan(v);
+            }
+            v = next;
+        }
+        let mut v = t0;
+        loop {
+            let p = self.parent[v];
+            if p == TERMINAL {
+                self.tr[v] += f;
+                if self.tr[v] >= 0.0 {
+                    self.make_orphan(v);
+                }
+                break;
+            }
+            let sp = self.sister(p) as usize;
+            self.cap[p as usize] -= f;
+            self.cap[sp] += f;
+            let next = self.head(p);
+            if self.cap[p as usize] <= 0.0 {
+                self.make_orphan(v);
+            }
+            v = next;
+        }
+    }
+
+    fn make_orphan(&mut self, v: usize) {
+        self.parent[v] = ORPHAN;
+        self.orphans.push_back(v as u32);
+    }
+
+    /// Residual capacity along arc `a` in the direction the flow of `v`'s tree runs:
+    /// into `v` for the source tree, out of `v` for the sink tree.
+    fn tree_cap(&self, src: bool, a: u32) -> f32 {
+        if src {
+            self.cap[self.sister(a) as usize]
+        } else {
+            self.cap[a as usize]
+        }
+    }
+
+    fn adopt(&mut self) {
+        while let Some(v) = self.orphans.pop_front() {
+            let v = v as usize;
+            let t = self.tree[v];
+            let src = t == T_SRC;
+            // Find the neighbour with a valid origin and the shortest path to the terminal.
+            let mut best: Option<(u32, u32)> = None;
+            for d in 0..8 {
+                let a = (v * 8 + d) as u32;
+                if self.tree_cap(src, a) <= 0.0 {
+                    continue;
+                }
+                let j0 = self.head(a);
+                if self.tree[j0] != t {
+                    continue;
+                }
+                let mut j = j0;
+                let mut len = 0u32;
+                let valid = loop {
+                    if self.ts[j] == self.time {
+                        len += self.dist[j];
+                        break true;
+                    }
+                    let p = self.parent[j];
+                    len += 1;
+                    if p == TERMINAL {
+                        self.ts[j] = self.time;
+                        self.dist[j] = 1;
+                        break true;
+                    }
+                    if p == ORPHAN || p == NO_PARENT {
+                        break false;
+                    }
+                    j = self.head(p);
+                };
+                if !valid {
+                    continue;
+                }
+                if best.is_none_or(|(_, bl)| len < bl) {
+                    best = Some((a, len));
+                }
+                // Stamp the checked path so later searches stop early.
+                let mut j = j0;
+                let mut dl = len;
+                while self.ts[j] != self.time {
+                    self.ts[j] = self.time;
+                    self.dist[j] = dl;
+                    dl -= 1;
+                    j = self.head(self.parent[j]);
+                }
+            }
+            if let Some((a, len)) = best {
+                self.parent[v] = a;
+                self.ts[v] = self.time;
+                self.dist[v] = len + 1;
+                continue;
+            }
+            // No parent: v leaves the tree; its children become orphans and neighbours that
+            // could reach it become active so the tree can regrow.
+            for d in 0..8 {
+                let a = (v * 8 + d) as u32;
+                let j = self.head(a);
+                if self.tree[j] != t {
+                    continue;
+                }
+                if self.tree_cap(src, a) > 0.0 {
+                    self.activate(j);
+                }
+                let pj = self.parent[j];
+                if pj != TERMINAL && pj != ORPHAN && pj != NO_PARENT && self.head(pj) == v {
+                    self.make_orphan(j);
+                }
+            }
+            self.tree[v] = T_FREE;
+            self.parent[v] = NO_PARENT;
+        }
+    }
+}
+
+// ----------------------------------------------------------------------------------------
+// Clean-up
+
+/// Fills enclosed non-hair regions smaller than `max_hole` that hold no background stroke,
+/// then drops hair islands smaller than `min_island` that hold no direction stroke. Hair is
+/// 8-connected (as in the graph), non-hair 4-connected, so the two never cross.
+fn clean(label: &mut [bool], seed: &[u8], w: usize, h: usize, min_island: u32, max_hole: u32) {
+    for (target, eight) in [(false, false), (true, true)] {
+        let mut seen = vec![false; label.len()];
+        let mut comp = Vec::new();
+        let mut stack = Vec::new();
+        for start in 0..label.len() {
+            if seen[start] || label[start] != target {
+                continue;
+            }
+            comp.clear();
+            seen[start] = true;
+            stack.push(start);
+            let (mut border, mut keep_seed) = (false, false);
+            while let Some(i) = stack.pop() {
+                comp.push(i);
+                let (x, y) = (i % w, i / w);
+                border |= x == 0 || y == 0 || x + 1 == w || y + 1 == h;
+                keep_seed |= seed[i] == if target { HAIR } else { BACK };
+                for &(dx, dy) in DIRS.iter() {
+                    if !eight && dx != 0 && dy != 0 {
+                        continue;
+                    }
+                    let (nx, ny) = (x as i64 + dx as i64, y as i64 + dy as i64);
+                    if nx < 0 || ny < 0 || nx as usize >= w || ny as usize >= h {
+                        continue;
+                    }
+                    let j = ny as usize * w + nx as usize;
+                    if !seen[j] && label[j] == target {
+                        seen[j] = true;
+                        stack.push(j);
+                    }
+                }
+            }
+            let drop = if target {
+                !keep_seed && (comp.len() as u64) < min_island as u64
+            } else {
+                !keep_seed && !border && (comp.len() as u64) < max_hole as u64
+            };
+            if drop {
+                for &i in &comp {
+                    label[i] = !target;
+                }
             }
         }
     }
-    for i in 0..w * h {
-        let c = hl[i] as usize;
-        if c != 0 && !touches_border[c] && (hs[c] as f32) < p.max_hole_share * area as f32 {
-            out[i] = true;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::annot::Stroke;
+    use crate::synth::{synth, Style, SynthParams};
+
+    fn iou(a: &GrayImage, b: &GrayImage) -> f64 {
+        let (mut inter, mut uni) = (0u64, 0u64);
+        for (p, q) in a.pixels().zip(b.pixels()) {
+            let (x, y) = (p[0] > 127, q[0] > 127);
+            inter += (x && y) as u64;
+            uni += (x || y) as u64;
+        }
+        inter as f64 / uni.max(1) as f64
+    }
+
+    fn direction_only(s: &Strokes) -> Strokes {
+        let only: Vec<Stroke> = s
+            .strokes
+            .iter()
+            .filter(|s| s.kind == StrokeKind::Direction)
+            .cloned()
+            .collect();
+        Strokes::new(only)
+    }
+
+    /// A random flow network solved by BK must give the same max-flow value as a plain
+    /// Edmonds-Karp on the same graph, and the cut must cost exactly that.
+    #[test]
+    fn max_flow_matches_reference() {
+        let mut rng = Rng::new(7);
+        for trial in 0..30 {
+            let (w, h) = (2 + rng.below(7) as usize, 2 + rng.below(7) as usize);
+            let n = w * h;
+            let mut smooth = vec![0.0f32; n * 8];
+            // Symmetric-free capacities: each direction independent, integers for exactness.
+            for y in 0..h {
+                for x in 0..w {
+                    for (d, &(dx, dy)) in DIRS.iter().enumerate() {
+                        let (nx, ny) = (x as i64 + dx as i64, y as i64 + dy as i64);
+                        if nx >= 0 && ny >= 0 && (nx as usize) < w && (ny as usize) < h {
+                            smooth[(y * w + x) * 8 + d] = rng.below(6) as f32;
+                        }
+                    }
+                }
+            }
+            let term: Vec<f32> = (0..n).map(|_| rng.below(21) as f32 - 10.0).collect();
+            let mut g = GridFlow::new(w, h);
+            g.reset(&smooth, |i| term[i]);
+            g.max_flow();
+            // Cut cost of BK's labelling.
+            let mut cut = 0.0f64;
+            for i in 0..n {
+                let s = g.is_source(i);
+                if s && term[i] < 0.0 {
+                    cut += -term[i] as f64;
+                }
+                if !s && term[i] > 0.0 {
+                    cut += term[i] as f64;
+                }
+                for (d, &(dx, dy)) in DIRS.iter().enumerate() {
+                    let c = smooth[i * 8 + d];
+                    if c > 0.0 && s {
+                        let j = ((i / w) as i64 + dy as i64) as usize * w
+                            + ((i % w) as i64 + dx as i64) as usize;
+                        if !g.is_source(j) {
+                            cut += c as f64;
+                        }
+                    }
+                }
+            }
+            let reference = edmonds_karp(w, h, &smooth, &term);
+            assert_eq!(cut, reference, "trial {trial} ({w}x{h})");
         }
     }
-    Ok(GrayImage::from_fn(w as u32, h as u32, |x, y| {
-        image::Luma([if out[y as usize * w + x as usize] {
-            255
-        } else {
-            0
-        }])
-    }))
+
+    /// Max-flow value by BFS augmenting paths on a dense matrix (small graphs only).
+    fn edmonds_karp(w: usize, h: usize, smooth: &[f32], term: &[f32]) -> f64 {
+        let n = w * h;
+        let (s, t) = (n, n + 1);
+        let mut c = vec![vec![0.0f64; n + 2]; n + 2];
+        for i in 0..n {
+            if term[i] > 0.0 {
+                c[s][i] += term[i] as f64;
+            } else {
+                c[i][t] += -term[i] as f64;
+            }
+            for (d, &(dx, dy)) in DIRS.iter().enumerate() {
+                let v = smooth[i * 8 + d] as f64;
+                if v > 0.0 {
+                    let j = ((i / w) as i64 + dy as i64) as usize * w
+                        + ((i % w) as i64 + dx as i64) as usize;
+                    c[i][j] += v;
+                }
+            }
+        }
+        let mut total = 0.0;
+        loop {
+            let mut prev = vec![usize::MAX; n + 2];
+            prev[s] = s;
+            let mut q = VecDeque::from([s]);
+            while let Some(u) = q.pop_front() {
+                for v in 0..n + 2 {
+                    if prev[v] == usize::MAX && c[u][v] > 0.0 {
+                        prev[v] = u;
+                        q.push_back(v);
+                    }
+                }
+            }
+            if prev[t] == usize::MAX {
+                return total;
+            }
+            let mut f = f64::INFINITY;
+            let mut v = t;
+            while v != s {
+                f = f.min(c[prev[v]][v]);
+                v = prev[v];
+            }
+            let mut v = t;
+            while v != s {
+                c[prev[v]][v] -= f;
+                c[v][prev[v]] += f;
+                v = prev[v];
+            }
+            total += f;
+        }
+    }
+
+    #[test]
+    fn gmm_separates_two_clusters() {
+        let mut rng = Rng::new(3);
+        let xs: Vec<[f32; 3]> = (0..2000)
+            .map(|i| {
+                let c = if i % 2 == 0 { 40.0 } else { 200.0 };
+                [
+                    c + 5.0 * rng.normal_f32(),
+                    c + 5.0 * rng.normal_f32(),
+                    c + 5.0 * rng.normal_f32(),
+                ]
+            })
+            .collect();
+        let g = Gmm::fit(&xs, 2, &mut rng);
+        assert_eq!(g.comps.len(), 2);
+        let mut means: Vec<f64> = g.comps.iter().map(|c| c.mean[0]).collect();
+        means.sort_by(f64::total_cmp);
+        assert!(
+            (means[0] - 40.0).abs() < 1.0 && (means[1] - 200.0).abs() < 1.0,
+            "{means:?}"
+        );
+        // A colour at a cluster centre is far likelier than one in between.
+        assert!(g.nll([40.0; 3]) + 10.0 < g.nll([120.0; 3]));
+    }
+
+    fn overlay_path(name: &str) -> Option<std::path::PathBuf> {
+        std::env::var_os("COIF_SEGMENT_OUT").map(|d| std::path::Path::new(&d).join(name))
+    }
+
+    /// Image with hair where the mask says, red tint on false positives, blue on misses.
+    fn save_overlay(img: &RgbImage, got: &GrayImage, truth: Option<&GrayImage>, name: &str) {
+        let Some(path) = overlay_path(name) else {
+            return;
+        };
+        let mut out = img.clone();
+        for (x, y, px) in out.enumerate_pixels_mut() {
+            let g = got.get_pixel(x, y)[0] > 127;
+            let t = truth.map(|t| t.get_pixel(x, y)[0] > 127).unwrap_or(g);
+            let tint = match (g, t) {
+                (true, true) => [0.0, 255.0, 0.0],
+                (true, false) => [255.0, 0.0, 0.0],
+                (false, true) => [0.0, 0.0, 255.0],
+                (false, false) => continue,
+            };
+            for c in 0..3 {
+                px[c] = (px[c] as f32 * 0.55 + tint[c] * 0.45) as u8;
+            }
+        }
+        crate::io::write_png(&path, &out).unwrap();
+    }
+
+    #[test]
+    fn synthetic_portraits_iou() {
+        let p = SegmentParams::default();
+        let mut worst = 1.0f64;
+        let mut failures = Vec::new();
+        for style in Style::ALL {
+            for seed in 1..=3 {
+                let case = synth(&SynthParams::new(style, seed));
+                let strokes = direction_only(&case.strokes);
+                assert!(!strokes.strokes.is_empty());
+                let t = std::time::Instant::now();
+                let mask = segment(&case.image, &strokes, &p).unwrap();
+                let ms = t.elapsed().as_secs_f64() * 1e3;
+                let v = iou(&mask, &case.mask);
+                println!("{style} seed {seed}: IoU {v:.4} ({ms:.0} ms)");
+                save_overlay(
+                    &case.image,
+                    &mask,
+                    Some(&case.mask),
+                    &format!("{style}_{seed}.png"),
+                );
+                worst = worst.min(v);
+                if v < 0.95 {
+                    failures.push(format!("{style}/{seed}: {v:.4}"));
+                }
+            }
+        }
+        println!("worst IoU {worst:.4}");
+        assert!(failures.is_empty(), "IoU below 0.95: {failures:?}");
+    }
+
+    #[test]
+    fn explicit_background_strokes() {
+        let case = synth(&SynthParams::new(Style::SidePart, 2));
+        let mut strokes = direction_only(&case.strokes);
+        let (w, h) = (case.width as f32, case.height as f32);
+        // Background strokes on the backdrop (top corners), the face and the shirt.
+        for pts in [
+            vec![[10.0, 10.0], [w * 0.2, 10.0], [10.0, h * 0.3]],
+            vec![[w - 10.0, 10.0], [w * 0.8, 10.0], [w - 10.0, h * 0.3]],
+            vec![[w * 0.45, h * 0.55], [w * 0.55, h * 0.6]],
+            vec![[w * 0.3, h - 10.0], [w * 0.7, h - 10.0]],
+        ] {
+            strokes.strokes.push(Stroke {
+                kind: StrokeKind::Background,
+                points: pts,
+            });
+        }
+        // The strokes must actually lie off the hair for the test to mean anything.
+        for s in &strokes.strokes[strokes.strokes.len() - 4..] {
+            for q in &s.points {
+                assert!(!case.is_hair(q[0] as u32, q[1] as u32), "{q:?} is on hair");
+            }
+        }
+        let mask = segment(&case.image, &strokes, &SegmentParams::default()).unwrap();
+        let v = iou(&mask, &case.mask);
+        println!("sidepart seed 2 with background strokes: IoU {v:.4}");
+        save_overlay(&case.image, &mask, Some(&case.mask), "sidepart_2_bg.png");
+        assert!(v >= 0.95, "IoU {v:.4}");
+        // Pixels under background strokes are never hair.
+        for s in &strokes.strokes {
+            if s.kind == StrokeKind::Background {
+                for q in &s.points {
+                    assert_eq!(mask.get_pixel(q[0] as u32, q[1] as u32)[0], 0);
+                }
+            }
+        }
+    }
+
+    /// A patch of real hair texture pasted onto the backdrop, away from every stroke, is
+    /// segmented as hair (it is hair-coloured and large); one background stroke across it
+    /// removes it while the true hair stays.
+    #[test]
+    fn background_stroke_removes_hair_coloured_object() {
+        let case = synth(&SynthParams::new(Style::Long, 2));
+        let interior = crate::synth::mask_interior(&case.mask, 32.0);
+        let src = interior.iter().position(|&b| b).expect("a wide hair area");
+        let (sx, sy) = ((src % 512) as i64, (src / 512) as i64);
+        let (cx, cy, r) = (60i64, 60i64, 30i64);
+        let mut img = case.image.clone();
+        let mut disc = Vec::new();
+        for y in cy - r..=cy + r {
+            for x in cx - r..=cx + r {
+                if (x - cx).pow(2) + (y - cy).pow(2) <= r * r {
+                    assert!(!case.is_hair(x as u32, y as u32), "disc overlaps the hair");
+                    let p = *case
+                        .image
+                        .get_pixel((sx + x - cx) as u32, (sy + y - cy) as u32);
+                    img.put_pixel(x as u32, y as u32, p);
+                    disc.push((x as u32, y as u32));
+                }
+            }
+        }
+        let frac = |m: &GrayImage| {
+            disc.iter()
+                .filter(|&&(x, y)| m.get_pixel(x, y)[0] > 127)
+                .count() as f64
+                / disc.len() as f64
+        };
+        let p = SegmentParams::default();
+        let mut strokes = direction_only(&case.strokes);
+        let without = segment(&img, &strokes, &p).unwrap();
+        println!(
+            "disc hair fraction without background stroke {:.3}",
+            frac(&without)
+        );
+        assert!(frac(&without) > 0.8, "{}", frac(&without));
+        strokes.strokes.push(Stroke {
+            kind: StrokeKind::Background,
+            points: vec![[40.0, 60.0], [80.0, 60.0]],
+        });
+        let with = segment(&img, &strokes, &p).unwrap();
+        let v = iou(&with, &case.mask);
+        println!(
+            "disc hair fraction with background stroke {:.3}, IoU {v:.4}",
+            frac(&with)
+        );
+        save_overlay(&img, &with, Some(&case.mask), "long_2_disc.png");
+        assert!(frac(&with) < 0.05, "{}", frac(&with));
+        assert!(v >= 0.95, "IoU {v:.4}");
+    }
+
+    #[test]
+    fn deterministic() {
+        let case = synth(&SynthParams::new(Style::Whorl, 3));
+        let s = direction_only(&case.strokes);
+        let p = SegmentParams::default();
+        let a = segment(&case.image, &s, &p).unwrap();
+        let b = segment(&case.image, &s, &p).unwrap();
+        assert!(a.as_raw() == b.as_raw(), "two runs differ");
+    }
+
+    fn two_tone() -> RgbImage {
+        // Left half dark "hair", right half light "background".
+        RgbImage::from_fn(64, 48, |x, _| {
+            if x < 32 {
+                image::Rgb([40, 25, 10])
+            } else {
+                image::Rgb([180, 200, 220])
+            }
+        })
+    }
+
+    #[test]
+    fn two_tone_image_splits_at_the_edge() {
+        let img = two_tone();
+        let s = Strokes::new(vec![Stroke {
+            kind: StrokeKind::Direction,
+            points: vec![[16.0, 10.0], [16.0, 38.0]],
+        }]);
+        let m = segment(&img, &s, &SegmentParams::default()).unwrap();
+        for (x, _, v) in m.enumerate_pixels() {
+            assert_eq!(v[0] == 255, x < 32, "pixel column {x}");
+        }
+    }
+
+    #[test]
+    fn errors_are_clear() {
+        let img = two_tone();
+        let p = SegmentParams::default();
+        let bg_only = Strokes::new(vec![Stroke {
+            kind: StrokeKind::Background,
+            points: vec![[40.0, 10.0], [50.0, 30.0]],
+        }]);
+        let e = segment(&img, &bg_only, &p).unwrap_err().to_string();
+        assert!(e.contains("at least one direction stroke"), "{e}");
+        let off = Strokes::new(vec![Stroke {
+            kind: StrokeKind::Direction,
+            points: vec![[500.0, 500.0], [600.0, 600.0]],
+        }]);
+        let e = segment(&img, &off, &p).unwrap_err().to_string();
+        assert!(e.contains("outside"), "{e}");
+        let dir = Strokes::new(vec![Stroke {
+            kind: StrokeKind::Direction,
+            points: vec![[16.0, 10.0], [16.0, 38.0]],
+        }]);
+        let e = segment(&img, &dir, &SegmentParams { border: 0, ..p })
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("no background colour samples"), "{e}");
+        let e = segment(&img, &dir, &SegmentParams { components: 0, ..p })
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("components"), "{e}");
+        let nan = Strokes::new(vec![Stroke {
+            kind: StrokeKind::Direction,
+            points: vec![[f32::NAN, 10.0], [16.0, 38.0]],
+        }]);
+        let e = segment(&img, &nan, &p).unwrap_err().to_string();
+        assert!(e.contains("not finite"), "{e}");
+    }
+
+    /// A direction stroke drawn on the background is allowed (its pixels stay hair) and
+    /// is reported; strokes on the hair are not.
+    #[test]
+    fn off_model_stroke_is_allowed_and_reported() {
+        let img = two_tone();
+        let line = |x: f32, y0: f32, y1: f32| Stroke {
+            kind: StrokeKind::Direction,
+            points: vec![[x, y0], [x, y1]],
+        };
+        let s = Strokes::new(vec![
+            line(10.0, 8.0, 20.0),
+            line(20.0, 26.0, 40.0),
+            line(50.0, 20.0, 26.0),
+        ]);
+        let m = segment(&img, &s, &SegmentParams::default()).unwrap();
+        assert_eq!(m.get_pixel(50, 22)[0], 255, "stroke pixels are hard hair");
+        assert_eq!(m.get_pixel(16, 20)[0], 255);
+
+        let mut owner = vec![u32::MAX; 64 * 48];
+        for (si, st) in s.strokes.iter().enumerate() {
+            raster_stroke(&st.points, 4.0, 64, 48, |i| owner[i] = si as u32);
+        }
+        let rgb: Vec<[f32; 3]> = img
+            .pixels()
+            .map(|q| [q[0] as f32, q[1] as f32, q[2] as f32])
+            .collect();
+        let right: Vec<[f32; 3]> = (0..64 * 48)
+            .filter(|i| i % 64 >= 32)
+            .map(|i| rgb[i])
+            .collect();
+        let bg = Gmm::fit(&right, 2, &mut Rng::new(1));
+        let flagged = off_model_strokes(&rgb, &owner, &s, &bg, 3);
+        assert_eq!(flagged.len(), 1, "{flagged:?}");
+        assert_eq!(flagged[0].0, 2);
+    }
+
+    #[test]
+    fn clean_fills_holes_and_drops_islands() {
+        let (w, h) = (20usize, 20usize);
+        let mut label = vec![false; w * h];
+        let mut seed = vec![FREE; w * h];
+        // Hair block with a 2x2 hole, a hair seed inside it, and a lone 3x3 island.
+        for y in 2..12 {
+            for x in 2..12 {
+                label[y * w + x] = !(6..8).contains(&x) || !(6..8).contains(&y);
+            }
+        }
+        seed[3 * w + 3] = HAIR;
+        for y in 15..18 {
+            for x in 15..18 {
+                label[y * w + x] = true;
+            }
+        }
+        clean(&mut label, &seed, w, h, 10, 10);
+        assert!(label[6 * w + 6] && label[7 * w + 7], "hole filled");
+        assert!(!label[16 * w + 16], "island dropped");
+        // A hole marked by a background stroke stays open.
+        let mut label2 = vec![false; w * h];
+        for y in 2..12 {
+            for x in 2..12 {
+                label2[y * w + x] = !(6..8).contains(&x) || !(6..8).contains(&y);
+            }
+        }
+        seed[6 * w + 6] = BACK;
+        clean(&mut label2, &seed, w, h, 10, 10);
+        assert!(!label2[6 * w + 6]);
+    }
 }
