@@ -203,6 +203,32 @@ fn cmd_synth(a: SynthArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The photo and its optional mask (1 on hair), checked against each other and against the
+/// Gabor kernel size.
+fn load_image_and_mask(
+    image: &Path,
+    mask: Option<&Path>,
+    ksize: u32,
+) -> anyhow::Result<(image::RgbImage, Option<Vec<u8>>)> {
+    let rgb = imgio::load_rgb(image)?;
+    if rgb.width() < ksize || rgb.height() < ksize {
+        return Err(Error::bad_file(
+            image,
+            format!(
+                "image is {}x{} px, smaller than the {ksize}x{ksize} Gabor kernel",
+                rgb.width(),
+                rgb.height()
+            ),
+        )
+        .into());
+    }
+    let m = match mask {
+        Some(m) => Some(imgio::load_mask(m, rgb.width(), rgb.height(), image)?),
+        None => None,
+    };
+    Ok((rgb, m))
+}
+
 /// Everything `coif orient` writes, computed before anything is written.
 struct OrientRun {
     map: coif::orient::OrientMap,
@@ -217,23 +243,7 @@ fn orient_files(
     mask: Option<&Path>,
     params: &OrientParams,
 ) -> anyhow::Result<OrientRun> {
-    let rgb = imgio::load_rgb(image)?;
-    let min = params.kernel.ksize;
-    if rgb.width() < min || rgb.height() < min {
-        return Err(Error::bad_file(
-            image,
-            format!(
-                "image is {}x{} px, smaller than the {min}x{min} Gabor kernel",
-                rgb.width(),
-                rgb.height()
-            ),
-        )
-        .into());
-    }
-    let mask_px = match mask {
-        Some(m) => Some(imgio::load_mask(m, rgb.width(), rgb.height(), image)?),
-        None => None,
-    };
+    let (rgb, mask_px) = load_image_and_mask(image, mask, params.kernel.ksize)?;
     let gray = GrayImage::from_rgb(&rgb);
     let t = Instant::now();
     let map = coif::orient::orient(engine, &gray, mask_px.as_deref(), params)
@@ -538,24 +548,8 @@ fn run_analyze(
     mask: Option<&Path>,
     params: &coif::analyze::AnalyzeParams,
 ) -> anyhow::Result<(image::RgbImage, coif::analyze::Analysis)> {
-    let rgb = imgio::load_rgb(image)?;
-    let min = params.orient.kernel.ksize;
-    if rgb.width() < min || rgb.height() < min {
-        return Err(Error::bad_file(
-            image,
-            format!(
-                "image is {}x{} px, smaller than the {min}x{min} Gabor kernel",
-                rgb.width(),
-                rgb.height()
-            ),
-        )
-        .into());
-    }
+    let (rgb, m) = load_image_and_mask(image, mask, params.orient.kernel.ksize)?;
     let s = load_strokes(strokes, rgb.dimensions())?;
-    let m = match mask {
-        Some(m) => Some(imgio::load_mask(m, rgb.width(), rgb.height(), image)?),
-        None => None,
-    };
     let an = coif::analyze::analyze(engine, &rgb, &s, m, params)
         .with_context(|| format!("analysis of {} with {}", image.display(), strokes.display()))?;
     for w in &an.warnings {
