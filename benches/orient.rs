@@ -48,11 +48,7 @@ fn bank_once(engine: &Engine, img: &GrayImage, p: &OrientParams) {
         &gabor::STAGE,
         gabor::workgroups(&cfg),
         &[u, wb, s, m, s, s, o[0], o[1], o[2]],
-        &[
-            ("N_ORIENT", k.n_orient as f64),
-            ("N_VEC", (k.n_orient / 4) as f64),
-            ("N_PAIRS", k.n_pairs() as f64),
-        ],
+        &k.constants(),
     );
     rec.download(o[2]);
     engine.run(rec).expect("bank runs");

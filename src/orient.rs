@@ -235,11 +235,7 @@ fn record_tile(
         },
     );
     let mbuf = rec.upload("coif.orient.mask", mask);
-    let constants = [
-        ("N_ORIENT", k.n_orient as f64),
-        ("N_VEC", (k.n_orient / 4) as f64),
-        ("N_PAIRS", k.n_pairs() as f64),
-    ];
+    let constants = k.constants();
     let pass = |rec: &mut Recording, u, src, first: Option<(BufProxy, BufProxy)>| {
         let outs = [
             rec.alloc("coif.gabor.dx", bytes, SENTINEL),

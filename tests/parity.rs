@@ -100,11 +100,7 @@ fn gabor_matches_cpu() {
                 &gabor::STAGE,
                 gabor::workgroups(&cfg),
                 &[u, wb, s, m, fx, fy, outs[0], outs[1], outs[2]],
-                &[
-                    ("N_ORIENT", k.n_orient as f64),
-                    ("N_VEC", (k.n_orient / 4) as f64),
-                    ("N_PAIRS", k.n_pairs() as f64),
-                ],
+                &k.constants(),
             );
             outs.to_vec()
         });

@@ -95,6 +95,15 @@ impl Kernel {
         w
     }
 
+    /// The shader's `override` values for this kernel.
+    pub fn constants(&self) -> [(&'static str, f64); 3] {
+        [
+            ("N_ORIENT", self.n_orient as f64),
+            ("N_VEC", (self.n_orient / 4) as f64),
+            ("N_PAIRS", self.n_pairs() as f64),
+        ]
+    }
+
     /// [`Self::pair_weights`] padded to the shader's fixed uniform array.
     pub fn pair_weights_padded(&self) -> Vec<f32> {
         let mut w = self.pair_weights();
