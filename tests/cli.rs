@@ -579,3 +579,44 @@ fn analyze_with_strokes_off_the_hair() {
     fails(&o, 64, &["none of the direction strokes lies on the hair"]);
     assert!(!c.p("an").exists());
 }
+
+#[test]
+fn analyze_takes_strokes_drawn_in_svg() {
+    let c = Case::new();
+    // The embedded astronaut strokes, redrawn as SVG polylines.
+    let strokes: serde_json::Value = serde_json::from_str(coif::assets::ASTRONAUT_STROKES).unwrap();
+    let mut svg =
+        String::from(r#"<svg xmlns="http://www.w3.org/2000/svg" width="512" height="512">"#);
+    for s in strokes["strokes"].as_array().unwrap() {
+        let pts: Vec<String> = s["points"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|p| format!("{},{}", p[0], p[1]))
+            .collect();
+        svg += &format!(
+            r#"<polyline data-kind="{}" points="{}"/>"#,
+            s["kind"].as_str().unwrap(),
+            pts.join(" ")
+        );
+    }
+    svg += "</svg>";
+    std::fs::write(c.p("s.svg"), svg).unwrap();
+    std::fs::write(c.p("astro.png"), coif::assets::ASTRONAUT_PNG).unwrap();
+    let o = coif(&[
+        "analyze",
+        "--image",
+        &c.s("astro.png"),
+        "--strokes",
+        &c.s("s.svg"),
+        "--out",
+        &c.s("an"),
+        "--backend",
+        "cpu",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let mask = image::open(c.p("an/mask.png")).unwrap().to_luma8();
+    let hair = mask.pixels().filter(|p| p[0] > 127).count();
+    // The hair cap is about 4-8% of the photo; the face and backdrop must not be in it.
+    assert!((8_000..25_000).contains(&hair), "{hair} hair px");
+}
