@@ -29,15 +29,7 @@ fn bank_once(engine: &Engine, img: &GrayImage, p: &OrientParams) {
     let k = &p.kernel;
     let (w, h) = (img.width, img.height);
     let mut rec = Recording::default();
-    let cfg = gabor::Config {
-        width: w,
-        height: h,
-        half: k.half(),
-        n_orient: k.n_orient,
-        min_response: p.min_response,
-        min_contrast: p.min_contrast,
-        ..Default::default()
-    };
+    let cfg = p.gabor_config(w, h);
     let u = rec.uniform("cfg", &cfg);
     let wb = rec.upload("w", &k.pair_weights_padded());
     let s = rec.upload("src", &img.data);

@@ -103,6 +103,19 @@ impl OrientParams {
         Ok(())
     }
 
+    /// The Gabor pass's uniform for a `width` x `height` image (an ordinary, non-final pass).
+    pub fn gabor_config(&self, width: u32, height: u32) -> gabor::Config {
+        gabor::Config {
+            width,
+            height,
+            half: self.kernel.half(),
+            n_orient: self.kernel.n_orient,
+            min_response: self.min_response,
+            min_contrast: self.min_contrast,
+            ..Default::default()
+        }
+    }
+
     /// Pixels a tile needs beyond what it keeps so kept pixels match a one-piece run.
     pub fn halo(&self) -> u32 {
         let blur_r = |s: f32| {
@@ -217,15 +230,7 @@ fn record_tile(
     };
     let k = &p.kernel;
     let weights = rec.upload("coif.gabor.weights", &k.pair_weights_padded());
-    let cfg = gabor::Config {
-        width: w,
-        height: h,
-        half: k.half(),
-        n_orient: k.n_orient,
-        min_response: p.min_response,
-        min_contrast: p.min_contrast,
-        ..Default::default()
-    };
+    let cfg = p.gabor_config(w, h);
     let ubuf = rec.uniform("coif.gabor.cfg", &cfg);
     let last_cfg = rec.uniform(
         "coif.gabor.cfg.final",

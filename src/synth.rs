@@ -163,8 +163,7 @@ pub fn mask_interior(mask: &GrayImage, min_dist: f32) -> Vec<bool> {
 
 /// Smallest angle between two orientations (mod pi), in degrees.
 pub fn orientation_error_deg(a: f32, b: f32) -> f32 {
-    let d = (a - b).rem_euclid(PI);
-    d.min(PI - d).to_degrees()
+    crate::metrics::orient_diff(a, b).to_degrees()
 }
 
 /// Generates the portrait. Panics if a side is below [`SynthParams::MIN_SIZE`].
