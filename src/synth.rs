@@ -1055,6 +1055,34 @@ impl Scene {
                 (scale3(col, self.hair_shade(x, y, sd)), alpha)
             });
         }
+        self.draw_parting(rgb, mask);
+    }
+
+    /// A parting shows a thin line of scalp where the hair leaves it both ways; it is what
+    /// tells a viewer (and the 2D tracer) that the strands on either side are not one curve.
+    fn draw_parting(&self, rgb: &mut [[f32; 3]], mask: &[u8]) {
+        let Field::Part { px, hy, .. } = self.field else {
+            return;
+        };
+        let (w, h) = (self.w as usize, self.h as usize);
+        let half = 0.9 * self.s.max(0.75);
+        let scalp = scale3(self.skin, 0.8);
+        let x0 = ((px - half - 1.0).floor().max(0.0)) as usize;
+        let x1 = ((px + half + 1.0).ceil() as usize).min(w - 1);
+        for y in 0..(hy.max(0.0) as usize).min(h) {
+            for x in x0..=x1 {
+                let i = y * w + x;
+                if mask[i] == 0 {
+                    continue;
+                }
+                // Box-filtered coverage of the band |x - px| < half by the pixel.
+                let cover = ((x as f32 + 1.0).min(px + half) - (x as f32).max(px - half))
+                    .clamp(0.0, 1.0);
+                for c in 0..3 {
+                    rgb[i][c] += cover * (scalp[c] - rgb[i][c]);
+                }
+            }
+        }
     }
 
     // -----------------------------------------------------------------------------------------
@@ -1088,16 +1116,36 @@ impl Scene {
             Field::Part { .. } => vec![-1, 1],
             _ => vec![],
         };
+        // Where a user starts a stroke on each side of a part: just beside the part line,
+        // near the top of the hair, drawn away from it. Both sides then have a stroke where
+        // their curves meet head-on, which is what decides the sign of curves near a part.
+        let part_anchor = |sd: i32| -> Option<[f32; 2]> {
+            let Field::Part { px, .. } = self.field else {
+                return None;
+            };
+            let x = px + sd as f32 * 14.0 * s;
+            let top = cands
+                .iter()
+                .filter(|p| (p[0] - x).abs() < 12.0 * s)
+                .map(|p| p[1])
+                .fold(f32::INFINITY, f32::min);
+            top.is_finite().then_some([x, top])
+        };
+        let anchors = [part_anchor(-1), part_anchor(1)];
         let mut tries = 0;
         while strokes.len() < want && !cands.is_empty() && tries < 200 {
             tries += 1;
             // Farthest from what is already drawn, restricted to a needed part side first.
             let side = sides_needed.first().copied();
+            let anchor = side.and_then(|sd| anchors[(sd > 0) as usize]);
             let best = cands
                 .iter()
                 .enumerate()
                 .filter(|(_, p)| side.is_none_or(|sd| self.field.side(p[0]) == sd))
                 .map(|(i, p)| {
+                    if let Some(a) = anchor {
+                        return (i, -(p[0] - a[0]).hypot(p[1] - a[1]));
+                    }
                     let d = used
                         .iter()
                         .map(|q| (p[0] - q[0]).hypot(p[1] - q[1]))
@@ -1112,11 +1160,22 @@ impl Scene {
             };
             let start = cands.swap_remove(i);
             let len = rng.range_f32(70.0, 150.0) * s.max(0.5);
-            let back = len * rng.range_f32(0.3, 0.6);
-            let mut path = self.trace(start, -1.0, back, 0.5, margin);
+            let back = if anchor.is_some() {
+                0.0
+            } else {
+                len * rng.range_f32(0.3, 0.6)
+            };
+            // The narrow side of a part leaves little room: a user follows it closer to
+            // the edge there.
+            let keep_in = if anchor.is_some() {
+                0.35 * margin
+            } else {
+                margin
+            };
+            let mut path = self.trace(start, -1.0, back, 0.5, keep_in);
             path.reverse();
             path.push(start);
-            path.extend(self.trace(start, 1.0, len - back, 0.5, margin));
+            path.extend(self.trace(start, 1.0, len - back, 0.5, keep_in));
             let pts = resample(&path, 10.0 * s.max(0.5));
             let pts = self.checked_prefix(pts, mask, gt_dir, w, h);
             let total: f32 = pts
@@ -1450,7 +1509,8 @@ mod tests {
                 let n = c.strokes.strokes.len();
                 assert!((4..=6).contains(&n), "{style} seed {seed}: {n} strokes");
                 c.strokes.validate(Some((c.width, c.height))).unwrap();
-                let inner = mask_interior(&c.mask, 4.0);
+                // 2 px: strokes on the narrow side of a part run close to its edge.
+                let inner = mask_interior(&c.mask, 2.0);
                 for (si, s) in c.strokes.strokes.iter().enumerate() {
                     assert_eq!(s.kind, StrokeKind::Direction);
                     let len: f32 = s
