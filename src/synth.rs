@@ -1076,8 +1076,8 @@ impl Scene {
                     continue;
                 }
                 // Box-filtered coverage of the band |x - px| < half by the pixel.
-                let cover = ((x as f32 + 1.0).min(px + half) - (x as f32).max(px - half))
-                    .clamp(0.0, 1.0);
+                let cover =
+                    ((x as f32 + 1.0).min(px + half) - (x as f32).max(px - half)).clamp(0.0, 1.0);
                 for c in 0..3 {
                     rgb[i][c] += cover * (scalp[c] - rgb[i][c]);
                 }

@@ -1,8 +1,11 @@
 //! Every compute stage: its WGSL file, its bindings, its uniform struct and its CPU mirror.
 //! Each file here pairs with `wgsl/<name>.wgsl`; the mirror reads like the shader.
 
+pub mod density_splat;
+pub mod depth_raster;
 pub mod dir_diffuse;
 pub mod gabor;
+pub mod grow_rk2;
 pub mod orient_resolve;
 pub mod sep_blur;
 
@@ -14,4 +17,7 @@ pub const ALL: &[&StageDef] = &[
     &gabor::STAGE,
     &orient_resolve::STAGE,
     &dir_diffuse::STAGE,
+    &depth_raster::STAGE,
+    &grow_rk2::STAGE,
+    &density_splat::STAGE,
 ];

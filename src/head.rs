@@ -1,0 +1,1287 @@
+//! Parametric head model, weak-perspective camera and camera fits.
+//!
+//! Chai et al. 2013 fit a morphable face model to the portrait to get a head surface (hair
+//! roots, collision body, depth prior). No morphable model can be shipped, so the head here
+//! is a smooth union of a few analytic primitives (cranium, face/jaw, chin, nose, ears,
+//! neck) whose frontal landmark layout matches coif's synthetic portraits (`synth.rs`):
+//! with face-ellipse semi-axes a (half width) and b (half height), the eyes sit at
+//! (±0.4a, −0.1b) from the face centre, the nose tip at +0.3b, the mouth corners at
+//! (±0.32a, +0.56b), the chin at +b (image y down), and the skull centre (the model origin)
+//! 0.3b above the face centre.
+//!
+//! Spaces follow `CONVENTIONS.md`: model space in metres, y up, the face looks toward +z;
+//! the camera maps it to image pixels (x right, y down) plus a depth in pixels.
+//!
+//! Everything is computed in f64 internally (finite-difference gradients and root finding
+//! need the headroom) and exposed as f32.
+
+use crate::annot::{Landmarks, REQUIRED_LANDMARKS};
+use crate::error::{Error, Result};
+use crate::rng::Rng;
+use glam::{DMat3, DVec2, DVec3, Mat3, Vec2, Vec3};
+use serde::{Deserialize, Serialize};
+use std::collections::HashMap;
+use std::f64::consts::TAU;
+
+// ---------------------------------------------------------------------------------------------
+// Parameters.
+
+/// Shape of the parametric head, metres, model space. Sizes are full extents (diameters);
+/// centres are positions. Ears are mirrored in x.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct HeadParams {
+    /// Cranium ellipsoid: width (ear to ear), height, depth (front to back) and centre.
+    pub skull_width: f32,
+    pub skull_height: f32,
+    pub skull_depth: f32,
+    pub skull_centre: [f32; 3],
+    /// Face/jaw ellipsoid: cheeks, mouth region and jaw angle.
+    pub face_width: f32,
+    pub face_height: f32,
+    pub face_depth: f32,
+    pub face_centre: [f32; 3],
+    /// Chin ellipsoid (full extents) and centre; it pulls the chin forward of the jaw.
+    pub chin_size: [f32; 3],
+    pub chin_centre: [f32; 3],
+    /// Nose: a capsule from the bridge to the centre of the tip's rounding, with a radius.
+    pub nose_bridge: [f32; 3],
+    pub nose_tip_centre: [f32; 3],
+    pub nose_radius: f32,
+    /// Right-hand (+x) ear: a vertical capsule (exact distance, unlike a thin ellipsoid)
+    /// of this total height and radius around `ear_centre`; the −x ear is its mirror.
+    pub ear_height: f32,
+    pub ear_radius: f32,
+    pub ear_centre: [f32; 3],
+    /// Neck: a vertical rounded cylinder at (0, ·, neck_z) from `neck_top` down by
+    /// `neck_length`.
+    pub neck_radius: f32,
+    pub neck_length: f32,
+    pub neck_top: f32,
+    pub neck_z: f32,
+    /// Smooth-union radius between cranium, face, chin, nose and neck; ears use
+    /// `ear_blend` so that they stay distinct flaps.
+    pub blend: f32,
+    pub ear_blend: f32,
+    /// Frontal face-ellipse semi-axes the landmark layout is built on (synth convention:
+    /// a = half width, b = half height; b ≈ 1.3 a).
+    pub landmark_a: f32,
+    pub landmark_b: f32,
+    /// Scalp map (see [`Head::scalp`]): the centre rays are cast from, the front hairline
+    /// and nape angles around the ear axis (degrees, 0 = forward, 90 = up, 180 = back), and
+    /// the angular radius of the hairless disc kept around each ear (degrees).
+    pub scalp_centre: [f32; 3],
+    pub hairline_deg: f32,
+    pub nape_deg: f32,
+    pub ear_clearance_deg: f32,
+}
+
+impl Default for HeadParams {
+    /// An average adult: skull 0.15 m wide and 0.194 m front to back, vertex 0.12 m above
+    /// and chin 0.12 m below the eyes, laid out like coif's synthetic portraits with
+    /// a = 0.084 m and b = 1.3 a (so a 512² synth portrait is about 1000 px/m).
+    fn default() -> Self {
+        let a = 0.084;
+        HeadParams {
+            skull_width: 0.150,
+            skull_height: 0.206,
+            skull_depth: 0.194,
+            skull_centre: [0.0, 0.0, -0.010],
+            face_width: 0.124,
+            face_height: 0.150,
+            face_depth: 0.150,
+            face_centre: [0.0, -0.070, 0.012],
+            chin_size: [0.056, 0.050, 0.060],
+            chin_centre: [0.0, -0.125, 0.050],
+            nose_bridge: [0.0, -0.030, 0.075],
+            nose_tip_centre: [0.0, -0.062, 0.100],
+            nose_radius: 0.012,
+            ear_height: 0.056,
+            ear_radius: 0.011,
+            ear_centre: [0.072, -0.030, -0.012],
+            neck_radius: 0.055,
+            neck_length: 0.170,
+            neck_top: -0.030,
+            neck_z: -0.020,
+            blend: 0.012,
+            ear_blend: 0.006,
+            landmark_a: a,
+            landmark_b: 1.3 * a,
+            scalp_centre: [0.0, -0.020, -0.010],
+            hairline_deg: 36.0,
+            nape_deg: 225.0,
+            ear_clearance_deg: 40.0,
+        }
+    }
+}
+
+impl HeadParams {
+    /// Rejects non-finite or non-positive sizes and an empty scalp angle range.
+    pub fn validate(&self) -> Result<()> {
+        let sizes = [
+            ("skull_width", self.skull_width),
+            ("skull_height", self.skull_height),
+            ("skull_depth", self.skull_depth),
+            ("face_width", self.face_width),
+            ("face_height", self.face_height),
+            ("face_depth", self.face_depth),
+            ("chin_size[0]", self.chin_size[0]),
+            ("chin_size[1]", self.chin_size[1]),
+            ("chin_size[2]", self.chin_size[2]),
+            ("nose_radius", self.nose_radius),
+            ("ear_radius", self.ear_radius),
+            ("neck_radius", self.neck_radius),
+            ("neck_length", self.neck_length),
+            ("blend", self.blend),
+            ("ear_blend", self.ear_blend),
+            ("landmark_a", self.landmark_a),
+            ("landmark_b", self.landmark_b),
+        ];
+        for (name, v) in sizes {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(Error::Invalid(format!(
+                    "head parameter {name} must be a positive finite number of metres, got {v}"
+                )));
+            }
+        }
+        let points = [
+            self.skull_centre,
+            self.face_centre,
+            self.chin_centre,
+            self.nose_bridge,
+            self.nose_tip_centre,
+            self.ear_centre,
+            self.scalp_centre,
+        ];
+        let scalars = [
+            self.neck_top,
+            self.neck_z,
+            self.hairline_deg,
+            self.nape_deg,
+            self.ear_clearance_deg,
+        ];
+        if points
+            .iter()
+            .flatten()
+            .chain(&scalars)
+            .any(|v| !v.is_finite())
+        {
+            return Err(Error::Invalid(
+                "head parameters must be finite numbers".into(),
+            ));
+        }
+        if !(self.hairline_deg < self.nape_deg && self.nape_deg - self.hairline_deg < 300.0) {
+            return Err(Error::Invalid(format!(
+                "scalp angles: need hairline_deg < nape_deg within 300 degrees, got {} and {}",
+                self.hairline_deg, self.nape_deg
+            )));
+        }
+        if !(self.ear_clearance_deg > 0.0 && self.ear_clearance_deg < 89.0) {
+            return Err(Error::Invalid(format!(
+                "ear_clearance_deg must be in (0, 89), got {}",
+                self.ear_clearance_deg
+            )));
+        }
+        Ok(())
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Distance primitives (f64).
+
+/// Ellipsoid distance estimate. Outside and on the surface it is (k0 − 1)/|∇k0| with
+/// k0 = |p/r|: unit gradient on the surface and close to the true distance near it (the
+/// ellipsoids here are only mildly eccentric). That form jumps at the centre (its value
+/// there depends on the direction), so inside the factor 1/|∇k0| is blended towards the
+/// smallest radius with weight 1 − k0³: the value and gradient are unchanged on the surface
+/// (C1 there), the centre gets the continuous value −r_min, and the difference quotient
+/// stays close to 1.
+fn sd_ellipsoid(p: DVec3, r: DVec3) -> f64 {
+    let k0 = (p / r).length();
+    let k1 = (p / (r * r)).length();
+    let rmin = r.min_element();
+    if k1 < 1e-300 {
+        return -rmin;
+    }
+    // 1/|∇k0| = k0/k1.
+    let inv_g = k0 / k1;
+    if k0 >= 1.0 {
+        (k0 - 1.0) * inv_g
+    } else {
+        let w = k0 * k0 * k0;
+        (k0 - 1.0) * (w * inv_g + (1.0 - w) * rmin)
+    }
+}
+
+fn sd_capsule(p: DVec3, a: DVec3, b: DVec3, r: f64) -> f64 {
+    let (pa, ba) = (p - a, b - a);
+    let h = (pa.dot(ba) / ba.length_squared().max(1e-18)).clamp(0.0, 1.0);
+    (pa - ba * h).length() - r
+}
+
+/// Vertical cylinder (axis through `c`, half height `hh`, radius `ra`) with edges rounded
+/// by `rb`: exact distance, so the neck ends in a flat, closed cap.
+fn sd_rounded_cylinder(p: DVec3, c: DVec3, ra: f64, hh: f64, rb: f64) -> f64 {
+    let q = p - c;
+    let d = DVec2::new(DVec2::new(q.x, q.z).length() - ra + rb, q.y.abs() - hh + rb);
+    d.x.max(d.y).min(0.0) + d.max(DVec2::ZERO).length() - rb
+}
+
+/// Quadratic smooth minimum: C1, never above min(a, b), and at most k/4 below it, so the
+/// union stays a (slightly conservative) distance bound.
+fn smin(a: f64, b: f64, k: f64) -> f64 {
+    let h = (k - (a - b).abs()).max(0.0) / k;
+    a.min(b) - h * h * k * 0.25
+}
+
+fn v3(a: [f32; 3]) -> DVec3 {
+    DVec3::new(a[0] as f64, a[1] as f64, a[2] as f64)
+}
+
+// ---------------------------------------------------------------------------------------------
+// The head.
+
+/// A point of the scalp with its outward unit normal (model space).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ScalpPoint {
+    pub pos: Vec3,
+    pub normal: Vec3,
+}
+
+/// Landmark names the head knows besides [`REQUIRED_LANDMARKS`]; a `landmarks.json` may
+/// carry them and the fit then uses them too. Left/right as seen in the image (model −x is
+/// "left"). The ear points are the outermost points of the ears in a frontal view.
+pub const EXTRA_LANDMARKS: [&str; 3] = ["nose_bridge", "left_ear", "right_ear"];
+
+/// Frontal layout of the required landmarks relative to the face centre, in units of the
+/// face semi-axes (a, b), image y down: copied from `synth.rs` (`eye`, `nose_tip`, `mouth`,
+/// `chin`) so that a fit to synthetic landmarks places the head where the image draws it.
+const LAYOUT: [(&str, f64, f64); 6] = [
+    ("left_eye", -0.4, -0.1),
+    ("right_eye", 0.4, -0.1),
+    ("nose_tip", 0.0, 0.3),
+    ("mouth_left", -0.32, 0.56),
+    ("mouth_right", 0.32, 0.56),
+    ("chin", 0.0, 1.0),
+];
+/// The skull centre (model origin) is this many b above the face centre (synth: hy).
+const SKULL_ABOVE_FACE: f64 = 0.3;
+
+/// Parametric head: signed distance, mesh, scalp map and landmarks.
+#[derive(Clone, Debug)]
+pub struct Head {
+    params: HeadParams,
+    skull_c: DVec3,
+    skull_r: DVec3,
+    face_c: DVec3,
+    face_r: DVec3,
+    chin_c: DVec3,
+    chin_r: DVec3,
+    nose_a: DVec3,
+    nose_b: DVec3,
+    nose_r: f64,
+    ear_c: DVec3,
+    /// Half length of the ear capsule's segment.
+    ear_hh: f64,
+    ear_r: f64,
+    neck_c: DVec3,
+    neck_hh: f64,
+    neck_r: f64,
+    blend: f64,
+    ear_blend: f64,
+    scalp_c: DVec3,
+    beta_front: f64,
+    beta_back: f64,
+    cos_clear: f64,
+    /// Face-exclusion rule constants (see [`Head::in_face`]).
+    eye_y: f64,
+    ear_z: f64,
+    front_z: f64,
+    landmarks: Vec<(&'static str, Vec3)>,
+    top: Vec3,
+}
+
+impl Default for Head {
+    fn default() -> Self {
+        Head::new(&HeadParams::default())
+    }
+}
+
+impl Head {
+    /// Builds the head. Parameters are assumed sane (see [`HeadParams::validate`]; use
+    /// [`Head::try_new`] for untrusted input): landmarks are placed by casting rays onto the
+    /// surface, which needs a closed head.
+    pub fn new(p: &HeadParams) -> Head {
+        let neck_top = p.neck_top as f64;
+        let neck_len = p.neck_length as f64;
+        let mut h = Head {
+            params: p.clone(),
+            skull_c: v3(p.skull_centre),
+            skull_r: DVec3::new(
+                p.skull_width as f64,
+                p.skull_height as f64,
+                p.skull_depth as f64,
+            ) * 0.5,
+            face_c: v3(p.face_centre),
+            face_r: DVec3::new(
+                p.face_width as f64,
+                p.face_height as f64,
+                p.face_depth as f64,
+            ) * 0.5,
+            chin_c: v3(p.chin_centre),
+            chin_r: v3(p.chin_size) * 0.5,
+            nose_a: v3(p.nose_bridge),
+            nose_b: v3(p.nose_tip_centre),
+            nose_r: p.nose_radius as f64,
+            ear_c: v3(p.ear_centre),
+            ear_hh: (0.5 * p.ear_height as f64 - p.ear_radius as f64).max(0.0),
+            ear_r: p.ear_radius as f64,
+            neck_c: DVec3::new(0.0, neck_top - 0.5 * neck_len, p.neck_z as f64),
+            neck_hh: 0.5 * neck_len,
+            neck_r: p.neck_radius as f64,
+            blend: p.blend as f64,
+            ear_blend: p.ear_blend as f64,
+            scalp_c: v3(p.scalp_centre),
+            beta_front: (p.hairline_deg as f64).to_radians(),
+            beta_back: (p.nape_deg as f64).to_radians(),
+            cos_clear: (p.ear_clearance_deg as f64).to_radians().cos(),
+            eye_y: 0.0,
+            ear_z: p.ear_centre[2] as f64,
+            front_z: 0.0,
+            landmarks: Vec::new(),
+            top: Vec3::ZERO,
+        };
+        let (a, b) = (p.landmark_a as f64, p.landmark_b as f64);
+        let face_y = -SKULL_ABOVE_FACE * b;
+        let front = |h: &Head, x: f64, y: f64| {
+            h.cast(DVec3::new(x, y, 1.0), DVec3::NEG_Z, 2.0)
+                .unwrap_or(DVec3::new(x, y, 0.0))
+        };
+        let mut lms = Vec::new();
+        for (name, fx, fy) in LAYOUT {
+            // Image y is down, model y is up.
+            lms.push((name, front(&h, fx * a, face_y - fy * b)));
+        }
+        h.eye_y = face_y + 0.1 * b;
+        lms.push(("nose_bridge", front(&h, 0.0, h.eye_y)));
+        for (name, side) in [("left_ear", -1.0), ("right_ear", 1.0)] {
+            let o = DVec3::new(side, h.ear_c.y, h.ear_c.z);
+            let hit = h
+                .cast(o, DVec3::new(-side, 0.0, 0.0), 2.0)
+                .unwrap_or(DVec3::new(side * h.ear_c.x, h.ear_c.y, h.ear_c.z));
+            lms.push((name, hit));
+        }
+        h.landmarks = lms.into_iter().map(|(n, q)| (n, q.as_vec3())).collect();
+        h.front_z = front(&h, 0.0, h.eye_y + 0.03).z;
+        h.top = h
+            .cast(DVec3::new(0.0, 1.0, h.skull_c.z), DVec3::NEG_Y, 2.0)
+            .unwrap_or(h.skull_c + DVec3::Y * h.skull_r.y)
+            .as_vec3();
+        h
+    }
+
+    /// [`Head::new`] after [`HeadParams::validate`].
+    pub fn try_new(p: &HeadParams) -> Result<Head> {
+        p.validate()?;
+        Ok(Head::new(p))
+    }
+
+    pub fn params(&self) -> &HeadParams {
+        &self.params
+    }
+
+    /// Signed distance in f64 (metres, negative inside).
+    pub fn sdf64(&self, p: DVec3) -> f64 {
+        let k = self.blend;
+        let mut d = sd_ellipsoid(p - self.skull_c, self.skull_r);
+        d = smin(d, sd_ellipsoid(p - self.face_c, self.face_r), k);
+        d = smin(d, sd_ellipsoid(p - self.chin_c, self.chin_r), 0.5 * k);
+        d = smin(
+            d,
+            sd_capsule(p, self.nose_a, self.nose_b, self.nose_r),
+            0.5 * k,
+        );
+        let neck = sd_rounded_cylinder(p, self.neck_c, self.neck_r, self.neck_hh, 0.01);
+        d = smin(d, neck, 2.0 * k);
+        // Both ears through one mirrored evaluation.
+        let pe = DVec3::new(p.x.abs(), p.y, p.z);
+        let seg = DVec3::Y * self.ear_hh;
+        let ear = sd_capsule(pe, self.ear_c - seg, self.ear_c + seg, self.ear_r);
+        smin(d, ear, self.ear_blend)
+    }
+
+    /// Signed distance (metres, negative inside): a smooth union of ellipsoids, a capsule
+    /// and a rounded cylinder; unit gradient on the surface, Lipschitz about 1 near it.
+    pub fn sdf(&self, p: Vec3) -> f32 {
+        self.sdf64(p.as_dvec3()) as f32
+    }
+
+    /// Unnormalised central-difference gradient (f64).
+    fn grad64_raw(&self, p: DVec3) -> DVec3 {
+        const E: f64 = 1e-6;
+        let f = |d: DVec3| self.sdf64(p + d) - self.sdf64(p - d);
+        DVec3::new(f(DVec3::X * E), f(DVec3::Y * E), f(DVec3::Z * E)) / (2.0 * E)
+    }
+
+    fn grad64(&self, p: DVec3) -> DVec3 {
+        self.grad64_raw(p).try_normalize().unwrap_or(DVec3::Y)
+    }
+
+    /// Normalised gradient of the SDF: the outward surface normal on the surface.
+    pub fn sdf_grad(&self, p: Vec3) -> Vec3 {
+        self.grad64(p.as_dvec3()).as_vec3()
+    }
+
+    /// Moves a point onto the zero level by Newton steps along the gradient.
+    fn project64(&self, mut p: DVec3) -> DVec3 {
+        for _ in 0..12 {
+            let d = self.sdf64(p);
+            if d.abs() < 1e-9 {
+                break;
+            }
+            let g = self.grad64_raw(p);
+            let g2 = g.length_squared();
+            if g2 < 1e-12 {
+                break;
+            }
+            p -= g * (d / g2);
+        }
+        p
+    }
+
+    /// Nearest-ish surface point (Newton projection along the gradient).
+    pub fn project_to_surface(&self, p: Vec3) -> Vec3 {
+        self.project64(p.as_dvec3()).as_vec3()
+    }
+
+    /// First surface crossing along a ray (f64). Conservative marching with a bisection
+    /// once the sign flips, so an overestimating step cannot tunnel silently.
+    fn cast(&self, o: DVec3, dir: DVec3, max_t: f64) -> Option<DVec3> {
+        let dir = dir.try_normalize()?;
+        let d0 = self.sdf64(o);
+        let outside = d0 > 0.0;
+        let mut t0 = 0.0;
+        let mut d_prev = d0;
+        while t0 < max_t {
+            let step = (0.8 * d_prev.abs()).clamp(2e-4, 0.01);
+            let t1 = (t0 + step).min(max_t);
+            let d1 = self.sdf64(o + dir * t1);
+            if (d1 > 0.0) != outside {
+                let (mut lo, mut hi) = (t0, t1);
+                for _ in 0..60 {
+                    let m = 0.5 * (lo + hi);
+                    if (self.sdf64(o + dir * m) > 0.0) == outside {
+                        lo = m;
+                    } else {
+                        hi = m;
+                    }
+                }
+                return Some(o + dir * (0.5 * (lo + hi)));
+            }
+            if t1 >= max_t {
+                break;
+            }
+            t0 = t1;
+            d_prev = d1;
+        }
+        None
+    }
+
+    /// First point where the ray `origin + t·dir`, 0 ≤ t ≤ max_t (metres), crosses the
+    /// surface (entering from outside, or leaving when the origin is inside).
+    pub fn raycast(&self, origin: Vec3, dir: Vec3, max_t: f32) -> Option<Vec3> {
+        self.cast(origin.as_dvec3(), dir.as_dvec3(), max_t as f64)
+            .map(|p| p.as_vec3())
+    }
+
+    /// The vertex: the highest surface point above the cranium centre.
+    pub fn top(&self) -> Vec3 {
+        self.top
+    }
+
+    /// Axis-aligned box (min, max) containing the surface.
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        let mut lo = DVec3::splat(f64::INFINITY);
+        let mut hi = DVec3::splat(f64::NEG_INFINITY);
+        let mut add = |c: DVec3, r: DVec3| {
+            lo = lo.min(c - r);
+            hi = hi.max(c + r);
+        };
+        add(self.skull_c, self.skull_r);
+        add(self.face_c, self.face_r);
+        add(self.chin_c, self.chin_r);
+        add(self.nose_a, DVec3::splat(self.nose_r));
+        add(self.nose_b, DVec3::splat(self.nose_r));
+        for s in [-1.0, 1.0] {
+            let r = DVec3::new(self.ear_r, self.ear_hh + self.ear_r, self.ear_r);
+            add(self.ear_c * DVec3::new(s, 1.0, 1.0), r);
+        }
+        add(
+            self.neck_c,
+            DVec3::new(self.neck_r, self.neck_hh, self.neck_r),
+        );
+        // Smooth unions grow the surface by at most a quarter of the largest blend radius.
+        let m = DVec3::splat(0.5 * self.blend + 1e-3);
+        ((lo - m).as_vec3(), (hi + m).as_vec3())
+    }
+
+    // -----------------------------------------------------------------------------------------
+    // Mesh.
+
+    /// Closed, consistently wound (counter-clockwise seen from outside) triangle mesh of the
+    /// zero level: marching tetrahedra over a grid with `resolution` cells along the longest
+    /// side of [`Head::bounds`] (Kuhn split of every cube, so neighbouring cubes share faces
+    /// and the mesh is watertight), vertices shared per grid edge and then moved onto the
+    /// surface by Newton steps. Resolution is clamped to [8, 512].
+    pub fn mesh(&self, resolution: u32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+        let res = resolution.clamp(8, 512) as f64;
+        let (lo, hi) = self.bounds();
+        let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
+        let ext = hi - lo;
+        let cell = ext.max_element() / res;
+        // One spare cell on every side so the surface never touches the grid boundary.
+        let origin = lo - DVec3::splat(cell);
+        let n = [
+            (ext.x / cell).ceil() as usize + 2,
+            (ext.y / cell).ceil() as usize + 2,
+            (ext.z / cell).ceil() as usize + 2,
+        ];
+        let (sx, sy) = (n[0] + 1, n[1] + 1);
+        let corner = |i: usize, j: usize, k: usize| i + sx * (j + sy * k);
+        let pos =
+            |i: usize, j: usize, k: usize| origin + DVec3::new(i as f64, j as f64, k as f64) * cell;
+        let mut val = vec![0.0f64; sx * sy * (n[2] + 1)];
+        for k in 0..=n[2] {
+            for j in 0..=n[1] {
+                for i in 0..=n[0] {
+                    val[corner(i, j, k)] = self.sdf64(pos(i, j, k));
+                }
+            }
+        }
+        let corner_pos = |c: usize| pos(c % sx, (c / sx) % sy, c / (sx * sy));
+
+        let mut verts: Vec<DVec3> = Vec::new();
+        let mut edge_vert: HashMap<(usize, usize), u32> = HashMap::new();
+        let mut tris: Vec<[u32; 3]> = Vec::new();
+        let mut vert_on = |a: usize, b: usize, verts: &mut Vec<DVec3>| -> u32 {
+            let key = (a.min(b), a.max(b));
+            *edge_vert.entry(key).or_insert_with(|| {
+                // `a` inside (< 0), `b` outside (>= 0).
+                let (va, vb) = (val[a], val[b]);
+                let t = (va / (va - vb)).clamp(0.0, 1.0);
+                verts.push(corner_pos(a).lerp(corner_pos(b), t));
+                (verts.len() - 1) as u32
+            })
+        };
+        // Kuhn triangulation: 6 tetrahedra along the main diagonal 0 -> 7.
+        const TETS: [[usize; 4]; 6] = [
+            [0, 1, 3, 7],
+            [0, 1, 5, 7],
+            [0, 2, 3, 7],
+            [0, 2, 6, 7],
+            [0, 4, 5, 7],
+            [0, 4, 6, 7],
+        ];
+        for k in 0..n[2] {
+            for j in 0..n[1] {
+                for i in 0..n[0] {
+                    let cube: [usize; 8] = std::array::from_fn(|b| {
+                        corner(i + (b & 1), j + ((b >> 1) & 1), k + ((b >> 2) & 1))
+                    });
+                    for tet in TETS {
+                        let c = tet.map(|b| cube[b]);
+                        let ins: Vec<usize> = c.iter().copied().filter(|&q| val[q] < 0.0).collect();
+                        let out: Vec<usize> =
+                            c.iter().copied().filter(|&q| val[q] >= 0.0).collect();
+                        // Outward direction: from the inside corners to the outside ones.
+                        let centroid = |s: &[usize]| {
+                            s.iter().map(|&q| corner_pos(q)).sum::<DVec3>() / s.len() as f64
+                        };
+                        let mut emit = |tri: [u32; 3], verts: &Vec<DVec3>, dir: DVec3| {
+                            let [a, b, cc] = tri.map(|v| verts[v as usize]);
+                            if (b - a).cross(cc - a).dot(dir) < 0.0 {
+                                tris.push([tri[0], tri[2], tri[1]]);
+                            } else {
+                                tris.push(tri);
+                            }
+                        };
+                        match ins.len() {
+                            1 => {
+                                let dir = centroid(&out) - centroid(&ins);
+                                let t = [
+                                    vert_on(ins[0], out[0], &mut verts),
+                                    vert_on(ins[0], out[1], &mut verts),
+                                    vert_on(ins[0], out[2], &mut verts),
+                                ];
+                                emit(t, &verts, dir);
+                            }
+                            3 => {
+                                let dir = centroid(&out) - centroid(&ins);
+                                let t = [
+                                    vert_on(ins[0], out[0], &mut verts),
+                                    vert_on(ins[1], out[0], &mut verts),
+                                    vert_on(ins[2], out[0], &mut verts),
+                                ];
+                                emit(t, &verts, dir);
+                            }
+                            2 => {
+                                let dir = centroid(&out) - centroid(&ins);
+                                // The four crossing edges form the cycle
+                                // (i0o0, i0o1, i1o1, i1o0).
+                                let q = [
+                                    vert_on(ins[0], out[0], &mut verts),
+                                    vert_on(ins[0], out[1], &mut verts),
+                                    vert_on(ins[1], out[1], &mut verts),
+                                    vert_on(ins[1], out[0], &mut verts),
+                                ];
+                                emit([q[0], q[1], q[2]], &verts, dir);
+                                emit([q[0], q[2], q[3]], &verts, dir);
+                            }
+                            _ => {}
+                        }
+                    }
+                }
+            }
+        }
+        let verts = verts
+            .into_iter()
+            .map(|p| self.project64(p).as_vec3())
+            .collect();
+        (verts, tris)
+    }
+
+    // -----------------------------------------------------------------------------------------
+    // Scalp.
+
+    /// Unit direction from the scalp centre for a scalp coordinate.
+    fn scalp_dir(&self, uv: [f32; 2]) -> DVec3 {
+        let (u, v) = (uv[0] as f64, uv[1] as f64);
+        let ca = (2.0 * u - 1.0) * self.cos_clear;
+        let sa = (1.0 - ca * ca).max(0.0).sqrt();
+        let beta = self.beta_front + v * (self.beta_back - self.beta_front);
+        DVec3::new(ca, sa * beta.sin(), sa * beta.cos())
+    }
+
+    /// Scalp map. A direction d from the scalp centre c (between the ears) is written in
+    /// spherical coordinates about the ear-to-ear axis x: polar angle α from +x and angle β
+    /// around x (0 = forward +z, 90° = up, 180° = back). `u` sets cos α linearly from
+    /// −cos(clearance) (u = 0, model −x, the image's left side) to +cos(clearance)
+    /// (u = 1), `v` sets β linearly from the front hairline (v = 0) over the crown to the
+    /// nape (v = 1); the surface point is where the ray c + t·d leaves the head.
+    ///
+    /// On a sphere this map is exactly equal-area (Archimedes: uniform cos α and uniform β
+    /// give uniform area), and it is smooth with no pole inside the domain: the poles of
+    /// the parameterisation are the ears, which the clearance disc keeps outside the scalp.
+    /// On the head the area element varies by the ray-length² / obliquity factor only.
+    /// Returns None outside [0, 1]² (or for non-finite input).
+    pub fn scalp(&self, uv: [f32; 2]) -> Option<ScalpPoint> {
+        if !uv.iter().all(|x| x.is_finite() && (0.0..=1.0).contains(x)) {
+            return None;
+        }
+        let d = self.scalp_dir(uv);
+        let p = self.cast(self.scalp_c, d, 1.0)?;
+        Some(ScalpPoint {
+            pos: p.as_vec3(),
+            normal: self.grad64(p).as_vec3(),
+        })
+    }
+
+    /// Inverse of [`Head::scalp`] for a point on the surface: its scalp coordinate, or None
+    /// when the point is not on the scalp (outside the hairline, nape or ear clearance).
+    pub fn scalp_uv(&self, p: Vec3) -> Option<[f32; 2]> {
+        let d = (p.as_dvec3() - self.scalp_c).try_normalize()?;
+        let u = 0.5 * (d.x / self.cos_clear + 1.0);
+        // β in (−π, π]; angles more than half the gap below the hairline belong past the
+        // nape, so the cut sits in the middle of the non-scalp range.
+        let span = self.beta_back - self.beta_front;
+        let mut beta = d.y.atan2(d.z);
+        if beta < self.beta_front - 0.5 * (TAU - span) {
+            beta += TAU;
+        }
+        let v = (beta - self.beta_front) / span;
+        let tol = 1e-6;
+        if (-tol..=1.0 + tol).contains(&u) && (-tol..=1.0 + tol).contains(&v) {
+            Some([u.clamp(0.0, 1.0) as f32, v.clamp(0.0, 1.0) as f32])
+        } else {
+            None
+        }
+    }
+
+    /// Whether `uv` is a scalp coordinate: inside [0, 1]², maps onto the surface, and the
+    /// point is not on the face (the face-exclusion rule [`Head::in_face`] is applied as a
+    /// guard, so a future map change cannot silently grow hair on the face).
+    pub fn scalp_contains(&self, uv: [f32; 2]) -> bool {
+        self.scalp(uv).is_some_and(|sp| !self.in_face(sp.pos))
+    }
+
+    /// Face-exclusion rule, independent of the scalp map: a surface point belongs to the
+    /// face when it is in front of the ears (more than 2.5 cm ahead of the ear centre) and
+    /// below brow level (2 cm above the eyes), or on the forehead band (within 3 cm of the
+    /// front of the head) up to 5 cm above the eyes. Hair is never rooted there.
+    pub fn in_face(&self, p: Vec3) -> bool {
+        let p = p.as_dvec3();
+        let cheeks = p.z > self.ear_z + 0.025 && p.y < self.eye_y + 0.02;
+        let forehead = p.z > self.front_z - 0.03 && p.y < self.eye_y + 0.05;
+        cheeks || forehead
+    }
+
+    /// `n` hair roots uniform in scalp (u, v), deterministic for a seed.
+    pub fn sample_roots(&self, n: usize, seed: u64) -> Vec<ScalpPoint> {
+        let mut rng = Rng::new(seed);
+        let mut out = Vec::with_capacity(n);
+        // Every uv in [0,1]² maps to the scalp; the attempt cap only guards against a
+        // broken custom parameter set looping forever.
+        let mut attempts = 0usize;
+        while out.len() < n && attempts < 4 * n + 64 {
+            attempts += 1;
+            let uv = [rng.next_f32(), rng.next_f32()];
+            if let Some(sp) = self.scalp(uv) {
+                if !self.in_face(sp.pos) {
+                    out.push(sp);
+                }
+            }
+        }
+        out
+    }
+
+    // -----------------------------------------------------------------------------------------
+    // Landmarks.
+
+    /// A named landmark on the surface ([`REQUIRED_LANDMARKS`] or [`EXTRA_LANDMARKS`]).
+    pub fn landmark(&self, name: &str) -> Option<Vec3> {
+        self.landmarks
+            .iter()
+            .find(|(n, _)| *n == name)
+            .map(|(_, p)| *p)
+    }
+
+    /// All landmark names the head knows, required ones first.
+    pub fn landmark_names(&self) -> Vec<&'static str> {
+        self.landmarks.iter().map(|(n, _)| *n).collect()
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Camera.
+
+/// Weak-perspective camera of `CONVENTIONS.md`: view = r·p; image x = s·view.x + t.x;
+/// image y = −s·view.y + t.y; depth = s·view.z (pixels, larger = nearer the camera).
+/// Serialised as `{ "s": .., "r": [[row0], [row1], [row2]], "t": [x, y] }`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "CameraRepr", into = "CameraRepr")]
+pub struct WeakPerspective {
+    /// Pixels per metre.
+    pub s: f32,
+    /// Rotation model → view.
+    pub r: Mat3,
+    /// Image position of the model origin, pixels.
+    pub t: Vec2,
+}
+
+#[derive(Serialize, Deserialize)]
+struct CameraRepr {
+    s: f32,
+    r: [[f32; 3]; 3],
+    t: [f32; 2],
+}
+
+impl From<WeakPerspective> for CameraRepr {
+    fn from(c: WeakPerspective) -> Self {
+        CameraRepr {
+            s: c.s,
+            r: [0, 1, 2].map(|i| c.r.row(i).to_array()),
+            t: c.t.to_array(),
+        }
+    }
+}
+
+impl TryFrom<CameraRepr> for WeakPerspective {
+    type Error = String;
+    fn try_from(c: CameraRepr) -> std::result::Result<Self, String> {
+        let r = Mat3::from_cols_array_2d(&c.r).transpose();
+        let cam = WeakPerspective {
+            s: c.s,
+            r,
+            t: Vec2::from_array(c.t),
+        };
+        cam.validate().map_err(|e| e.to_string())?;
+        Ok(cam)
+    }
+}
+
+impl WeakPerspective {
+    pub fn new(s: f32, r: Mat3, t: Vec2) -> Self {
+        WeakPerspective { s, r, t }
+    }
+
+    /// Frontal camera (no rotation).
+    pub fn frontal(s: f32, t: Vec2) -> Self {
+        WeakPerspective {
+            s,
+            r: Mat3::IDENTITY,
+            t,
+        }
+    }
+
+    /// Checks a positive finite scale and a proper rotation (orthonormal to 1e-3, det +1).
+    pub fn validate(&self) -> Result<()> {
+        if !(self.s.is_finite() && self.s > 0.0) {
+            return Err(Error::Invalid(format!(
+                "camera scale must be positive and finite, got {}",
+                self.s
+            )));
+        }
+        if !self.r.is_finite() || !self.t.is_finite() {
+            return Err(Error::Invalid("camera has non-finite values".into()));
+        }
+        let e = (self.r * self.r.transpose() - Mat3::IDENTITY)
+            .to_cols_array()
+            .iter()
+            .fold(0.0f32, |m, v| m.max(v.abs()));
+        if e > 1e-3 || self.r.determinant() < 0.0 {
+            return Err(Error::Invalid(format!(
+                "camera rotation is not a proper rotation (orthonormality error {e:.2e}, \
+                 det {:.4})",
+                self.r.determinant()
+            )));
+        }
+        Ok(())
+    }
+
+    /// Model point → (image x, image y, depth), pixels.
+    pub fn project(&self, p: Vec3) -> Vec3 {
+        let v = self.r * p;
+        Vec3::new(
+            self.s * v.x + self.t.x,
+            -self.s * v.y + self.t.y,
+            self.s * v.z,
+        )
+    }
+
+    /// (image x, image y, depth) → model point; inverse of [`WeakPerspective::project`].
+    pub fn unproject(&self, q: Vec3) -> Vec3 {
+        let v = Vec3::new(
+            (q.x - self.t.x) / self.s,
+            -(q.y - self.t.y) / self.s,
+            q.z / self.s,
+        );
+        self.r.transpose() * v
+    }
+
+    /// The 3x4 matrix of `project` (rows: image x, image y, depth).
+    pub fn image_from_model(&self) -> [[f32; 4]; 3] {
+        let (r0, r1, r2) = (self.r.row(0), self.r.row(1), self.r.row(2));
+        let s = self.s;
+        [
+            [s * r0.x, s * r0.y, s * r0.z, self.t.x],
+            [-s * r1.x, -s * r1.y, -s * r1.z, self.t.y],
+            [s * r2.x, s * r2.y, s * r2.z, 0.0],
+        ]
+    }
+
+    /// Model-space direction → volume-space direction (rotation and y flip, no scaling,
+    /// so unit vectors stay unit).
+    pub fn to_volume_dir(&self, v: Vec3) -> Vec3 {
+        let w = self.r * v;
+        Vec3::new(w.x, -w.y, w.z)
+    }
+
+    /// Volume-space direction → model-space direction; inverse of `to_volume_dir`.
+    pub fn from_volume_dir(&self, v: Vec3) -> Vec3 {
+        self.r.transpose() * Vec3::new(v.x, -v.y, v.z)
+    }
+
+    /// Unit viewing direction in model space (from the camera into the scene: decreasing
+    /// depth).
+    pub fn view_dir_model(&self) -> Vec3 {
+        -self.r.row(2)
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Fits.
+
+/// How a camera was obtained.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum FitMethod {
+    Landmarks,
+    Default,
+}
+
+/// Outcome of a camera fit.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FitReport {
+    pub method: FitMethod,
+    /// Landmark names used (sorted), empty for the default fit.
+    pub points: Vec<String>,
+    /// Root-mean-square and largest reprojection error, pixels (landmark fits only).
+    pub rms_px: Option<f32>,
+    pub max_px: Option<f32>,
+    /// Levenberg-Marquardt iterations after the linear initialisation.
+    pub iterations: u32,
+}
+
+/// Fits a weak-perspective camera (scale, full 3D rotation, 2D translation) to the
+/// landmarks: every name the head knows is used, other names are ignored.
+///
+/// Method: the affine camera minimising the squared reprojection error is linear least
+/// squares (two 4-vectors); its 2x3 linear part, with the image-y row negated, is replaced
+/// by the nearest scaled matrix with orthonormal rows (polar decomposition of a 2x3 matrix
+/// through the eigen-decomposition of its 2x2 Gram matrix, scale = mean singular value), the
+/// third row is their cross product (a proper rotation), and Levenberg-Marquardt on
+/// (log s, rotation increment, t) then minimises the true reprojection error.
+///
+/// Errors (`Error::Invalid`): zero image size, landmarks failing
+/// [`Landmarks::validate`] (missing required names, non-finite values, points outside the
+/// image), and degenerate layouts (coincident or nearly collinear points), for which no
+/// rotation can be recovered.
+pub fn fit_landmarks(
+    head: &Head,
+    lm: &Landmarks,
+    size: (u32, u32),
+) -> Result<(WeakPerspective, FitReport)> {
+    let (w, h) = size;
+    if w == 0 || h == 0 {
+        return Err(Error::Invalid(format!(
+            "landmark fit: image size {w}x{h} is empty"
+        )));
+    }
+    lm.validate(Some(size))
+        .map_err(|m| Error::Invalid(format!("landmark fit: {m}")))?;
+    let mut names = Vec::new();
+    let mut model = Vec::new();
+    let mut image = Vec::new();
+    for (name, q) in &lm.landmarks {
+        if let Some(p) = head.landmark(name) {
+            names.push(name.clone());
+            model.push(p.as_dvec3());
+            image.push(DVec2::new(q[0] as f64, q[1] as f64));
+        }
+    }
+    debug_assert!(names.len() >= REQUIRED_LANDMARKS.len());
+    check_spread(&image, w.max(h) as f64)?;
+
+    // Affine camera by linear least squares, centred for conditioning.
+    let pm = model.iter().sum::<DVec3>() / model.len() as f64;
+    let qm = image.iter().sum::<DVec2>() / image.len() as f64;
+    let mut m = DMat3::ZERO;
+    let (mut bx, mut by) = (DVec3::ZERO, DVec3::ZERO);
+    for (p, q) in model.iter().zip(&image) {
+        let (p, q) = (*p - pm, *q - qm);
+        m += DMat3::from_cols(p * p.x, p * p.y, p * p.z);
+        bx += p * q.x;
+        by += p * q.y;
+    }
+    if m.determinant().abs() < 1e-18 {
+        // The head's own landmarks are coplanar: a parameter problem, not the user's.
+        return Err(Error::Invalid(
+            "landmark fit: the head model's landmarks are coplanar".into(),
+        ));
+    }
+    let mi = m.inverse();
+    let a0 = mi * bx;
+    let a1 = mi * by;
+    let (s, r) = nearest_scaled_rotation(a0, -a1).ok_or_else(|| {
+        Error::Invalid("landmark fit: the landmarks are degenerate (rank < 2)".into())
+    })?;
+    let mut cam = Cam64 {
+        s,
+        r,
+        t: DVec2::ZERO,
+    };
+    cam.t = optimal_t(&cam, &model, &image);
+    let iterations = refine(&mut cam, &model, &image);
+    let res: Vec<f64> = model
+        .iter()
+        .zip(&image)
+        .map(|(p, q)| (cam.project(*p) - *q).length())
+        .collect();
+    let rms = (res.iter().map(|e| e * e).sum::<f64>() / res.len() as f64).sqrt();
+    let max = res.iter().fold(0.0f64, |a, &b| a.max(b));
+    let out = cam.to_f32();
+    if out.validate().is_err() || !rms.is_finite() {
+        return Err(Error::Invalid(
+            "landmark fit did not converge to a valid camera".into(),
+        ));
+    }
+    Ok((
+        out,
+        FitReport {
+            method: FitMethod::Landmarks,
+            points: names,
+            rms_px: Some(rms as f32),
+            max_px: Some(max as f32),
+            iterations,
+        },
+    ))
+}
+
+/// Hair thickness assumed beside the skull by [`fit_default`], metres per side.
+pub const DEFAULT_HAIR_SIDE_M: f32 = 0.04;
+/// Hair thickness assumed above the vertex by [`fit_default`], metres.
+pub const DEFAULT_HAIR_TOP_M: f32 = 0.04;
+
+/// Camera without landmarks, from a hair mask (W·H bytes, row-major, > 127 = hair).
+///
+/// Heuristic: a frontal camera (no rotation). From the top mask row downwards the widest
+/// horizontal extent of the mask is tracked until the scan is 0.65 of that width (and at
+/// least max(8, H/32) rows) below the top (a hair cap's widest row, near the skull centre, lies about 0.55-0.67 widths down);
+/// that width is taken as the skull width plus [`DEFAULT_HAIR_SIDE_M`] on each side, which
+/// gives the scale; the head is centred on the midpoint of that widest row, and the vertex
+/// is placed [`DEFAULT_HAIR_TOP_M`] below the mask top. Errors on a size mismatch or an
+/// empty mask.
+pub fn fit_default(
+    head: &Head,
+    mask: &[u8],
+    width: u32,
+    height: u32,
+) -> Result<(WeakPerspective, FitReport)> {
+    let (w, h) = (width as usize, height as usize);
+    if w == 0 || h == 0 || mask.len() != w * h {
+        return Err(Error::Invalid(format!(
+            "default fit: mask has {} bytes, expected {width}x{height} = {}",
+            mask.len(),
+            w * h
+        )));
+    }
+    let span = |y: usize| {
+        let row = &mask[y * w..(y + 1) * w];
+        let l = row.iter().position(|&v| v > 127)?;
+        let r = row.iter().rposition(|&v| v > 127)?;
+        Some((l, r))
+    };
+    let y_top = (0..h)
+        .find(|&y| span(y).is_some())
+        .ok_or_else(|| Error::Invalid("default fit: the hair mask is empty".into()))?;
+    let (mut best_w, mut best_c) = (0usize, 0.0f64);
+    for y in y_top..h {
+        if let Some((l, r)) = span(y) {
+            let wd = r + 1 - l;
+            if wd > best_w {
+                best_w = wd;
+                best_c = 0.5 * (l + r + 1) as f64;
+            }
+        }
+        // The minimum depth keeps a stray pixel above the hair from ending the scan.
+        let depth = y - y_top;
+        if depth as f64 > 0.65 * best_w as f64 && depth >= (h / 32).max(8) {
+            break;
+        }
+    }
+    let skull_w = head.params.skull_width + 2.0 * DEFAULT_HAIR_SIDE_M;
+    let s = best_w as f32 / skull_w;
+    // Vertex image y = −s·top.y + t.y must equal y_top + s·hair_top.
+    let ty = y_top as f32 + s * DEFAULT_HAIR_TOP_M + s * head.top().y;
+    let tx = best_c as f32 - s * head.top().x;
+    let cam = WeakPerspective::frontal(s, Vec2::new(tx, ty));
+    cam.validate()?;
+    Ok((
+        cam,
+        FitReport {
+            method: FitMethod::Default,
+            points: Vec::new(),
+            rms_px: None,
+            max_px: None,
+            iterations: 0,
+        },
+    ))
+}
+
+/// Rejects coincident or (nearly) collinear image points: the smaller principal spread
+/// must be at least 5% of the larger one and at least 1e-3 of the image size.
+fn check_spread(image: &[DVec2], img_size: f64) -> Result<()> {
+    let n = image.len() as f64;
+    let c = image.iter().sum::<DVec2>() / n;
+    let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
+    for q in image {
+        let d = *q - c;
+        sxx += d.x * d.x;
+        sxy += d.x * d.y;
+        syy += d.y * d.y;
+    }
+    let (l1, l2) = sym2_eigen(sxx / n, sxy / n, syy / n).0;
+    let (big, small) = (l1.max(0.0).sqrt(), l2.max(0.0).sqrt());
+    if big < 1e-3 * img_size || small < 0.05 * big || small < 1e-3 * img_size {
+        return Err(Error::Invalid(format!(
+            "landmark fit: the landmarks are degenerate (coincident or collinear: principal \
+             spreads {big:.3} and {small:.3} px); need a face seen at most moderately from \
+             the side"
+        )));
+    }
+    Ok(())
+}
+
+/// Eigenvalues (descending) and the unit eigenvector of the larger one for [[a, b], [b, c]].
+fn sym2_eigen(a: f64, b: f64, c: f64) -> ((f64, f64), DVec2) {
+    let m = 0.5 * (a + c);
+    let d = (0.25 * (a - c) * (a - c) + b * b).sqrt();
+    let (l1, l2) = (m + d, m - d);
+    let v = if b.abs() > 1e-300 {
+        DVec2::new(l1 - c, b).normalize()
+    } else if a >= c {
+        DVec2::X
+    } else {
+        DVec2::Y
+    };
+    ((l1, l2), v)
+}
+
+/// Nearest s·[r0; r1] (orthonormal rows, s > 0) to the 2x3 matrix [b0; b1] in Frobenius
+/// norm, completed to a rotation. None when the matrix has rank < 2.
+fn nearest_scaled_rotation(b0: DVec3, b1: DVec3) -> Option<(f64, DMat3)> {
+    let ((l1, l2), e1) = sym2_eigen(b0.dot(b0), b0.dot(b1), b1.dot(b1));
+    let (s1, s2) = (l1.max(0.0).sqrt(), l2.max(0.0).sqrt());
+    if s2 <= 1e-9 * s1 || !s1.is_finite() || s2.is_nan() {
+        return None;
+    }
+    let e2 = DVec2::new(-e1.y, e1.x);
+    // G^{-1/2} with G the Gram matrix [[b0·b0, b0·b1], [b0·b1, b1·b1]].
+    let g = |i: usize, j: usize| e1[i] * e1[j] / s1 + e2[i] * e2[j] / s2;
+    let r0 = b0 * g(0, 0) + b1 * g(0, 1);
+    let r1 = b0 * g(1, 0) + b1 * g(1, 1);
+    // Re-orthonormalise against rounding.
+    let r0 = r0.normalize();
+    let r1 = (r1 - r0 * r0.dot(r1)).normalize();
+    let r2 = r0.cross(r1);
+    Some((0.5 * (s1 + s2), DMat3::from_cols(r0, r1, r2).transpose()))
+}
+
+#[derive(Clone, Copy)]
+struct Cam64 {
+    s: f64,
+    r: DMat3,
+    t: DVec2,
+}
+
+impl Cam64 {
+    fn project(&self, p: DVec3) -> DVec2 {
+        let v = self.r * p;
+        DVec2::new(self.s * v.x + self.t.x, -self.s * v.y + self.t.y)
+    }
+    fn to_f32(self) -> WeakPerspective {
+        WeakPerspective {
+            s: self.s as f32,
+            r: self.r.as_mat3(),
+            t: self.t.as_vec2(),
+        }
+    }
+    fn cost(&self, model: &[DVec3], image: &[DVec2]) -> f64 {
+        model
+            .iter()
+            .zip(image)
+            .map(|(p, q)| (self.project(*p) - *q).length_squared())
+            .sum()
+    }
+}
+
+/// Translation minimising the reprojection error for a fixed scale and rotation.
+fn optimal_t(cam: &Cam64, model: &[DVec3], image: &[DVec2]) -> DVec2 {
+    let zero = Cam64 {
+        t: DVec2::ZERO,
+        ..*cam
+    };
+    model
+        .iter()
+        .zip(image)
+        .map(|(p, q)| *q - zero.project(*p))
+        .sum::<DVec2>()
+        / model.len() as f64
+}
+
+/// Levenberg-Marquardt on (log s, ω, t), R ← exp(ω)·R. Returns the iterations taken.
+fn refine(cam: &mut Cam64, model: &[DVec3], image: &[DVec2]) -> u32 {
+    let mut cost = cam.cost(model, image);
+    let mut lambda = 1e-3;
+    let mut it = 0;
+    while it < 50 {
+        it += 1;
+        let mut jtj = [[0.0f64; 6]; 6];
+        let mut jtr = [0.0f64; 6];
+        for (p, q) in model.iter().zip(image) {
+            let v = cam.r * *p;
+            let e = cam.project(*p) - *q;
+            let s = cam.s;
+            // d(view)/dω = ω × v  =>  rows of −[v]×.
+            let jx = [s * v.x, 0.0, s * v.z, -s * v.y, 1.0, 0.0];
+            let jy = [-s * v.y, s * v.z, 0.0, -s * v.x, 0.0, 1.0];
+            for (j, r) in [(jx, e.x), (jy, e.y)] {
+                for a in 0..6 {
+                    jtr[a] += j[a] * r;
+                    for b in 0..6 {
+                        jtj[a][b] += j[a] * j[b];
+                    }
+                }
+            }
+        }
+        let mut improved = false;
+        for _ in 0..10 {
+            let mut a = jtj;
+            for (k, row) in a.iter_mut().enumerate() {
+                row[k] += lambda * (jtj[k][k] + 1e-12);
+            }
+            let Some(d) = solve6(a, jtr.map(|x| -x)) else {
+                lambda *= 10.0;
+                continue;
+            };
+            let w = DVec3::new(d[1], d[2], d[3]);
+            let rot = if w.length() > 0.0 {
+                DMat3::from_axis_angle(w.normalize(), w.length())
+            } else {
+                DMat3::IDENTITY
+            };
+            let trial = Cam64 {
+                s: cam.s * d[0].clamp(-1.0, 1.0).exp(),
+                r: rot * cam.r,
+                t: cam.t + DVec2::new(d[4], d[5]),
+            };
+            let c = trial.cost(model, image);
+            if c < cost {
+                let gain = cost - c;
+                *cam = trial;
+                cost = c;
+                lambda = (lambda * 0.3).max(1e-9);
+                improved = true;
+                if gain < 1e-12 * (1.0 + cost) {
+                    return it;
+                }
+                break;
+            }
+            lambda *= 10.0;
+        }
+        if !improved {
+            break;
+        }
+    }
+    // Keep R orthonormal after many small updates.
+    let (r0, r1) = (cam.r.row(0).normalize(), cam.r.row(1));
+    let r1 = (r1 - r0 * r0.dot(r1)).normalize();
+    cam.r = DMat3::from_cols(r0, r1, r0.cross(r1)).transpose();
+    it
+}
+
+/// Gaussian elimination with partial pivoting for a 6x6 system.
+fn solve6(mut a: [[f64; 6]; 6], mut b: [f64; 6]) -> Option<[f64; 6]> {
+    for c in 0..6 {
+        let piv = (c..6).max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs()))?;
+        if a[piv][c].abs() < 1e-300 {
+            return None;
+        }
+        a.swap(c, piv);
+        b.swap(c, piv);
+        for r in c + 1..6 {
+            let f = a[r][c] / a[c][c];
+            let pivot_row = a[c];
+            for (x, p) in a[r][c..].iter_mut().zip(&pivot_row[c..]) {
+                *x -= f * p;
+            }
+            b[r] -= f * b[c];
+        }
+    }
+    let mut x = [0.0; 6];
+    for c in (0..6).rev() {
+        let s: f64 = (c + 1..6).map(|k| a[c][k] * x[k]).sum();
+        x[c] = (b[c] - s) / a[c][c];
+    }
+    x.iter().all(|v| v.is_finite()).then_some(x)
+}

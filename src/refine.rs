@@ -1,0 +1,552 @@
+//! Iterative refinement of the strand set (C13 §2.2, "Iterative Refinement", Eq. 4-5).
+//!
+//! Each iteration:
+//! 1. splats the vertex density ρ of the current set S (GPU pass `density_splat`);
+//! 2. picks random seeds in empty cells of H (in H, ρ = 0): the grid is cut into blocks of
+//!    `seed_spacing`³ cells and every block with empty cells gets one seed in one of them,
+//!    chosen at random, jittered inside the cell (uniform cover of the empty space without
+//!    piling seeds into one gap; C13 only says "randomly sampled within the empty region");
+//! 3. traces a candidate ξ* from each seed both ways (one `grow_rk2` pass with signs +1 and
+//!    -1) and joins the halves into one polyline oriented along D;
+//! 4. for every candidate, in parallel, enumerates the vertices ξ(i) of S within `radius`
+//!    cells of each ξ*(j) (a cell-bucketed index over S) and keeps the joint strand ξ' of
+//!    Eq. (4) with the lowest E_c of Eq. (5); i ≥ 1, so the root part of ξ' always comes from
+//!    S and ξ'(0) is an original root on the scalp;
+//! 5. merges the winners in candidate order (deterministic): a candidate whose seed cell an
+//!    earlier joint strand of this iteration already filled is dropped as redundant; otherwise
+//!    ξ' is smoothed (1D Gaussian, variance 2 vertices, on the vertices within two vertices of
+//!    the joint, the root excepted) and added to S (the strand it was cut from stays).
+//!
+//! Density: E_c uses ρ from the start of the iteration (one splat per iteration, so the
+//! candidates can be scored in parallel); the redundancy test in step 5 uses ρ updated as
+//! strands are added. Iterations stop when one connects nothing or after `max_iterations`.
+//!
+//! Radius: C13 gives none; 2 cells (two vertex spacings) by default: near enough that the
+//! average vertex of Eq. (4) makes a gentle kink, far enough that most candidates meet S.
+
+use crate::engine::Engine;
+use crate::error::{Error, Result};
+use crate::grid::Grid;
+use crate::grow::{grow, splat_density, validate_field, GrowParams, Strands};
+use crate::rng::Rng;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+type V3 = [f32; 3];
+
+/// Refinement parameters (C13 §2.2: σ_c = 1, w_ρ = 0.01, smoothing variance 2 vertices
+/// within two vertices of the joint, 4-5 iterations).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct RefineParams {
+    /// Width (vertices) of the Gaussian weighting the Laplacian around the joint in Eq. (5).
+    pub sigma_c: f32,
+    /// Weight of the density term of Eq. (5) (ρ = vertices per cell).
+    pub w_rho: f32,
+    /// Search radius (cells) between ξ(i) and ξ*(j); C13 gives none.
+    pub radius: f32,
+    pub max_iterations: u32,
+    /// Seeds: at most one per block of `seed_spacing`³ cells holding empty cells.
+    pub seed_spacing: u32,
+    /// Cap on the seeds of one iteration (a random subset is kept above it).
+    pub max_seeds_per_iteration: u32,
+    /// Candidates with fewer vertices are dropped (too short to be a strand).
+    pub min_candidate_len: u32,
+    /// Variance (vertices²) of the Gaussian smoothing after a cut-and-connect.
+    pub smooth_variance: f32,
+    /// Vertices either side of the joint that are smoothed.
+    pub smooth_reach: u32,
+    /// Growth of the candidates.
+    pub grow: GrowParams,
+}
+
+impl Default for RefineParams {
+    fn default() -> Self {
+        RefineParams {
+            sigma_c: 1.0,
+            w_rho: 0.01,
+            radius: 2.0,
+            max_iterations: 5,
+            seed_spacing: 2,
+            max_seeds_per_iteration: 50_000,
+            min_candidate_len: 5,
+            smooth_variance: 2.0,
+            smooth_reach: 2,
+            grow: GrowParams::default(),
+        }
+    }
+}
+
+impl RefineParams {
+    fn validate(&self) -> Result<()> {
+        let pos = |v: f32| v.is_finite() && v > 0.0;
+        if !pos(self.sigma_c) || !pos(self.radius) || !pos(self.smooth_variance) {
+            return Err(Error::Invalid(format!(
+                "refine sigma_c {}, radius {} and smooth_variance {} must be positive and finite",
+                self.sigma_c, self.radius, self.smooth_variance
+            )));
+        }
+        if !(self.w_rho.is_finite() && self.w_rho >= 0.0) {
+            return Err(Error::Invalid(format!(
+                "refine w_rho must be finite and >= 0, got {}",
+                self.w_rho
+            )));
+        }
+        if self.seed_spacing == 0 {
+            return Err(Error::Invalid("refine seed_spacing must be >= 1".into()));
+        }
+        // The neighbour search visits (2·radius + 1)³ cells per candidate vertex.
+        if self.radius > 16.0 {
+            return Err(Error::Invalid(format!(
+                "refine radius {} cells is over the limit of 16",
+                self.radius
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// Figures of one refinement iteration.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct IterationReport {
+    /// Share of H cells holding no vertex, before the iteration.
+    pub empty_share: f64,
+    pub seeds: usize,
+    /// Traced candidates at least `min_candidate_len` long.
+    pub candidates: usize,
+    /// Candidates for which a joint within the radius exists.
+    pub connected: usize,
+    /// Joint strands added (connected minus those made redundant earlier in the iteration).
+    pub added: usize,
+}
+
+/// What refinement did.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct RefineReport {
+    pub iterations: Vec<IterationReport>,
+    pub initial_strands: usize,
+    pub final_strands: usize,
+    /// Share of H cells holding no vertex after the last iteration.
+    pub final_empty_share: f64,
+    /// Share of the final strands that refinement added (C13: 40-70%).
+    pub refined_share: f64,
+}
+
+/// The chosen cut-and-connect of one candidate: ξ = strand `s` cut at vertex `i`, ξ* joined
+/// from its vertex `j`.
+#[derive(Clone, Copy, Debug)]
+struct Joint {
+    s: u32,
+    i: u32,
+    j: u32,
+}
+
+/// Vertices of S bucketed by grid cell (CSR), with per-vertex strand, index within the strand
+/// and density prefix sums along the strand.
+struct VertexIndex {
+    cell_start: Vec<u32>,
+    /// Global vertex ids, bucket after bucket, increasing within a bucket.
+    ids: Vec<u32>,
+    strand_of: Vec<u32>,
+    /// Σ ρ over the vertices before this one in its strand.
+    rho_prefix: Vec<u64>,
+}
+
+impl VertexIndex {
+    fn new(grid: &Grid, strands: &Strands, density: &[u32]) -> Result<Self> {
+        let nv = strands.verts.len();
+        if nv >= u32::MAX as usize || strands.len() >= u32::MAX as usize {
+            return Err(Error::Invalid(format!(
+                "{nv} vertices are too many for the 32-bit neighbour index"
+            )));
+        }
+        let mut strand_of = vec![0u32; nv];
+        let mut rho_prefix = vec![0u64; nv];
+        let cells: Vec<u32> = strands
+            .verts
+            .iter()
+            .map(|&v| grid.cell_of(v).map_or(u32::MAX, |c| c as u32))
+            .collect();
+        let mut counts = vec![0u32; grid.len() + 1];
+        for (s, w) in strands.offsets.windows(2).enumerate() {
+            let mut acc = 0u64;
+            for g in w[0]..w[1] {
+                strand_of[g] = s as u32;
+                rho_prefix[g] = acc;
+                if cells[g] != u32::MAX {
+                    acc += density[cells[g] as usize] as u64;
+                    // The root is never a joint (it must stay the strand's first vertex).
+                    if g > w[0] {
+                        counts[cells[g] as usize + 1] += 1;
+                    }
+                }
+            }
+        }
+        for c in 0..grid.len() {
+            counts[c + 1] += counts[c];
+        }
+        let mut fill = counts.clone();
+        let mut ids = vec![0u32; counts[grid.len()] as usize];
+        for w in strands.offsets.windows(2) {
+            for (g, &c) in cells.iter().enumerate().take(w[1]).skip(w[0] + 1) {
+                if c != u32::MAX {
+                    let c = c as usize;
+                    ids[fill[c] as usize] = g as u32;
+                    fill[c] += 1;
+                }
+            }
+        }
+        Ok(VertexIndex {
+            cell_start: counts,
+            ids,
+            strand_of,
+            rho_prefix,
+        })
+    }
+
+    fn bucket(&self, c: usize) -> &[u32] {
+        &self.ids[self.cell_start[c] as usize..self.cell_start[c + 1] as usize]
+    }
+}
+
+fn sub(a: V3, b: V3) -> V3 {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn len3(a: V3) -> f32 {
+    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
+}
+
+fn mid(a: V3, b: V3) -> V3 {
+    [
+        (a[0] + b[0]) * 0.5,
+        (a[1] + b[1]) * 0.5,
+        (a[2] + b[2]) * 0.5,
+    ]
+}
+
+/// Vertex `k` of the joint strand ξ' of Eq. (4) (0-based: ξ(0..i), the average at i, then
+/// ξ*(j+1..)).
+#[inline]
+fn joint_vertex(xi: &[V3], i: usize, avg: V3, cand: &[V3], j: usize, k: usize) -> V3 {
+    if k < i {
+        xi[k]
+    } else if k == i {
+        avg
+    } else {
+        cand[k - i + j]
+    }
+}
+
+/// Everything the candidate search reads.
+struct Scorer<'a> {
+    grid: &'a Grid,
+    density: &'a [u32],
+    strands: &'a Strands,
+    index: &'a VertexIndex,
+    radius: f32,
+    w_rho: f32,
+    /// Gaussian weights exp(-d²/2σ_c²) for d = 0..=window (truncated below 1e-4).
+    weights: Vec<f32>,
+}
+
+impl Scorer<'_> {
+    fn rho(&self, v: V3) -> u64 {
+        self.grid.cell_of(v).map_or(0, |c| self.density[c] as u64)
+    }
+
+    /// The lowest-E_c joint of candidate `cand`, if any vertex of S lies within the radius.
+    fn best_joint(&self, cand: &[V3]) -> Option<(Joint, f32)> {
+        let n = cand.len();
+        // suffix[m] = Σ ρ over cand[m..].
+        let mut suffix = vec![0u64; n + 1];
+        for m in (0..n).rev() {
+            suffix[m] = suffix[m + 1] + self.rho(cand[m]);
+        }
+        let r2 = self.radius * self.radius;
+        let win = self.weights.len() as isize - 1;
+        let dims = self.grid.dims;
+        let mut best: Option<(Joint, f32)> = None;
+        // j + 1 must exist: a joint strand has to take something from the candidate.
+        for j in 0..n.saturating_sub(1) {
+            let q = cand[j];
+            let lo: [u32; 3] =
+                std::array::from_fn(|a| (q[a] - self.radius).floor().max(0.0) as u32);
+            let hi: [u32; 3] = std::array::from_fn(|a| {
+                ((q[a] + self.radius).floor().max(0.0) as u32).min(dims[a] - 1)
+            });
+            for z in lo[2]..=hi[2] {
+                for y in lo[1]..=hi[1] {
+                    for x in lo[0]..=hi[0] {
+                        for &g in self.index.bucket(self.grid.index(x, y, z)) {
+                            let g = g as usize;
+                            let p = self.strands.verts[g];
+                            let dv = sub(p, q);
+                            if dv[0] * dv[0] + dv[1] * dv[1] + dv[2] * dv[2] > r2 {
+                                continue;
+                            }
+                            let s = self.index.strand_of[g] as usize;
+                            let start = self.strands.offsets[s];
+                            let i = g - start;
+                            let avg = mid(p, q);
+                            // Density term first: it is O(1) with the prefix sums and bounds E_c
+                            // from below, so most pairs are rejected before the Laplacian.
+                            let dens = self.index.rho_prefix[g] + self.rho(avg) + suffix[j + 1];
+                            let e_rho = self.w_rho * dens as f32;
+                            if best.is_some_and(|(_, e)| e_rho >= e) {
+                                continue;
+                            }
+                            let xi = self.strands.strand(s);
+                            let len = i + (n - j);
+                            let mut e_s = 0.0f32;
+                            for d in -win..=win {
+                                let k = i as isize + d;
+                                if k < 1 || k as usize + 1 >= len {
+                                    continue;
+                                }
+                                let k = k as usize;
+                                let a = joint_vertex(xi, i, avg, cand, j, k - 1);
+                                let b = joint_vertex(xi, i, avg, cand, j, k);
+                                let c = joint_vertex(xi, i, avg, cand, j, k + 1);
+                                let lap = [
+                                    a[0] - 2.0 * b[0] + c[0],
+                                    a[1] - 2.0 * b[1] + c[1],
+                                    a[2] - 2.0 * b[2] + c[2],
+                                ];
+                                e_s += self.weights[d.unsigned_abs()] * len3(lap);
+                            }
+                            let e = e_s + e_rho;
+                            // Strictly lower: ties keep the first found (a fixed order).
+                            if best.is_none_or(|(_, b)| e < b) {
+                                best = Some((
+                                    Joint {
+                                        s: s as u32,
+                                        i: i as u32,
+                                        j: j as u32,
+                                    },
+                                    e,
+                                ));
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        best
+    }
+}
+
+/// Builds ξ' (Eq. 4) and smooths the vertices within `reach` of the joint with a Gaussian of
+/// variance `variance` (vertices²), keeping the root (and the tip) where they are.
+fn cut_and_connect(xi: &[V3], cand: &[V3], jt: Joint, variance: f32, reach: usize) -> Vec<V3> {
+    let (i, j) = (jt.i as usize, jt.j as usize);
+    let avg = mid(xi[i], cand[j]);
+    let mut out: Vec<V3> = Vec::with_capacity(i + cand.len() - j);
+    out.extend_from_slice(&xi[..i]);
+    out.push(avg);
+    out.extend_from_slice(&cand[j + 1..]);
+    let raw = out.clone();
+    let sigma = variance.sqrt();
+    let taps = (3.0 * sigma).ceil() as isize;
+    let w: Vec<f32> = (-taps..=taps)
+        .map(|d| (-(d * d) as f32 / (2.0 * variance)).exp())
+        .collect();
+    let last = raw.len() as isize - 1;
+    let lo = (i as isize - reach as isize).max(1);
+    let hi = (i as isize + reach as isize).min(last - 1);
+    for k in lo..=hi {
+        let mut acc = [0.0f32; 3];
+        let mut wsum = 0.0f32;
+        for (t, &wt) in (-taps..=taps).zip(&w) {
+            // Clamped at the ends, so the filter does not pull the strand ends inward.
+            let v = raw[(k + t).clamp(0, last) as usize];
+            for a in 0..3 {
+                acc[a] += wt * v[a];
+            }
+            wsum += wt;
+        }
+        out[k as usize] = [acc[0] / wsum, acc[1] / wsum, acc[2] / wsum];
+    }
+    out
+}
+
+/// Seeds in empty cells of H: one per block of `spacing`³ cells that holds any, chosen at
+/// random among them and jittered inside the cell; capped at `cap` (random subset).
+fn pick_seeds(grid: &Grid, h: &[u32], density: &[u32], p: &RefineParams, rng: &mut Rng) -> Vec<V3> {
+    let sp = p.seed_spacing;
+    let nb: [u32; 3] = std::array::from_fn(|a| grid.dims[a].div_ceil(sp));
+    let mut seeds = Vec::new();
+    let mut cells = Vec::new();
+    for bz in 0..nb[2] {
+        for by in 0..nb[1] {
+            for bx in 0..nb[0] {
+                cells.clear();
+                for z in bz * sp..((bz + 1) * sp).min(grid.dims[2]) {
+                    for y in by * sp..((by + 1) * sp).min(grid.dims[1]) {
+                        for x in bx * sp..((bx + 1) * sp).min(grid.dims[0]) {
+                            let c = grid.index(x, y, z);
+                            if h[c] != 0 && density[c] == 0 {
+                                cells.push([x, y, z]);
+                            }
+                        }
+                    }
+                }
+                if cells.is_empty() {
+                    continue;
+                }
+                let c = cells[rng.below(cells.len() as u32) as usize];
+                // Inside the cell, away from its faces, so the seed's cell is the empty one.
+                seeds.push(std::array::from_fn(|a| {
+                    c[a] as f32 + rng.range_f32(0.1, 0.9)
+                }));
+            }
+        }
+    }
+    let cap = p.max_seeds_per_iteration as usize;
+    if seeds.len() > cap {
+        // Partial Fisher-Yates, then back to grid order.
+        let mut idx: Vec<usize> = (0..seeds.len()).collect();
+        for k in 0..cap {
+            let r = k + rng.below((idx.len() - k) as u32) as usize;
+            idx.swap(k, r);
+        }
+        idx.truncate(cap);
+        idx.sort_unstable();
+        seeds = idx.into_iter().map(|k| seeds[k]).collect();
+    }
+    seeds
+}
+
+fn empty_share(h: &[u32], density: &[u32]) -> f64 {
+    let inside = h.iter().filter(|&&v| v != 0).count();
+    let empty = h
+        .iter()
+        .zip(density)
+        .filter(|(&v, &r)| v != 0 && r == 0)
+        .count();
+    if inside == 0 {
+        0.0
+    } else {
+        empty as f64 / inside as f64
+    }
+}
+
+/// Iteratively adds joint strands to `strands` until H is filled (C13 §2.2). Deterministic
+/// for a given `seed` (on either backend, up to GPU rounding of the traced candidates).
+pub fn refine(
+    engine: &Engine,
+    grid: &Grid,
+    d: &[f32],
+    h: &[u32],
+    strands: Strands,
+    p: &RefineParams,
+    seed: u64,
+) -> Result<(Strands, RefineReport)> {
+    validate_field(grid, d, h)?;
+    p.validate()?;
+    strands.validate()?;
+    if let Some(s) = strands.offsets.windows(2).position(|w| w[1] == w[0]) {
+        return Err(Error::Invalid(format!("strand {s} has no vertex")));
+    }
+    if let Some(g) = strands
+        .verts
+        .iter()
+        .position(|v| grid.cell_of(*v).is_none())
+    {
+        return Err(Error::Invalid(format!(
+            "strand vertex {g} at {:?} is outside the {:?} grid",
+            strands.verts[g], grid.dims
+        )));
+    }
+    let mut rng = Rng::new(seed);
+    let win = (p.sigma_c * (2.0 * 1e4f32.ln()).sqrt()).ceil() as usize;
+    let weights: Vec<f32> = (0..=win)
+        .map(|d| (-((d * d) as f32) / (2.0 * p.sigma_c * p.sigma_c)).exp())
+        .collect();
+    let mut report = RefineReport {
+        initial_strands: strands.len(),
+        ..Default::default()
+    };
+    let mut strands = strands;
+    let mut density = splat_density(engine, grid, &strands)?;
+    for it in 0..p.max_iterations {
+        let mut it_rng = rng.fork(it as u64);
+        let mut ir = IterationReport {
+            empty_share: empty_share(h, &density),
+            ..Default::default()
+        };
+        let seeds = pick_seeds(grid, h, &density, p, &mut it_rng);
+        ir.seeds = seeds.len();
+        if seeds.is_empty() {
+            report.iterations.push(ir);
+            break;
+        }
+        // Forward and backward halves in one pass.
+        let both: Vec<V3> = seeds.iter().chain(seeds.iter()).copied().collect();
+        let signs: Vec<f32> = (0..2 * seeds.len())
+            .map(|k| if k < seeds.len() { 1.0 } else { -1.0 })
+            .collect();
+        let traced = grow(engine, grid, d, h, &both, &signs, &p.grow)?;
+        let ns = seeds.len();
+        let candidates: Vec<(usize, Vec<V3>)> = (0..ns)
+            .filter_map(|c| {
+                let fwd = traced.strand(c);
+                let back = traced.strand(ns + c);
+                let mut cand: Vec<V3> = back[1..].iter().rev().copied().collect();
+                cand.extend_from_slice(fwd);
+                (cand.len() >= p.min_candidate_len.max(2) as usize).then_some((c, cand))
+            })
+            .collect();
+        ir.candidates = candidates.len();
+        let index = VertexIndex::new(grid, &strands, &density)?;
+        let scorer = Scorer {
+            grid,
+            density: &density,
+            strands: &strands,
+            index: &index,
+            radius: p.radius,
+            w_rho: p.w_rho,
+            weights: weights.clone(),
+        };
+        let joints: Vec<Option<Joint>> = candidates
+            .par_iter()
+            .map(|(_, cand)| scorer.best_joint(cand).map(|(jt, _)| jt))
+            .collect();
+        drop(scorer);
+        drop(index);
+        // Merge in candidate order; `running` tracks this iteration's additions.
+        let mut running = density.clone();
+        let before = strands.len();
+        for ((c, cand), jt) in candidates.iter().zip(joints) {
+            let Some(jt) = jt else { continue };
+            ir.connected += 1;
+            let seed_cell = grid.cell_of(seeds[*c]).expect("seeds lie inside the grid");
+            if running[seed_cell] != 0 {
+                continue;
+            }
+            let xi = strands.strand(jt.s as usize);
+            let joined = cut_and_connect(xi, cand, jt, p.smooth_variance, p.smooth_reach as usize);
+            for v in &joined {
+                if let Some(cell) = grid.cell_of(*v) {
+                    running[cell] += 1;
+                }
+            }
+            strands.push(&joined);
+        }
+        ir.added = strands.len() - before;
+        let added = ir.added;
+        report.iterations.push(ir);
+        if added == 0 {
+            break;
+        }
+        density = splat_density(engine, grid, &strands)?;
+    }
+    report.final_empty_share = empty_share(h, &density);
+    report.final_strands = strands.len();
+    report.refined_share = if strands.is_empty() {
+        0.0
+    } else {
+        (report.final_strands - report.initial_strands) as f64 / report.final_strands as f64
+    };
+    Ok((strands, report))
+}
