@@ -38,6 +38,67 @@ enum Command {
     Info,
     /// Converts a strand file: .hair .data .ply .obj in; .hair .data .ply .obj .usda out.
     Convert(ConvertArgs),
+    /// Single-view 3D strand hair (C13 §2): analyze, head fit, hair volume, direction field
+    /// (Eq. 3), RK2 growth from the scalp, cut-and-connect refinement (Eq. 4-5), colours.
+    Model(ModelArgs),
+    /// Writes a model's strands (`<model>/strands.hair`) as .hair .data .ply .obj or .usda.
+    Export(ExportArgs),
+    /// Reads a strand file (.hair .data .ply .obj) into a model folder (`strands.hair`,
+    /// `model.json`).
+    Import(ImportArgs),
+}
+
+#[derive(Args)]
+struct ModelArgs {
+    /// Portrait (PNG).
+    #[arg(long)]
+    image: PathBuf,
+    /// strokes.json (version 1), a labelme .json or an .svg; direction strokes root to tip.
+    #[arg(long)]
+    strokes: PathBuf,
+    /// Hair mask, same size, > 127 on hair; without it the hair is segmented from the strokes.
+    #[arg(long)]
+    mask: Option<PathBuf>,
+    /// landmarks.json (version 1: eyes, nose tip, mouth corners, chin); without it the head
+    /// is placed by the default fit to the mask (frontal, sized by the mask's upper width).
+    #[arg(long)]
+    landmarks: Option<PathBuf>,
+    /// Output folder (created).
+    #[arg(long)]
+    out: PathBuf,
+    #[command(flatten)]
+    backend: BackendArgs,
+    /// Seed of the random choices (roots, refinement seeds).
+    #[arg(long, default_value_t = coif::model::ModelParams::default().seed)]
+    seed: u64,
+    /// Scalp roots drawn before the mask excludes the face (n_s).
+    #[arg(long, default_value_t = coif::model::ModelParams::default().roots)]
+    roots: usize,
+    /// Cells along the hair volume's largest axis (C13: 80).
+    #[arg(long, default_value_t = coif::volume::VolumeParams::default().cells)]
+    cells: u32,
+    /// Refinement iterations (C13: 4-5); 0 keeps the grown strands only.
+    #[arg(long, default_value_t = coif::refine::RefineParams::default().max_iterations)]
+    refine: u32,
+}
+
+#[derive(Args)]
+struct ExportArgs {
+    /// Model folder written by `coif model` or `coif import`.
+    #[arg(long)]
+    model: PathBuf,
+    /// Strand file to write; the format follows the extension.
+    #[arg(long)]
+    to: PathBuf,
+}
+
+#[derive(Args)]
+struct ImportArgs {
+    /// Strand file to read (.hair .data .ply .obj).
+    input: PathBuf,
+    /// Model folder to write (created).
+    #[arg(long)]
+    out: PathBuf,
 }
 
 #[derive(Args)]
@@ -178,6 +239,9 @@ fn run(cmd: Command) -> anyhow::Result<()> {
         Command::Analyze(a) => cmd_analyze(a),
         Command::Info => cmd_info(),
         Command::Convert(a) => cmd_convert(a),
+        Command::Model(a) => cmd_model(a),
+        Command::Export(a) => cmd_export(a),
+        Command::Import(a) => cmd_import(a),
     }
 }
 
@@ -587,6 +651,150 @@ fn cmd_analyze(a: AnalyzeArgs) -> anyhow::Result<()> {
         a.out.display(),
         t.elapsed().as_secs_f64(),
         engine.describe()
+    );
+    Ok(())
+}
+
+fn cmd_model(a: ModelArgs) -> anyhow::Result<()> {
+    let mut p = coif::model::ModelParams {
+        seed: a.seed,
+        roots: a.roots,
+        ..Default::default()
+    };
+    p.volume.cells = a.cells;
+    p.refine.max_iterations = a.refine;
+    let engine = Engine::new(a.backend.backend)?;
+    let t = Instant::now();
+    let (rgb, an) = run_analyze(&engine, &a.image, &a.strokes, a.mask.as_deref(), &p.analyze)?;
+    let landmarks = match &a.landmarks {
+        Some(l) => Some(coif::annot::Landmarks::load(l, Some(rgb.dimensions()))?),
+        None => None,
+    };
+    write_analysis(&a.out, &a.image, &rgb, &an, &engine.describe())?;
+    let m = coif::model::model_from_analysis(&engine, &rgb, an, landmarks.as_ref(), &p)
+        .with_context(|| format!("3D model of {}", a.image.display()))?;
+    write_model(&a.out, &a.image, &rgb, &m, &p, &engine)?;
+    println!(
+        "model: {} strands ({} grown from {} roots on hair, {} added by refinement), {} H cells, \
+         field {} cycles to {:.1e} -> {} ({:.2} s on {})",
+        m.strands.len(),
+        m.grown_strands,
+        m.roots_kept,
+        m.strands.len() - m.grown_strands,
+        m.h_cells,
+        m.solve.cycles,
+        m.solve.rel_residual,
+        a.out.display(),
+        t.elapsed().as_secs_f64(),
+        engine.describe()
+    );
+    for (k, v) in &m.timings {
+        println!("  {k:<18} {:>8.1} ms", v * 1e3);
+    }
+    Ok(())
+}
+
+/// `model.json`, `strands.hair` and `preview.png` of a model (the analysis is written by
+/// the caller).
+fn write_model(
+    out: &Path,
+    image: &Path,
+    rgb: &image::RgbImage,
+    m: &coif::model::Model,
+    p: &coif::model::ModelParams,
+    engine: &Engine,
+) -> anyhow::Result<()> {
+    coif::strands::write(&out.join("strands.hair"), &m.strands)?;
+    let figures = coif::model::figures(m);
+    let meta = serde_json::json!({
+        "version": 1,
+        "coif": env!("CARGO_PKG_VERSION"),
+        "image": image.display().to_string(),
+        "width": m.analysis.width,
+        "height": m.analysis.height,
+        "units": "model space in metres, y up, the face looks toward +z",
+        "image_from_model": m.camera.image_from_model(),
+        "image_from_model_doc": "rows map homogeneous model points (x, y, z, 1) to image x (px, right), image y (px, down) and depth (px, toward the camera)",
+        "camera": m.camera,
+        "head": { "params": m.head.params(), "fit": m.fit },
+        "grid": m.grid,
+        "h_cells": m.h_cells,
+        "constraints": { "curves": m.constraints_curve, "scalp": m.constraints_scalp },
+        "field_solve": m.solve,
+        "roots": { "drawn": m.roots_drawn, "on_hair": m.roots_kept },
+        "strands": { "grown": m.grown_strands, "final": m.strands.len(), "vertices": m.strands.points.len() },
+        "refinement": m.refine,
+        "figures": figures,
+        "params": p,
+        "backend": engine.describe(),
+        "seconds": m.timings.iter().map(|(k, v)| (k.to_string(), serde_json::json!(v))).collect::<serde_json::Map<_, _>>(),
+    });
+    coif::io::write_atomic(
+        &out.join("model.json"),
+        serde_json::to_string_pretty(&meta)?.as_bytes(),
+    )?;
+    // Preview: strands projected over the dimmed photo, coloured by their projected growth
+    // direction (the hue ring of the analysis pictures); a subset keeps it legible.
+    let mut pic = coif::vis::dimmed(rgb, 0.35);
+    // Far strands first, so nearer ones cover them (painter's order on mean depth).
+    let every = (m.strands_volume.len() / 6000).max(1);
+    let mut order: Vec<(f32, usize)> = (0..m.strands_volume.len())
+        .step_by(every)
+        .map(|i| {
+            let s = &m.strands_volume[i];
+            (s.iter().map(|q| q[2]).sum::<f32>() / s.len() as f32, i)
+        })
+        .collect();
+    order.sort_by(|a, b| a.0.total_cmp(&b.0));
+    for s in order.iter().map(|&(_, i)| &m.strands_volume[i]) {
+        let pts: Vec<[f32; 2]> = s.iter().map(|q| [q[0], q[1]]).collect();
+        coif::vis::draw_polyline(&mut pic, &pts, 1.0, |k| {
+            coif::vis::direction_colour(pts[k + 1][0] - pts[k][0], pts[k + 1][1] - pts[k][1])
+        });
+    }
+    coif::vis::hue_ring(&mut pic);
+    coif::io::write_png(&out.join("preview.png"), &pic)?;
+    Ok(())
+}
+
+fn cmd_export(a: ExportArgs) -> anyhow::Result<()> {
+    coif::strands::Format::from_path(&a.to)?;
+    let src = a.model.join("strands.hair");
+    let s = coif::strands::read(&src)?;
+    coif::strands::write(&a.to, &s)?;
+    println!(
+        "export: {} strands, {} vertices: {} -> {}",
+        s.counts.len(),
+        s.points.len(),
+        src.display(),
+        a.to.display()
+    );
+    Ok(())
+}
+
+fn cmd_import(a: ImportArgs) -> anyhow::Result<()> {
+    let s = coif::strands::read(&a.input)?;
+    coif::io::ensure_dir(&a.out)?;
+    coif::strands::write(&a.out.join("strands.hair"), &s)?;
+    let (lo, hi) = s.bounds();
+    let meta = serde_json::json!({
+        "version": 1,
+        "coif": env!("CARGO_PKG_VERSION"),
+        "imported_from": a.input.display().to_string(),
+        "strands": { "final": s.counts.len(), "vertices": s.points.len() },
+        "bounds": [lo, hi],
+        "image_from_model": serde_json::Value::Null,
+    });
+    coif::io::write_atomic(
+        &a.out.join("model.json"),
+        serde_json::to_string_pretty(&meta)?.as_bytes(),
+    )?;
+    println!(
+        "import: {} strands, {} vertices: {} -> {}",
+        s.counts.len(),
+        s.points.len(),
+        a.input.display(),
+        a.out.display()
     );
     Ok(())
 }

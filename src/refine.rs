@@ -65,7 +65,7 @@ impl Default for RefineParams {
         RefineParams {
             sigma_c: 1.0,
             w_rho: 0.01,
-            radius: 2.0,
+            radius: 3.0,
             max_iterations: 5,
             seed_spacing: 2,
             max_seeds_per_iteration: 50_000,

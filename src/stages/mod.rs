@@ -4,6 +4,14 @@
 pub mod density_splat;
 pub mod depth_raster;
 pub mod dir_diffuse;
+pub mod field_cfg;
+pub mod field_coarse_rhs;
+pub mod field_dense;
+pub mod field_nres;
+pub mod field_prolong;
+pub mod field_resid;
+pub mod field_restrict;
+pub mod field_smooth;
 pub mod gabor;
 pub mod grow_rk2;
 pub mod orient_resolve;
@@ -20,4 +28,11 @@ pub const ALL: &[&StageDef] = &[
     &depth_raster::STAGE,
     &grow_rk2::STAGE,
     &density_splat::STAGE,
+    &field_smooth::STAGE,
+    &field_resid::STAGE,
+    &field_nres::STAGE,
+    &field_restrict::STAGE,
+    &field_prolong::STAGE,
+    &field_coarse_rhs::STAGE,
+    &field_dense::STAGE,
 ];

@@ -1,0 +1,441 @@
+//! Single-view 3D strand modelling (issue 4, C13 §2.1-2.2): from the directed 2D analysis to
+//! strands rooted on the scalp. Head fit → hair volume H (depth maps of the head and the
+//! initial hair shape) → constraints (lifted curve tangents, scalp normals) → direction
+//! field D (Eq. 3) → RK2 growth from scalp roots → cut-and-connect refinement (Eq. 4-5) →
+//! per-vertex colour from the photo.
+
+use crate::analyze::{analyze, Analysis, AnalyzeParams};
+use crate::annot::{Landmarks, Strokes};
+use crate::engine::Engine;
+use crate::error::{Error, Result};
+use crate::field3d::{self, FieldParams, SolveReport};
+use crate::grid::Grid;
+use crate::grow::{grow, GrowParams, Strands};
+use crate::head::{fit_default, fit_landmarks, FitReport, Head, HeadParams, WeakPerspective};
+use crate::refine::{refine, RefineParams, RefineReport};
+use crate::strands::StrandSet;
+use crate::volume::{hair_volume, lift_curves, HairVolume, HeadInput, Mesh, VolumeParams};
+use glam::Vec3;
+use std::time::Instant;
+
+/// Every parameter of a modelling run (written to `model.json`).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct ModelParams {
+    pub analyze: AnalyzeParams,
+    pub head: HeadParams,
+    /// Cells across the head mesh's largest side (marching tetrahedra resolution).
+    pub head_mesh_resolution: u32,
+    pub volume: VolumeParams,
+    pub field: FieldParams,
+    /// Cells whose centre lies within this many cells of the scalp get the scalp normal as a
+    /// constraint (C13: "for the cells near the scalp, we also assign the surface normal").
+    pub scalp_band_cells: f32,
+    /// n_s: roots drawn uniformly in scalp parameter space before the face is excluded by
+    /// the mask (only roots projecting onto hair are kept).
+    pub roots: usize,
+    pub grow: GrowParams,
+    pub refine: RefineParams,
+    /// Seed of every random choice (roots, refinement seeds).
+    pub seed: u64,
+}
+
+impl Default for ModelParams {
+    fn default() -> Self {
+        ModelParams {
+            analyze: AnalyzeParams::default(),
+            head: HeadParams::default(),
+            head_mesh_resolution: 64,
+            volume: VolumeParams::default(),
+            field: FieldParams::default(),
+            scalp_band_cells: 1.5,
+            roots: 60_000,
+            grow: GrowParams::default(),
+            refine: RefineParams::default(),
+            seed: 1,
+        }
+    }
+}
+
+/// A fitted hair model and what was measured on the way.
+pub struct Model {
+    pub analysis: Analysis,
+    pub head: Head,
+    pub camera: WeakPerspective,
+    pub fit: FitReport,
+    pub grid: Grid,
+    /// Cells in H (the grown volume also holds the scalp shell, see [`model`]).
+    pub h_cells: usize,
+    pub constraints_curve: usize,
+    pub constraints_scalp: usize,
+    pub solve: SolveReport,
+    pub roots_drawn: usize,
+    pub roots_kept: usize,
+    pub grown_strands: usize,
+    pub refine: RefineReport,
+    /// Strands in model space (metres), root first, with per-vertex colour and transparency.
+    pub strands: StrandSet,
+    /// The same strands in volume space (image px, depth px).
+    pub strands_volume: Vec<Vec<[f32; 3]>>,
+    /// The head's front depth map (volume space, -inf off the head): what hides strands.
+    pub head_front: Vec<f32>,
+    /// Seconds per stage, analysis stages included.
+    pub timings: Vec<(&'static str, f64)>,
+}
+
+/// The head placed in the image: landmarks when given, else the default fit to the mask.
+pub fn place_head(
+    head: &Head,
+    landmarks: Option<&Landmarks>,
+    mask: &[u8],
+    width: u32,
+    height: u32,
+) -> Result<(WeakPerspective, FitReport)> {
+    match landmarks {
+        Some(l) => fit_landmarks(head, l, (width, height)),
+        None => fit_default(head, mask, width, height),
+    }
+}
+
+/// Runs the whole single-view pipeline on an image and its strokes.
+pub fn model(
+    engine: &Engine,
+    image: &image::RgbImage,
+    strokes: &Strokes,
+    mask: Option<Vec<u8>>,
+    landmarks: Option<&Landmarks>,
+    p: &ModelParams,
+) -> Result<Model> {
+    let an = analyze(engine, image, strokes, mask, &p.analyze)?;
+    model_from_analysis(engine, image, an, landmarks, p)
+}
+
+/// The 3D part of [`model`] on a finished analysis.
+pub fn model_from_analysis(
+    engine: &Engine,
+    image: &image::RgbImage,
+    an: Analysis,
+    landmarks: Option<&Landmarks>,
+    p: &ModelParams,
+) -> Result<Model> {
+    let (w, h) = (an.width, an.height);
+    let mut timings = an.timings.clone();
+    let mut clock = Instant::now();
+    let mut lap = |name: &'static str, timings: &mut Vec<(&'static str, f64)>| {
+        timings.push((name, clock.elapsed().as_secs_f64()));
+        clock = Instant::now();
+    };
+
+    // Head and camera.
+    let head = Head::try_new(&p.head)?;
+    let mask255: Vec<u8> = an
+        .mask
+        .iter()
+        .map(|&m| if m != 0 { 255 } else { 0 })
+        .collect();
+    let (camera, fit) = place_head(&head, landmarks, &mask255, w, h)?;
+    let (verts, tris) = head.mesh(p.head_mesh_resolution);
+    let head_mesh = Mesh {
+        verts: verts
+            .iter()
+            .map(|&v| camera.project(v).to_array())
+            .collect(),
+        tris,
+    };
+    let centre_z = camera.project(Vec3::ZERO).z;
+    let s = camera.s;
+    let sdf_px = |q: [f32; 3]| head.sdf(camera.unproject(Vec3::from_array(q))) * s;
+    lap("head fit", &mut timings);
+
+    // Hair volume H.
+    let vol = hair_volume(
+        engine,
+        &mask255,
+        w,
+        h,
+        &HeadInput {
+            mesh: &head_mesh,
+            centre_z,
+            sdf: &sdf_px,
+        },
+        &p.volume,
+    )?;
+    lap("hair volume", &mut timings);
+
+    // Constraints: the directed curves and the strokes lifted onto the front of H, and the
+    // scalp normal in a band of cells around the scalp. The band's cells inside the head
+    // join the solve and the growth, so roots on the scalp start in a cell with a field.
+    let mut curves2d: Vec<Vec<[f32; 2]>> = an
+        .resolved
+        .curves
+        .iter()
+        .map(|c| c.points.clone())
+        .collect();
+    curves2d.extend(an.strokes.iter().cloned());
+    let (_, curve_cons) = lift_curves(&curves2d, &vol);
+    let (hg, scalp_cons) = scalp_band(&vol, &head, &camera, p.scalp_band_cells);
+    let mut cons = curve_cons.clone();
+    let taken: std::collections::HashSet<u32> = cons.iter().map(|c| c.0).collect();
+    cons.extend(scalp_cons.iter().filter(|c| !taken.contains(&c.0)).copied());
+    lap("constraints", &mut timings);
+    if curve_cons.is_empty() {
+        return Err(Error::Invalid(
+            "no directed curve or stroke lands on the hair volume: draw strokes on the hair".into(),
+        ));
+    }
+
+    let (d, solve) = field3d::solve(engine, &vol.grid, &hg, &cons, &p.field)?;
+    lap("direction field", &mut timings);
+
+    // Roots: uniform in scalp parameter space, the face (and any scalp the photo does not
+    // show as hair) excluded by the mask. H lies inside the mask (C13: it matches the 2D
+    // hair region), so a root elsewhere could not grow.
+    let drawn = head.sample_roots(p.roots, p.seed);
+    let grid = vol.grid;
+    let roots: Vec<[f32; 3]> = drawn
+        .iter()
+        .filter_map(|r| {
+            let q = camera.project(r.pos);
+            let pix = vol.pixel(q.x, q.y)?;
+            if vol.mask[pix] == 0 {
+                return None;
+            }
+            let g = grid.to_grid(q.to_array());
+            let c = grid.cell_of(g)?;
+            (hg[c] != 0).then_some(g)
+        })
+        .collect();
+    if roots.is_empty() {
+        return Err(Error::Invalid(
+            "no scalp root projects onto the hair mask: the mask misses the head".into(),
+        ));
+    }
+    let signs = vec![1.0f32; roots.len()];
+    let grown = grow(engine, &grid, &d, &hg, &roots, &signs, &p.grow)?;
+    lap("growth", &mut timings);
+    let grown_strands = grown.len();
+    let mut rp = p.refine;
+    rp.grow = p.grow;
+    let (strands, refine_report) = refine(engine, &grid, &d, &hg, grown, &rp, p.seed)?;
+    lap("refinement", &mut timings);
+
+    let (set, vol_strands) = to_model_space(&strands, &grid, &camera, image, &an.mask);
+    lap("colour", &mut timings);
+
+    Ok(Model {
+        head,
+        camera,
+        fit,
+        grid,
+        h_cells: vol.count,
+        constraints_curve: curve_cons.len(),
+        constraints_scalp: cons.len() - curve_cons.len(),
+        solve,
+        roots_drawn: drawn.len(),
+        roots_kept: roots.len(),
+        grown_strands,
+        refine: refine_report,
+        strands: set,
+        strands_volume: vol_strands,
+        head_front: vol.head.front.clone(),
+        timings,
+        analysis: an,
+    })
+}
+
+/// H extended by the head cells within `band` cells of the scalp under the hair, and the
+/// scalp-normal constraints of every cell (in H or in that shell) within the band. Normals
+/// are the head SDF's gradient, turned into volume-space directions.
+fn scalp_band(
+    vol: &HairVolume,
+    head: &Head,
+    camera: &WeakPerspective,
+    band: f32,
+) -> (Vec<u32>, Vec<(u32, [f32; 3])>) {
+    use rayon::prelude::*;
+    let g = &vol.grid;
+    let reach = band * g.cell;
+    let per_cell: Vec<Option<(bool, [f32; 3])>> = (0..g.len())
+        .into_par_iter()
+        .map(|i| {
+            let c = g.centre(g.coords(i));
+            let pix = vol.pixel(c[0], c[1])?;
+            if vol.mask[pix] == 0 {
+                return None;
+            }
+            let pm = camera.unproject(Vec3::from_array(c));
+            let dist = head.sdf(pm) * camera.s;
+            if dist.abs() > reach {
+                return None;
+            }
+            let on = head.project_to_surface(pm);
+            if head.in_face(on) || head.scalp_uv(on).is_none_or(|uv| !head.scalp_contains(uv)) {
+                return None;
+            }
+            let n = camera.to_volume_dir(head.sdf_grad(pm)).normalize_or_zero();
+            // Inside the head only a thin shell joins the solve.
+            let shell = dist <= 0.0 && dist > -g.cell;
+            (vol.h[i] != 0 || shell).then_some((shell, n.to_array()))
+        })
+        .collect();
+    let mut hg = vol.h.clone();
+    let mut cons = Vec::new();
+    for (i, pc) in per_cell.into_iter().enumerate() {
+        if let Some((shell, n)) = pc {
+            if shell {
+                hg[i] = 1;
+            }
+            if n != [0.0; 3] {
+                cons.push((i as u32, n));
+            }
+        }
+    }
+    (hg, cons)
+}
+
+/// Strands from grid coordinates to model space, with colour and transparency sampled
+/// where each vertex projects: the photo's colour, and transparent off the hair mask.
+fn to_model_space(
+    strands: &Strands,
+    grid: &Grid,
+    camera: &WeakPerspective,
+    image: &image::RgbImage,
+    mask: &[u8],
+) -> (StrandSet, Vec<Vec<[f32; 3]>>) {
+    let (w, h) = image.dimensions();
+    let mut points = Vec::with_capacity(strands.verts.len());
+    let mut colors = Vec::with_capacity(strands.verts.len());
+    let mut transparency = Vec::with_capacity(strands.verts.len());
+    let mut counts = Vec::with_capacity(strands.len());
+    let mut vol_strands = Vec::with_capacity(strands.len());
+    for s in strands.iter() {
+        counts.push(s.len() as u32);
+        let mut vs = Vec::with_capacity(s.len());
+        for &g in s {
+            let q = grid.to_volume(g);
+            vs.push(q);
+            points.push(camera.unproject(Vec3::from_array(q)).to_array());
+            colors.push(sample_rgb(image, q[0], q[1]));
+            let (x, y) = (q[0].floor(), q[1].floor());
+            let on = x >= 0.0
+                && y >= 0.0
+                && x < w as f32
+                && y < h as f32
+                && mask[y as usize * w as usize + x as usize] != 0;
+            transparency.push(if on { 0.0 } else { 1.0 });
+        }
+        vol_strands.push(vs);
+    }
+    let mut set = StrandSet::new(points, counts);
+    set.colors = Some(colors);
+    set.transparency = Some(transparency);
+    (set, vol_strands)
+}
+
+/// Bilinear sample of the photo at pixel coordinates (pixel centres at +0.5), linear 0..1.
+fn sample_rgb(img: &image::RgbImage, x: f32, y: f32) -> [f32; 3] {
+    let (w, h) = img.dimensions();
+    let fx = (x - 0.5).clamp(0.0, (w - 1) as f32);
+    let fy = (y - 0.5).clamp(0.0, (h - 1) as f32);
+    let (x0, y0) = (fx.floor() as u32, fy.floor() as u32);
+    let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
+    let (ax, ay) = (fx - x0 as f32, fy - y0 as f32);
+    let px = |x, y| img.get_pixel(x, y).0.map(|v| v as f32 / 255.0);
+    let (a, b, c, d) = (px(x0, y0), px(x1, y0), px(x0, y1), px(x1, y1));
+    std::array::from_fn(|k| {
+        let top = a[k] + ax * (b[k] - a[k]);
+        let bot = c[k] + ax * (d[k] - c[k]);
+        top + ay * (bot - top)
+    })
+}
+
+/// Figures of [`Model`] against the photo's analysis (issue 4 acceptance): roots on the
+/// scalp, coverage of the mask, agreement with the 2D growth direction, smoothness.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct ModelFigures {
+    pub strands: usize,
+    /// Largest |distance| of a root to the head surface, in cells.
+    pub root_dist_max_cells: f32,
+    /// Roots in the face region.
+    pub roots_in_face: usize,
+    /// IoU of the visible strands drawn 1 px wide (projected; the head hides what is behind
+    /// it) with the hair mask.
+    pub coverage_iou: f32,
+    /// Share of covered hair pixels where the projected strand tangents point within 90° of
+    /// the analysis' growth direction.
+    pub direction_agreement: f32,
+    /// 99th percentile of the turning angle between consecutive segments, degrees.
+    pub turn_p99_deg: f32,
+}
+
+pub fn figures(m: &Model) -> ModelFigures {
+    let (w, h) = (m.analysis.width as usize, m.analysis.height as usize);
+    let mut root_max = 0.0f32;
+    let mut in_face = 0;
+    for s in m.strands.strands() {
+        let r = Vec3::from_array(s[0]);
+        root_max = root_max.max((m.head.sdf(r) * m.camera.s / m.grid.cell).abs());
+        if m.head.in_face(m.head.project_to_surface(r)) {
+            in_face += 1;
+        }
+    }
+    // Summed projected tangents per pixel, along 1-px lines (quarter-pixel steps).
+    let mut tan = vec![[0.0f32; 2]; w * h];
+    let mut hit = vec![false; w * h];
+    let mut turns = Vec::new();
+    for s in &m.strands_volume {
+        for seg in s.windows(2) {
+            let (a, b) = (seg[0], seg[1]);
+            let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+            let len = dx.hypot(dy);
+            let n = (len * 4.0).ceil().max(1.0) as usize;
+            for k in 0..=n {
+                let f = k as f32 / n as f32;
+                let (x, y) = (a[0] + f * dx, a[1] + f * dy);
+                if x >= 0.0 && y >= 0.0 && (x as usize) < w && (y as usize) < h {
+                    let i = y as usize * w + x as usize;
+                    // Behind the head the strand is hidden, as in a render.
+                    if a[2] + f * (b[2] - a[2]) < m.head_front[i] {
+                        continue;
+                    }
+                    hit[i] = true;
+                    if len > 1e-6 {
+                        tan[i][0] += dx / len;
+                        tan[i][1] += dy / len;
+                    }
+                }
+            }
+        }
+        for t in s.windows(3) {
+            let u = Vec3::from_array(t[1]) - Vec3::from_array(t[0]);
+            let v = Vec3::from_array(t[2]) - Vec3::from_array(t[1]);
+            if u.length() > 1e-6 && v.length() > 1e-6 {
+                turns.push(u.angle_between(v).to_degrees());
+            }
+        }
+    }
+    let (mut inter, mut uni, mut agree, mut judged) = (0usize, 0usize, 0usize, 0usize);
+    for i in 0..w * h {
+        let on = m.analysis.mask[i] != 0;
+        inter += (on && hit[i]) as usize;
+        uni += (on || hit[i]) as usize;
+        let d = [m.analysis.direction[2 * i], m.analysis.direction[2 * i + 1]];
+        let t = tan[i];
+        if on && hit[i] && d[0].is_finite() && t[0].hypot(t[1]) > 1e-6 {
+            judged += 1;
+            agree += (d[0] * t[0] + d[1] * t[1] > 0.0) as usize;
+        }
+    }
+    turns.sort_by(f32::total_cmp);
+    let p99 = turns
+        .get(((turns.len() as f64 * 0.99) as usize).min(turns.len().saturating_sub(1)))
+        .copied()
+        .unwrap_or(0.0);
+    ModelFigures {
+        strands: m.strands.len(),
+        root_dist_max_cells: root_max,
+        roots_in_face: in_face,
+        coverage_iou: inter as f32 / uni.max(1) as f32,
+        direction_agreement: agree as f32 / judged.max(1) as f32,
+        turn_p99_deg: p99,
+    }
+}

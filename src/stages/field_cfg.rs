@@ -1,0 +1,77 @@
+//! The uniform shared by every `field_*` stage, and the neighbour walk the CPU mirrors use.
+//!
+//! Data layout (one multigrid level of `nx·ny·nz` cells, index `x + nx·(y + ny·z)`):
+//! * `cellw`: one f32 per cell, `-1` outside the (level's) hair volume H, else the penalty
+//!   weight `p ≥ 0` of C13 Eq. (3) (`w_c` on constrained fine cells, averaged on coarse ones).
+//!   Folding the mask into the weight saves one buffer read per neighbour.
+//! * `uv`, `f`, `r`: six f32 per cell, `[u.xyz, v.xyz]`, the unknowns of the mixed form
+//!   `u = σ L v`, `σ L u + p v = b` (see `field3d`), their right-hand sides and residuals.
+
+/// Workgroup edge of the 3D stages (4³ = 64 invocations).
+pub const WG: u32 = 4;
+
+#[derive(Clone, Copy, Debug, Default, encase::ShaderType)]
+pub struct Config {
+    /// This level's grid (the fine grid for `field_restrict` / `field_prolong`).
+    pub nx: u32,
+    pub ny: u32,
+    pub nz: u32,
+    /// Red-black colour, `(x + y + z) & 1`, relaxed by `field_smooth`.
+    pub colour: u32,
+    /// Scale of this level's graph Laplacian: 4^-level (coarse cells are 2^level wide).
+    pub sigma: f32,
+    /// `field_smooth`: 0 = collective (u, v) update, 1 = u rows only (v held).
+    pub mode: u32,
+    /// The next coarser grid (restriction / prolongation only).
+    pub cnx: u32,
+    pub cny: u32,
+    pub cnz: u32,
+    /// Number of cells in the compact list (coarsest-level direct solve only).
+    pub count: u32,
+}
+
+impl Config {
+    pub fn cells(&self) -> usize {
+        (self.nx * self.ny * self.nz) as usize
+    }
+}
+
+/// Workgroups covering an `nx·ny·nz` grid with 4³ groups.
+pub fn groups3(nx: u32, ny: u32, nz: u32) -> [u32; 3] {
+    [
+        crate::engine::groups(nx, WG),
+        crate::engine::groups(ny, WG),
+        crate::engine::groups(nz, WG),
+    ]
+}
+
+/// Calls `f(j)` for each in-grid 6-neighbour `j` of cell `(x, y, z)` whose `cellw` marks it
+/// inside H, in the shaders' order (-x, +x, -y, +y, -z, +z).
+#[inline]
+pub fn for_h_neighbours(
+    cfg: &Config,
+    cellw: &[f32],
+    x: u32,
+    y: u32,
+    z: u32,
+    mut f: impl FnMut(usize),
+) {
+    let (nx, ny, nz) = (cfg.nx, cfg.ny, cfg.nz);
+    let i = (x + nx * (y + ny * z)) as usize;
+    let sx = 1usize;
+    let sy = nx as usize;
+    let sz = (nx * ny) as usize;
+    let cand = [
+        (x > 0, i.wrapping_sub(sx)),
+        (x + 1 < nx, i + sx),
+        (y > 0, i.wrapping_sub(sy)),
+        (y + 1 < ny, i + sy),
+        (z > 0, i.wrapping_sub(sz)),
+        (z + 1 < nz, i + sz),
+    ];
+    for (ok, j) in cand {
+        if ok && cellw[j] >= 0.0 {
+            f(j);
+        }
+    }
+}

@@ -1,0 +1,57 @@
+// Right-hand side of the coarsest level's direct solve. Eliminating u = σ L v - f1 from the
+// mixed form leaves (σ² L² + P) v = f2 + σ L f1, whose inverse the host precomputed.
+// One invocation per in-H cell of the compact list; output g is 3 floats per list entry.
+struct Config {
+    nx: u32,
+    ny: u32,
+    nz: u32,
+    colour: u32,
+    sigma: f32,
+    mode: u32,
+    cnx: u32,
+    cny: u32,
+    cnz: u32,
+    count: u32,
+}
+
+@group(0) @binding(0) var<uniform> cfg: Config;
+@group(0) @binding(1) var<storage, read> cells: array<u32>;
+@group(0) @binding(2) var<storage, read> cellw: array<f32>;
+@group(0) @binding(3) var<storage, read> f: array<f32>;
+@group(0) @binding(4) var<storage, read_write> g: array<f32>;
+
+fn add_nb(j: u32, s: ptr<function, vec3<f32>>, d: ptr<function, f32>) {
+    if cellw[j] >= 0.0 {
+        let b = 6u * j;
+        *s = *s + vec3<f32>(f[b], f[b + 1u], f[b + 2u]);
+        *d = *d + 1.0;
+    }
+}
+
+@compute @workgroup_size(64, 1, 1)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let k = gid.x;
+    if k >= cfg.count {
+        return;
+    }
+    let i = cells[k];
+    let x = i % cfg.nx;
+    let y = (i / cfg.nx) % cfg.ny;
+    let z = i / (cfg.nx * cfg.ny);
+    let sy = cfg.nx;
+    let sz = cfg.nx * cfg.ny;
+    var s = vec3<f32>(0.0);
+    var d = 0.0;
+    if x > 0u { add_nb(i - 1u, &s, &d); }
+    if x + 1u < cfg.nx { add_nb(i + 1u, &s, &d); }
+    if y > 0u { add_nb(i - sy, &s, &d); }
+    if y + 1u < cfg.ny { add_nb(i + sy, &s, &d); }
+    if z > 0u { add_nb(i - sz, &s, &d); }
+    if z + 1u < cfg.nz { add_nb(i + sz, &s, &d); }
+    let b = 6u * i;
+    let f1 = vec3<f32>(f[b], f[b + 1u], f[b + 2u]);
+    let out = vec3<f32>(f[b + 3u], f[b + 4u], f[b + 5u]) + cfg.sigma * (s - d * f1);
+    g[3u * k] = out.x;
+    g[3u * k + 1u] = out.y;
+    g[3u * k + 2u] = out.z;
+}
