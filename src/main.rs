@@ -374,7 +374,7 @@ fn cmd_demo(a: DemoArgs) -> anyhow::Result<()> {
     let engine = Engine::new(a.backend.backend)?;
     println!("coif demo on {}", engine.describe());
     let params = OrientParams::default();
-    let bar = indicatif::ProgressBar::new(5).with_style(
+    let bar = indicatif::ProgressBar::new(7).with_style(
         indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}")
             .expect("static template"),
     );
@@ -434,6 +434,44 @@ fn cmd_demo(a: DemoArgs) -> anyhow::Result<()> {
             out.display(),
             t.elapsed().as_secs_f64(),
             an.traced.len()
+        ));
+        bar.inc(1);
+    }
+    // 5. 3D strand models: the synthetic case with its mask and landmarks, and the photo
+    // from its strokes alone (mask segmented, default head fit).
+    let mparams = coif::model::ModelParams::default();
+    for (name, img, strokes, mask, landmarks) in [
+        (
+            "synth-long",
+            case_dir.join("image.png"),
+            case_dir.join("strokes.json"),
+            Some(case_dir.join("mask.png")),
+            Some(case_dir.join("landmarks.json")),
+        ),
+        (
+            "astronaut",
+            astro_png.clone(),
+            astro_strokes.clone(),
+            None,
+            None,
+        ),
+    ] {
+        bar.set_message(format!("3D strands of {name}"));
+        let out = a.out.join(format!("model-{name}"));
+        let t = Instant::now();
+        let (rgb, an) = run_analyze(&engine, &img, &strokes, mask.as_deref(), &mparams.analyze)?;
+        let lm = match &landmarks {
+            Some(l) => Some(coif::annot::Landmarks::load(l, Some(rgb.dimensions()))?),
+            None => None,
+        };
+        write_analysis(&out, &img, &rgb, &an, &engine.describe())?;
+        let m = coif::model::model_from_analysis(&engine, &rgb, an, lm.as_ref(), &mparams)?;
+        write_model(&out, &img, &rgb, &m, &mparams, &engine)?;
+        lines.push(format!(
+            "  3D strands          {}  ({:.2} s; {} strands, preview.png)",
+            out.display(),
+            t.elapsed().as_secs_f64(),
+            m.strands.len()
         ));
         bar.inc(1);
     }

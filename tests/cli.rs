@@ -378,9 +378,77 @@ fn demo_runs_on_the_cpu_backend() {
         "orient-synth-long/orientation.npy",
         "orient-astronaut/orientation.png",
         "synth-long/image.png",
+        "model-synth-long/strands.hair",
+        "model-synth-long/preview.png",
+        "model-astronaut/model.json",
     ] {
         assert!(c.p("demo").join(f).is_file(), "{f} missing");
     }
+}
+
+#[test]
+fn model_export_import_round_trip_and_bad_landmarks() {
+    let c = Case::new();
+    let case = c.s("case");
+    let o = coif(&["synth", "--out", &case, "--style", "short", "--size", "256"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j = |f: &str| c.p("case").join(f).display().to_string();
+    let model = c.s("model");
+    let base = [
+        "model",
+        "--backend",
+        "cpu",
+        "--image",
+        &j("image.png"),
+        "--strokes",
+        &j("strokes.json"),
+        "--mask",
+        &j("mask.png"),
+        "--cells",
+        "40",
+        "--roots",
+        "8000",
+    ];
+    let mut args = base.to_vec();
+    let lm_good = j("landmarks.json");
+    args.extend(["--landmarks", &lm_good, "--out", &model]);
+    let o = coif(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let meta: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(c.p("model").join("model.json")).unwrap()).unwrap();
+    assert_eq!(meta["version"], 1);
+    assert_eq!(meta["image_from_model"].as_array().unwrap().len(), 3);
+    let n = meta["strands"]["final"].as_u64().unwrap();
+    assert!(n > 1000, "{n} strands");
+    for ext in ["usda", "ply", "data", "obj"] {
+        let to = c.s(&format!("hair.{ext}"));
+        let o = coif(&["export", "--model", &model, "--to", &to]);
+        assert!(o.status.success(), "{ext}: {}", stderr(&o));
+    }
+    let back = c.s("back");
+    let o = coif(&["import", &c.s("hair.ply"), "--out", &back]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let a = coif::strands::read(&c.p("model").join("strands.hair")).unwrap();
+    let b = coif::strands::read(&c.p("back").join("strands.hair")).unwrap();
+    assert_eq!(a.counts, b.counts);
+    assert_eq!(a.points, b.points);
+
+    // Collinear landmarks: a clear error, exit 64, nothing written.
+    let lm = c.p("line.json");
+    std::fs::write(
+        &lm,
+        r#"{"version":1,"landmarks":{"left_eye":[100,100],"right_eye":[110,100],
+        "nose_tip":[120,100],"mouth_left":[130,100],"mouth_right":[140,100],"chin":[150,100]}}"#,
+    )
+    .unwrap();
+    let bad = c.s("bad");
+    let mut args = base.to_vec();
+    let lm_s = lm.display().to_string();
+    args.extend(["--landmarks", &lm_s, "--out", &bad]);
+    let o = coif(&args);
+    assert_eq!(o.status.code(), Some(64), "{}", stderr(&o));
+    assert!(stderr(&o).contains("collinear"), "{}", stderr(&o));
+    assert!(!c.p("bad").join("strands.hair").exists());
 }
 
 #[test]
