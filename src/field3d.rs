@@ -366,15 +366,7 @@ impl Level {
             .enumerate()
             .map(|(k, &c)| {
                 let i = c as usize;
-                let (x, y, z) = (i % nx, (i / nx) % ny, i / (nx * ny));
-                let cand = [
-                    (x > 0, i.wrapping_sub(1)),
-                    (x + 1 < nx, i + 1),
-                    (y > 0, i.wrapping_sub(nx)),
-                    (y + 1 < ny, i + nx),
-                    (z > 0, i.wrapping_sub(nx * ny)),
-                    (z + 1 < nz, i + nx * ny),
-                ];
+                let cand = neighbours6(i, [nx, ny, nz]);
                 let mut row: Vec<(usize, f64)> = cand
                     .iter()
                     .filter(|(ok, j)| *ok && pos[*j] != u32::MAX)
@@ -794,15 +786,7 @@ impl NormalSystem {
             .iter()
             .map(|&c| {
                 let i = c as usize;
-                let (x, y, z) = (i % nx, (i / nx) % ny, i / (nx * ny));
-                let cand = [
-                    (x > 0, i.wrapping_sub(1)),
-                    (x + 1 < nx, i + 1),
-                    (y > 0, i.wrapping_sub(nx)),
-                    (y + 1 < ny, i + nx),
-                    (z > 0, i.wrapping_sub(nx * ny)),
-                    (z + 1 < nz, i + nx * ny),
-                ];
+                let cand = neighbours6(i, [nx, ny, nz]);
                 cand.map(|(ok, j)| if ok { pos[j] } else { u32::MAX })
             })
             .collect();
@@ -1136,4 +1120,18 @@ pub fn test_shell(n: u32) -> TestVolume {
         h,
         constraints,
     }
+}
+
+/// The six face neighbours of linear cell `i` in a grid of `dims`, each with whether it
+/// lies inside the grid (the index is meaningless when it does not).
+fn neighbours6(i: usize, [nx, ny, nz]: [usize; 3]) -> [(bool, usize); 6] {
+    let (x, y, z) = (i % nx, (i / nx) % ny, i / (nx * ny));
+    [
+        (x > 0, i.wrapping_sub(1)),
+        (x + 1 < nx, i + 1),
+        (y > 0, i.wrapping_sub(nx)),
+        (y + 1 < ny, i + nx),
+        (z > 0, i.wrapping_sub(nx * ny)),
+        (z + 1 < nz, i + nx * ny),
+    ]
 }
