@@ -24,6 +24,7 @@ pub mod refine;
 pub mod resolve;
 pub mod rng;
 pub mod segment;
+pub mod shade;
 pub mod stages;
 pub mod strands;
 pub mod synth;

@@ -145,7 +145,7 @@ struct Joint {
 /// and density prefix sums along the strand.
 struct VertexIndex {
     cell_start: Vec<u32>,
-    /// Global vertex ids, bucket after bucket, increasing within a bucket.
+    /// Global vertex ids, bucket after bucket, by increasing `rho_prefix` within a bucket.
     ids: Vec<u32>,
     strand_of: Vec<u32>,
     /// Σ ρ over the vertices before this one in its strand.
@@ -195,6 +195,12 @@ impl VertexIndex {
                     fill[c] += 1;
                 }
             }
+        }
+        // Cheapest density first within a bucket, so the E_c bound of the search can end a
+        // bucket at its first vertex that cannot win (ties: lower id first, deterministic).
+        for c in 0..grid.len() {
+            let b = &mut ids[counts[c] as usize..counts[c + 1] as usize];
+            b.sort_unstable_by_key(|&g| (rho_prefix[g as usize], g));
         }
         Ok(VertexIndex {
             cell_start: counts,
@@ -268,7 +274,12 @@ impl Scorer<'_> {
         let dims = self.grid.dims;
         let mut best: Option<(Joint, f32)> = None;
         // j + 1 must exist: a joint strand has to take something from the candidate.
-        for j in 0..n.saturating_sub(1) {
+        // Latest j first: suffix[j + 1] grows as j falls and bounds E_c from below, so once it
+        // reaches the best energy no earlier j can win and the search stops.
+        for j in (0..n.saturating_sub(1)).rev() {
+            if best.is_some_and(|(_, e)| self.w_rho * suffix[j + 1] as f32 >= e) {
+                break;
+            }
             let q = cand[j];
             let lo: [u32; 3] =
                 std::array::from_fn(|a| (q[a] - self.radius).floor().max(0.0) as u32);
@@ -280,6 +291,10 @@ impl Scorer<'_> {
                     for x in lo[0]..=hi[0] {
                         for &g in self.index.bucket(self.grid.index(x, y, z)) {
                             let g = g as usize;
+                            let bound = self.index.rho_prefix[g] + suffix[j + 1];
+                            if best.is_some_and(|(_, e)| self.w_rho * bound as f32 >= e) {
+                                break;
+                            }
                             let p = self.strands.verts[g];
                             let dv = sub(p, q);
                             if dv[0] * dv[0] + dv[1] * dv[1] + dv[2] * dv[2] > r2 {

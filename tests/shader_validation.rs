@@ -201,6 +201,29 @@ fn uniform_structs_match_wgsl() {
         }),
         4,
     );
+    check_layout(
+        "strand_shade",
+        stages::strand_shade::STAGE.wgsl,
+        encase_bytes(&stages::strand_shade::Config {
+            n_vertices: 1,
+            row_stride: 2,
+            n_lights: 3,
+            model: 4,
+            amount: f(5),
+            diffuse: f(6),
+            recolour: 7,
+            hue_deg: f(8),
+            sat_scale: f(9),
+            val_scale: f(10),
+            alpha_r: f(11),
+            beta_r: f(12),
+            view_x: f(13),
+            view_y: f(14),
+            view_z: f(15),
+            _pad0: 16,
+        }),
+        16,
+    );
 }
 
 #[test]

@@ -16,6 +16,7 @@ pub mod gabor;
 pub mod grow_rk2;
 pub mod orient_resolve;
 pub mod sep_blur;
+pub mod strand_shade;
 
 use crate::engine::StageDef;
 
@@ -35,4 +36,5 @@ pub const ALL: &[&StageDef] = &[
     &field_prolong::STAGE,
     &field_coarse_rhs::STAGE,
     &field_dense::STAGE,
+    &strand_shade::STAGE,
 ];
