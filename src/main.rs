@@ -46,6 +46,115 @@ enum Command {
     /// Reads a strand file (.hair .data .ply .obj) into a model folder (`strands.hair`,
     /// `model.json`).
     Import(ImportArgs),
+    /// Renders a model back into its photo (C13 §4): inpainted background and head layers,
+    /// anti-aliased strands, novel views, highlights and HSV recolouring.
+    Render(RenderArgs),
+}
+
+#[derive(Args)]
+struct RenderArgs {
+    /// Model folder written by `coif model` (or `coif import`, with --strands-only).
+    #[arg(long)]
+    model: PathBuf,
+    /// Output PNG (8-bit sRGB; 16-bit with --16bit); a sidecar `<out>.json` records the
+    /// camera, the settings, the adapter and timings.
+    #[arg(long)]
+    out: PathBuf,
+    /// Turns the head about its vertical axis, degrees (positive: face toward image right).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    yaw: f32,
+    /// Tilts the head, degrees (positive: face up).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pitch: f32,
+    /// Rolls the head in the image plane, degrees (positive: counter-clockwise).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    roll: f32,
+    /// A pinhole camera this far from the head centre (model units, metres) instead of the
+    /// photo's weak-perspective camera.
+    #[arg(long)]
+    distance: Option<f32>,
+    /// Output size relative to the photo.
+    #[arg(long, default_value_t = 1.0)]
+    scale: f32,
+    /// Output size for models without a photo, WIDTHxHEIGHT.
+    #[arg(long, default_value = "512x512", value_parser = parse_size)]
+    size: (u32, u32),
+    /// Hue shift of the hair colour, degrees.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    hue: f32,
+    /// Saturation scale of the hair colour.
+    #[arg(long, default_value_t = 1.0)]
+    saturation: f32,
+    /// Value (brightness) scale of the hair colour.
+    #[arg(long, default_value_t = 1.0)]
+    value: f32,
+    /// Amount of synthetic highlight (0 keeps the photo's own shading).
+    #[arg(long, default_value_t = 0.0)]
+    highlight: f32,
+    /// Shading model of the highlights.
+    #[arg(long, value_enum, default_value_t = ShadingArg::Marschner)]
+    shading: ShadingArg,
+    /// Light in view space "x,y,z[,intensity[,r,g,b]]" (x right, y up, z toward the
+    /// camera); repeat for several lights.
+    #[arg(long, allow_hyphen_values = true)]
+    light: Vec<String>,
+    /// Strand width in pixels at scale 1.
+    #[arg(long, default_value_t = 1.0)]
+    width: f32,
+    /// Only the strands (no photo, no head), over --background or transparent.
+    #[arg(long)]
+    strands_only: bool,
+    /// Background colour for --strands-only, "r,g,b" in 0..255.
+    #[arg(long, value_parser = parse_rgb)]
+    background: Option<[f32; 3]>,
+    /// Extra strand vertices every this many photo pixels, coloured from the photo (0: the
+    /// model's vertex colours only).
+    #[arg(long, default_value_t = 0.0)]
+    colour_spacing: f32,
+    /// 16-bit PNG output.
+    #[arg(long = "16bit")]
+    sixteen: bool,
+    /// Seed of the inpainting's random search.
+    #[arg(long, default_value_t = coif::inpaint::InpaintParams::default().seed)]
+    seed: u64,
+    #[command(flatten)]
+    backend: BackendArgs,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum ShadingArg {
+    /// Marschner et al. 2003 (R, TT, TRT lobes).
+    Marschner,
+    /// Kajiya-Kay (cheaper: diffuse + shifted specular).
+    KajiyaKay,
+}
+
+fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (a, b) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("expected WIDTHxHEIGHT, got {s:?}"))?;
+    let p = |v: &str| {
+        v.trim()
+            .parse::<u32>()
+            .ok()
+            .filter(|&n| n > 0)
+            .ok_or_else(|| format!("expected a positive width and height, got {s:?}"))
+    };
+    Ok((p(a)?, p(b)?))
+}
+
+fn parse_rgb(s: &str) -> Result<[f32; 3], String> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f32>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("expected r,g,b in 0..255, got {s:?}"))?;
+    match v.as_slice() {
+        [r, g, b] if v.iter().all(|c| (0.0..=255.0).contains(c)) => {
+            Ok([r / 255.0, g / 255.0, b / 255.0])
+        }
+        _ => Err(format!("expected r,g,b in 0..255, got {s:?}")),
+    }
 }
 
 #[derive(Args)]
@@ -121,6 +230,10 @@ struct SynthArgs {
     /// Image width and height in pixels.
     #[arg(long, default_value_t = 512)]
     size: u32,
+    /// 3D ground truth: a strand model grown on the parametric head and rendered through a
+    /// known camera (writes gt_strands.hair and camera.json too).
+    #[arg(long)]
+    gt3d: bool,
 }
 
 #[derive(Args, Clone)]
@@ -234,6 +347,7 @@ fn main() {
 fn run(cmd: Command) -> anyhow::Result<()> {
     match cmd {
         Command::Synth(a) => cmd_synth(a),
+        Command::Render(a) => cmd_render(a),
         Command::Orient(a) => cmd_orient(a),
         Command::Demo(a) => cmd_demo(a),
         Command::Analyze(a) => cmd_analyze(a),
@@ -249,15 +363,26 @@ fn cmd_synth(a: SynthArgs) -> anyhow::Result<()> {
     if !(64..=4096).contains(&a.size) {
         return Err(Error::Invalid(format!("--size {} is outside 64..=4096", a.size)).into());
     }
-    let case = synth::synth(&synth::SynthParams {
+    let sp = synth::SynthParams {
         style: a.style,
         seed: a.seed,
         width: a.size,
         height: a.size,
-    });
-    case.write(&a.out)?;
+    };
+    let what = if a.gt3d {
+        let c = coif::synth3d::synth3d(&sp);
+        c.write(&a.out)?;
+        format!(
+            "3D ground truth: {} strands, camera yaw {:.1}°",
+            c.gt.len(),
+            c.yaw_deg
+        )
+    } else {
+        synth::synth(&sp).write(&a.out)?;
+        "2D ground truth".to_string()
+    };
     println!(
-        "synth: {} seed {} ({}x{}) -> {}",
+        "synth: {} seed {} ({}x{}, {what}) -> {}",
         a.style,
         a.seed,
         a.size,
@@ -374,7 +499,7 @@ fn cmd_demo(a: DemoArgs) -> anyhow::Result<()> {
     let engine = Engine::new(a.backend.backend)?;
     println!("coif demo on {}", engine.describe());
     let params = OrientParams::default();
-    let bar = indicatif::ProgressBar::new(7).with_style(
+    let bar = indicatif::ProgressBar::new(9).with_style(
         indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}")
             .expect("static template"),
     );
@@ -472,6 +597,35 @@ fn cmd_demo(a: DemoArgs) -> anyhow::Result<()> {
             out.display(),
             t.elapsed().as_secs_f64(),
             m.strands.len()
+        ));
+        bar.inc(1);
+        // 6. Renders of the model: the original view, a novel view and a recolouring.
+        bar.set_message(format!("rendering {name}"));
+        let t = Instant::now();
+        let rm = coif::render::RenderModel::from_model(&m, &rgb, &out);
+        let mut dyed = coif::render::RenderParams::default();
+        (dyed.shade.hue, dyed.shade.saturation, dyed.shade.value) = (30.0, 1.2, 0.9);
+        dyed.shade.amount = 0.6;
+        let views = [
+            ("render.png", coif::render::RenderParams::default()),
+            (
+                "render_yaw25.png",
+                coif::render::RenderParams {
+                    yaw_deg: 25.0,
+                    pitch_deg: -5.0,
+                    ..Default::default()
+                },
+            ),
+            ("render_dyed.png", dyed),
+        ];
+        for (file, p) in &views {
+            let r = coif::render::render(&engine, &rm, p)?;
+            coif::render::write(&out.join(file), &r, p, false)?;
+        }
+        lines.push(format!(
+            "  renders             {}  ({:.2} s; render.png, render_yaw25.png, render_dyed.png)",
+            out.display(),
+            t.elapsed().as_secs_f64()
         ));
         bar.inc(1);
     }
@@ -743,6 +897,8 @@ fn write_model(
     engine: &Engine,
 ) -> anyhow::Result<()> {
     coif::strands::write(&out.join("strands.hair"), &m.strands)?;
+    // The photo travels with the model, so `coif render` needs nothing else.
+    coif::io::write_png(&out.join("photo.png"), rgb)?;
     let figures = coif::model::figures(m);
     let meta = serde_json::json!({
         "version": 1,
@@ -792,6 +948,75 @@ fn write_model(
     }
     coif::vis::hue_ring(&mut pic);
     coif::io::write_png(&out.join("preview.png"), &pic)?;
+    Ok(())
+}
+
+fn cmd_render(a: RenderArgs) -> anyhow::Result<()> {
+    // Refuse a missing output folder before any work.
+    if let Some(parent) = a.out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        if !parent.is_dir() {
+            anyhow::bail!(
+                "{}: the output folder {} does not exist",
+                a.out.display(),
+                parent.display()
+            );
+        }
+    }
+    let mut p = coif::render::RenderParams {
+        yaw_deg: a.yaw,
+        pitch_deg: a.pitch,
+        roll_deg: a.roll,
+        distance: a.distance,
+        scale: a.scale,
+        size: a.size,
+        strands_only: a.strands_only,
+        background: a.background,
+        colour_spacing_px: a.colour_spacing,
+        ..Default::default()
+    };
+    p.raster.strand_width = a.width;
+    p.shade.hue = a.hue;
+    p.shade.saturation = a.saturation;
+    p.shade.value = a.value;
+    p.shade.amount = a.highlight;
+    p.shade.model = match a.shading {
+        ShadingArg::Marschner => coif::shade::ShadingModel::Marschner,
+        ShadingArg::KajiyaKay => coif::shade::ShadingModel::KajiyaKay,
+    };
+    if !a.light.is_empty() {
+        p.shade.lights = a
+            .light
+            .iter()
+            .map(|l| l.parse::<coif::shade::Light>())
+            .collect::<Result<_, _>>()
+            .map_err(|e| anyhow::anyhow!("--light: {e}"))?;
+    }
+    p.inpaint.seed = a.seed;
+    p.head_texture.inpaint.seed = a.seed;
+    let engine = Engine::new(a.backend.backend)?;
+    let t = Instant::now();
+    let m = coif::render::RenderModel::load(&a.model)?;
+    let r = coif::render::render(&engine, &m, &p)
+        .with_context(|| format!("rendering {}", a.model.display()))?;
+    let side = coif::render::write(&a.out, &r, &p, a.sixteen)?;
+    println!(
+        "render: {} strands, {}x{} ({}) -> {} ({:.2} s on {}; settings in {})",
+        r.report.strands,
+        r.width,
+        r.height,
+        if p.is_original_view() {
+            "original view"
+        } else {
+            "novel view"
+        },
+        a.out.display(),
+        t.elapsed().as_secs_f64(),
+        engine.describe(),
+        side.display()
+    );
+    for (k, v) in &r.report.seconds {
+        println!("  {k:<18} {:>8.1} ms", v * 1e3);
+    }
     Ok(())
 }
 

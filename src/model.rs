@@ -377,7 +377,8 @@ fn sample_rgb(img: &image::RgbImage, x: f32, y: f32) -> [f32; 3] {
     let (x0, y0) = (fx.floor() as u32, fy.floor() as u32);
     let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
     let (ax, ay) = (fx - x0 as f32, fy - y0 as f32);
-    let px = |x, y| img.get_pixel(x, y).0.map(|v| v as f32 / 255.0);
+    // Linear light, as `StrandSet::colors` holds (and bilinear mixing is meant in).
+    let px = |x, y| img.get_pixel(x, y).0.map(crate::raster::srgb_to_linear);
     let (a, b, c, d) = (px(x0, y0), px(x1, y0), px(x0, y1), px(x1, y1));
     std::array::from_fn(|k| {
         let top = a[k] + ax * (b[k] - a[k]);
@@ -416,8 +417,10 @@ pub fn figures(m: &Model) -> ModelFigures {
             in_face += 1;
         }
     }
-    // Summed projected tangents per pixel, along 1-px lines (quarter-pixel steps).
+    // The projected tangent of the front-most strand per pixel (what a render shows), along
+    // 1-px lines (quarter-pixel steps).
     let mut tan = vec![[0.0f32; 2]; w * h];
+    let mut front = vec![f32::NEG_INFINITY; w * h];
     let mut hit = vec![false; w * h];
     let mut turns = Vec::new();
     for s in &m.strands_volume {
@@ -432,13 +435,14 @@ pub fn figures(m: &Model) -> ModelFigures {
                 if x >= 0.0 && y >= 0.0 && (x as usize) < w && (y as usize) < h {
                     let i = y as usize * w + x as usize;
                     // Behind the head the strand is hidden, as in a render.
-                    if a[2] + f * (b[2] - a[2]) < m.head_front[i] {
+                    let z = a[2] + f * (b[2] - a[2]);
+                    if z < m.head_front[i] {
                         continue;
                     }
                     hit[i] = true;
-                    if len > 1e-6 {
-                        tan[i][0] += dx / len;
-                        tan[i][1] += dy / len;
+                    if len > 1e-6 && z > front[i] {
+                        front[i] = z;
+                        tan[i] = [dx / len, dy / len];
                     }
                 }
             }

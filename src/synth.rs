@@ -238,7 +238,7 @@ fn style_salt(s: Style) -> u64 {
 }
 
 /// Orientation in [0, pi) of a direction.
-fn theta_of(d: [f32; 2]) -> f32 {
+pub(crate) fn theta_of(d: [f32; 2]) -> f32 {
     let t = (d[1] as f64)
         .atan2(d[0] as f64)
         .rem_euclid(std::f64::consts::PI) as f32;
@@ -253,14 +253,14 @@ fn theta_of(d: [f32; 2]) -> f32 {
 // ---------------------------------------------------------------------------------------------
 // Small geometry helpers.
 
-fn smoothstep(e0: f32, e1: f32, x: f32) -> f32 {
+pub(crate) fn smoothstep(e0: f32, e1: f32, x: f32) -> f32 {
     let t = ((x - e0) / (e1 - e0)).clamp(0.0, 1.0);
     t * t * (3.0 - 2.0 * t)
 }
 
 /// Approximate signed distance to an axis-aligned ellipse centred at the origin (first-order,
 /// exact on the axes and good near the boundary, which is where anti-aliasing needs it).
-fn ellipse_sdf(x: f32, y: f32, rx: f32, ry: f32) -> f32 {
+pub(crate) fn ellipse_sdf(x: f32, y: f32, rx: f32, ry: f32) -> f32 {
     let k0 = ((x / rx).powi(2) + (y / ry).powi(2)).sqrt();
     let k1 = ((x / (rx * rx)).powi(2) + (y / (ry * ry)).powi(2)).sqrt();
     if k1 < 1e-12 {
@@ -269,7 +269,7 @@ fn ellipse_sdf(x: f32, y: f32, rx: f32, ry: f32) -> f32 {
     (k0 - 1.0) * k0 / k1
 }
 
-fn seg_dist(p: [f32; 2], a: [f32; 2], b: [f32; 2]) -> f32 {
+pub(crate) fn seg_dist(p: [f32; 2], a: [f32; 2], b: [f32; 2]) -> f32 {
     let (abx, aby) = (b[0] - a[0], b[1] - a[1]);
     let (apx, apy) = (p[0] - a[0], p[1] - a[1]);
     let l2 = abx * abx + aby * aby;
@@ -282,18 +282,18 @@ fn seg_dist(p: [f32; 2], a: [f32; 2], b: [f32; 2]) -> f32 {
 }
 
 /// Distance to a polyline.
-fn poly_dist(p: [f32; 2], pts: &[[f32; 2]]) -> f32 {
+pub(crate) fn poly_dist(p: [f32; 2], pts: &[[f32; 2]]) -> f32 {
     pts.windows(2)
         .map(|s| seg_dist(p, s[0], s[1]))
         .fold(f32::INFINITY, f32::min)
 }
 
 /// Pixel coverage of a shape from its signed distance (box filter, 1 px wide ramp).
-fn cov(d: f32) -> f32 {
+pub(crate) fn cov(d: f32) -> f32 {
     (0.5 - d).clamp(0.0, 1.0)
 }
 
-fn blend(c: &mut [f32; 3], col: [f32; 3], a: f32) {
+pub(crate) fn blend(c: &mut [f32; 3], col: [f32; 3], a: f32) {
     if a > 0.0 {
         for k in 0..3 {
             c[k] += (col[k] - c[k]) * a;
@@ -301,11 +301,11 @@ fn blend(c: &mut [f32; 3], col: [f32; 3], a: f32) {
     }
 }
 
-fn scale3(c: [f32; 3], s: f32) -> [f32; 3] {
+pub(crate) fn scale3(c: [f32; 3], s: f32) -> [f32; 3] {
     c.map(|v| v * s)
 }
 
-fn mix3(a: [f32; 3], b: [f32; 3], t: f32) -> [f32; 3] {
+pub(crate) fn mix3(a: [f32; 3], b: [f32; 3], t: f32) -> [f32; 3] {
     [
         a[0] + (b[0] - a[0]) * t,
         a[1] + (b[1] - a[1]) * t,
@@ -313,22 +313,22 @@ fn mix3(a: [f32; 3], b: [f32; 3], t: f32) -> [f32; 3] {
     ]
 }
 
-fn jitter3(c: [f32; 3], rng: &mut Rng, amount: f32) -> [f32; 3] {
+pub(crate) fn jitter3(c: [f32; 3], rng: &mut Rng, amount: f32) -> [f32; 3] {
     c.map(|v| (v * (1.0 + amount * rng.range_f32(-1.0, 1.0))).clamp(0.0, 1.0))
 }
 
-fn pick<T: Copy>(rng: &mut Rng, xs: &[T]) -> T {
+pub(crate) fn pick<T: Copy>(rng: &mut Rng, xs: &[T]) -> T {
     xs[rng.below(xs.len() as u32) as usize]
 }
 
 /// Smooth value noise on a coarse random lattice, for the background.
-struct Noise {
+pub(crate) struct Noise {
     n: usize,
     v: Vec<f32>,
 }
 
 impl Noise {
-    fn new(n: usize, rng: &mut Rng) -> Self {
+    pub(crate) fn new(n: usize, rng: &mut Rng) -> Self {
         Noise {
             n,
             v: (0..(n + 1) * (n + 1)).map(|_| rng.next_f32()).collect(),
@@ -336,7 +336,7 @@ impl Noise {
     }
 
     /// u, v in [0, 1]; result in [0, 1].
-    fn sample(&self, u: f32, v: f32) -> f32 {
+    pub(crate) fn sample(&self, u: f32, v: f32) -> f32 {
         let fx = (u.clamp(0.0, 1.0) * self.n as f32).min(self.n as f32 - 1e-3);
         let fy = (v.clamp(0.0, 1.0) * self.n as f32).min(self.n as f32 - 1e-3);
         let (ix, iy) = (fx as usize, fy as usize);
@@ -546,7 +546,7 @@ struct Scene {
     spacing: f32,
 }
 
-const SKINS: [[f32; 3]; 6] = [
+pub(crate) const SKINS: [[f32; 3]; 6] = [
     [0.96, 0.80, 0.69],
     [0.92, 0.74, 0.62],
     [0.86, 0.66, 0.52],
@@ -554,7 +554,7 @@ const SKINS: [[f32; 3]; 6] = [
     [0.58, 0.40, 0.28],
     [0.44, 0.30, 0.21],
 ];
-const HAIRS: [[f32; 3]; 8] = [
+pub(crate) const HAIRS: [[f32; 3]; 8] = [
     [0.17, 0.14, 0.13],
     [0.30, 0.20, 0.13],
     [0.44, 0.29, 0.17],
@@ -564,7 +564,7 @@ const HAIRS: [[f32; 3]; 8] = [
     [0.62, 0.60, 0.60],
     [0.36, 0.26, 0.20],
 ];
-const IRISES: [[f32; 3]; 4] = [
+pub(crate) const IRISES: [[f32; 3]; 4] = [
     [0.36, 0.22, 0.12],
     [0.25, 0.42, 0.62],
     [0.30, 0.48, 0.30],
@@ -1240,7 +1240,7 @@ impl Scene {
 }
 
 /// Points every `step` px of arc length along a dense path, plus its end.
-fn resample(path: &[[f32; 2]], step: f32) -> Vec<[f32; 2]> {
+pub(crate) fn resample(path: &[[f32; 2]], step: f32) -> Vec<[f32; 2]> {
     let mut out = Vec::new();
     let Some(&first) = path.first() else {
         return out;

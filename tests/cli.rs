@@ -433,6 +433,127 @@ fn model_export_import_round_trip_and_bad_landmarks() {
     assert_eq!(a.counts, b.counts);
     assert_eq!(a.points, b.points);
 
+    // Render: the original view on the cpu backend, with its sidecar.
+    let png = c.s("render.png");
+    let o = coif(&[
+        "render",
+        "--backend",
+        "cpu",
+        "--model",
+        &model,
+        "--out",
+        &png,
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let img = image::open(c.p("render.png")).unwrap();
+    assert_eq!((img.width(), img.height()), (256, 256));
+    let side: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(c.p("render.png.json")).unwrap()).unwrap();
+    assert!(side["report"]["backend"].as_str().unwrap().contains("cpu"));
+    // A camera inside the head, and an output folder that does not exist.
+    let o = coif(&[
+        "render",
+        "--backend",
+        "cpu",
+        "--model",
+        &model,
+        "--out",
+        &c.s("in.png"),
+        "--distance",
+        "0.03",
+    ]);
+    fails(&o, 64, &["inside the head"]);
+    let o = coif(&[
+        "render",
+        "--backend",
+        "cpu",
+        "--model",
+        &model,
+        "--out",
+        &c.s("nowhere/r.png"),
+    ]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("does not exist"), "{}", stderr(&o));
+    // Strands entirely off-screen: nothing sensible to draw.
+    let far = c.p("far");
+    std::fs::create_dir_all(&far).unwrap();
+    for f in ["model.json", "photo.png", "mask.png"] {
+        std::fs::copy(c.p("model").join(f), far.join(f)).unwrap();
+    }
+    let mut moved = a.clone();
+    for q in &mut moved.points {
+        q[0] += 100.0;
+    }
+    coif::strands::write(&far.join("strands.hair"), &moved).unwrap();
+    let o = coif(&[
+        "render",
+        "--backend",
+        "cpu",
+        "--model",
+        &c.s("far"),
+        "--out",
+        &c.s("far.png"),
+    ]);
+    fails(&o, 64, &["lands in the", "strands.hair"]);
+    // NaN colours: refused, naming the file and the vertex.
+    // The writer refuses NaN, so patch the file: colours are cyHair's last array.
+    coif::strands::write(&far.join("strands.hair"), &a).unwrap();
+    let mut bytes = std::fs::read(far.join("strands.hair")).unwrap();
+    let at = bytes.len() - 12 * a.points.len() + 12 * 5 + 4;
+    bytes[at..at + 4].copy_from_slice(&f32::NAN.to_le_bytes());
+    std::fs::write(far.join("strands.hair"), &bytes).unwrap();
+    let o = coif(&[
+        "render",
+        "--backend",
+        "cpu",
+        "--model",
+        &c.s("far"),
+        "--out",
+        &c.s("nan.png"),
+    ]);
+    fails(&o, 65, &["strands.hair", "point 5", "not finite"]);
+    assert!(!c.p("nan.png").exists() && !c.p("far.png").exists());
+    // Zero-length segments (repeated vertices) are skipped, not fatal; strands only.
+    let mut rep = coif::strands::StrandSet::new(
+        vec![
+            [0.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0],
+            [0.01, 0.02, 0.0],
+            [0.01, 0.02, 0.0],
+        ],
+        vec![4],
+    );
+    rep.colors = Some(vec![[0.5, 0.3, 0.1]; 4]);
+    let zl = c.p("zero");
+    std::fs::create_dir_all(&zl).unwrap();
+    coif::strands::write(&c.p("zero.hair"), &rep).unwrap();
+    let o = coif(&["import", &c.s("zero.hair"), "--out", &c.s("zero")]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = coif(&[
+        "render",
+        "--model",
+        &c.s("zero"),
+        "--out",
+        &c.s("zero.png"),
+        "--strands-only",
+        "--background",
+        "0,0,0",
+        "--backend",
+        "cpu",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // Without a photo only --strands-only makes sense.
+    let o = coif(&[
+        "render",
+        "--model",
+        &c.s("zero"),
+        "--out",
+        &c.s("zero2.png"),
+        "--backend",
+        "cpu",
+    ]);
+    fails(&o, 64, &["--strands-only"]);
+
     // Collinear landmarks: a clear error, exit 64, nothing written.
     let lm = c.p("line.json");
     std::fs::write(

@@ -224,6 +224,29 @@ fn uniform_structs_match_wgsl() {
         }),
         16,
     );
+    // One uniform shared by the four PatchMatch stages.
+    let pm = encase_bytes(&stages::pm_common::Config {
+        width: 1,
+        height: 2,
+        radius: 3,
+        seed: 4,
+        pass_id: 5,
+        step: 6,
+        search_radius: 7,
+        fallback: 8,
+        coarse_width: 9,
+        coarse_height: 10,
+        vote_k: f(11),
+        layer: 12,
+    });
+    for st in [
+        &stages::pm_init::STAGE,
+        &stages::pm_cost::STAGE,
+        &stages::pm_search::STAGE,
+        &stages::pm_vote::STAGE,
+    ] {
+        check_layout(st.name, st.wgsl, pm.clone(), 12);
+    }
 }
 
 #[test]

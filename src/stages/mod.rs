@@ -15,6 +15,11 @@ pub mod field_smooth;
 pub mod gabor;
 pub mod grow_rk2;
 pub mod orient_resolve;
+pub mod pm_common;
+pub mod pm_cost;
+pub mod pm_init;
+pub mod pm_search;
+pub mod pm_vote;
 pub mod sep_blur;
 pub mod strand_shade;
 
@@ -37,4 +42,8 @@ pub const ALL: &[&StageDef] = &[
     &field_coarse_rhs::STAGE,
     &field_dense::STAGE,
     &strand_shade::STAGE,
+    &pm_init::STAGE,
+    &pm_cost::STAGE,
+    &pm_search::STAGE,
+    &pm_vote::STAGE,
 ];

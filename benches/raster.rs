@@ -1,0 +1,250 @@
+//! The strand rasteriser (C13 §4) at full size: 30k strands x 50 vertices at 1024², 1-px
+//! quads, per-vertex colours and alphas, 4x MSAA with alpha-to-coverage: `render` on the CPU
+//! backend and on lavapipe, next to Skia (skia-python, anti-aliased path strokes, one colour
+//! per strand; `benches/peers/raster_skia.py`) drawing the same strands in the same run.
+//! Prints times and ratios.
+//!
+//! Run: `CARGO_TARGET_DIR=/work/target-h cargo bench --bench raster`
+//! (COIF_BENCH_REPS sets CPU repetitions, default 3; lavapipe gets one warm-up and one timed
+//! run; needs `pip install skia-python numpy` for the peer; RASTER_BENCH_PNG=dir writes our
+//! two images there.)
+
+use coif::raster::{render, to_rgba8, Frame, RasterParams, ScreenStrands};
+use coif::rng::Rng;
+use coif::{BackendChoice, Engine};
+use std::io::Write;
+use std::path::Path;
+use std::process::Command;
+use std::time::Instant;
+
+const SIZE: u32 = 1024;
+const STRANDS: usize = 30_000;
+const VERTS: usize = 50;
+
+fn median(mut t: Vec<f64>) -> f64 {
+    t.sort_by(f64::total_cmp);
+    t[t.len() / 2]
+}
+
+/// Hair-like strands: roots on the upper half of a sphere (the scalp, front and back), each
+/// growing out along the normal, then bending under "gravity" with a little curl, kept
+/// outside the skull; brown with per-strand variation, lighter and more transparent at the
+/// tips. Screen px, depth px (larger = nearer).
+fn hair(seed: u64) -> ScreenStrands {
+    let mut rng = Rng::new(seed);
+    let c = [SIZE as f32 * 0.5, SIZE as f32 * 0.4, 0.0];
+    let r = SIZE as f32 * 0.2;
+    let step = 7.5f32;
+    let mut s = ScreenStrands::default();
+    for _ in 0..STRANDS {
+        // Uniform direction on the sphere, kept on the upper part (y up = -screen y).
+        let (mut u, mut len2) = ([0.0f32; 3], 0.0f32);
+        while !(0.01..=1.0).contains(&len2) || u[1] > 0.3 * len2.sqrt() {
+            u = [
+                rng.range_f32(-1.0, 1.0),
+                rng.range_f32(-1.0, 1.0),
+                rng.range_f32(-1.0, 1.0),
+            ];
+            len2 = u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
+        }
+        let l = len2.sqrt();
+        let n = u.map(|v| v / l);
+        let mut p: [f32; 3] = std::array::from_fn(|k| c[k] + r * n[k]);
+        let mut d = n;
+        let curl = rng.range_f32(-0.06, 0.06);
+        let shade = rng.range_f32(0.7, 1.3);
+        let alpha = rng.range_f32(0.6, 1.0);
+        for k in 0..VERTS {
+            let f = k as f32 / (VERTS - 1) as f32;
+            s.points.push(p);
+            s.colors.push([
+                (0.16 + 0.25 * f) * shade,
+                (0.08 + 0.14 * f) * shade,
+                (0.035 + 0.06 * f) * shade,
+                alpha * (1.0 - 0.45 * f),
+            ]);
+            // Bend toward screen-down, curl around the view axis, keep outside the skull.
+            let g = 0.12;
+            d = [
+                d[0] + curl * d[1] + 0.05 * rng.normal_f32(),
+                d[1] + g - curl * d[0] + 0.05 * rng.normal_f32(),
+                d[2] * 0.97 + 0.05 * rng.normal_f32(),
+            ];
+            let dl = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            d = d.map(|v| v / dl);
+            p = std::array::from_fn(|k| p[k] + step * d[k]);
+            let q: [f32; 3] = std::array::from_fn(|k| p[k] - c[k]);
+            let ql = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt();
+            if ql < r * 1.02 {
+                p = std::array::from_fn(|k| c[k] + q[k] * (r * 1.02 / ql));
+            }
+        }
+        s.counts.push(VERTS as u32);
+    }
+    s
+}
+
+/// CPU seconds this process has used (user + system, from /proc; 0 where unavailable).
+/// The machine is shared, so wall time alone can mislead.
+fn cpu_seconds() -> f64 {
+    let stat = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
+    // Fields after the parenthesised command name; utime and stime are the 12th and 13th.
+    let rest = stat.rsplit(')').next().unwrap_or("");
+    let f: Vec<f64> = rest
+        .split_whitespace()
+        .skip(11)
+        .take(2)
+        .filter_map(|v| v.parse().ok())
+        .collect();
+    f.iter().sum::<f64>() / 100.0
+}
+
+fn write_raw<T: bytemuck::Pod>(path: &Path, data: &[T]) {
+    std::fs::File::create(path)
+        .unwrap()
+        .write_all(bytemuck::cast_slice(data))
+        .unwrap();
+}
+
+fn json_f64(s: &str, key: &str) -> Option<f64> {
+    let at = s.find(&format!("\"{key}\":"))? + key.len() + 3;
+    let rest = s[at..].trim_start();
+    let end = rest.find([',', '}']).unwrap_or(rest.len());
+    rest[..end].trim().parse().ok()
+}
+
+fn drawn_share(img: &[[f32; 4]]) -> f64 {
+    img.iter().filter(|p| p[3] > 0.0).count() as f64 / img.len() as f64
+}
+
+fn save(img: &[[f32; 4]], name: &str) {
+    if let Some(dir) = std::env::var_os("RASTER_BENCH_PNG") {
+        let path = Path::new(&dir).join(name);
+        image::RgbaImage::from_raw(SIZE, SIZE, to_rgba8(img))
+            .unwrap()
+            .save(&path)
+            .unwrap();
+        println!("  wrote {}", path.display());
+    }
+}
+
+fn main() {
+    let reps: usize = std::env::var("COIF_BENCH_REPS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(3);
+    let strands = hair(2013);
+    let frame = Frame {
+        width: SIZE,
+        height: SIZE,
+        depth_range: (-2.0 * SIZE as f32, 2.0 * SIZE as f32),
+        background: None,
+    };
+    let p = RasterParams::default();
+    println!(
+        "strand raster: {STRANDS} strands x {VERTS} vertices at {SIZE}², width {} px, {} samples:",
+        p.strand_width, p.samples
+    );
+    let cpu = Engine::cpu();
+    let mut img = Vec::new();
+    let mut cpu_s = 0.0;
+    let times: Vec<f64> = (0..reps + 1)
+        .map(|i| {
+            let (t, c) = (Instant::now(), cpu_seconds());
+            img = render(&cpu, &frame, None, Some(&strands), &p).unwrap();
+            if i > 0 {
+                cpu_s += (cpu_seconds() - c) / reps as f64;
+            }
+            t.elapsed().as_secs_f64()
+        })
+        .skip(1)
+        .collect();
+    let ours = median(times);
+    println!(
+        "  {}: {ours:.3} s median of {reps} ({cpu_s:.2} CPU-s per render); {:.1}% of pixels drawn",
+        cpu.describe(),
+        100.0 * drawn_share(&img)
+    );
+    save(&img, "raster_cpu.png");
+    let mut lavapipe = None;
+    match Engine::new(BackendChoice::Gpu) {
+        Ok(g) => {
+            // lavapipe: one warm-up (shader compilation, allocation), one timed run.
+            let _ = render(&g, &frame, None, Some(&strands), &p).unwrap();
+            let t = Instant::now();
+            let gimg = render(&g, &frame, None, Some(&strands), &p).unwrap();
+            let tg = t.elapsed().as_secs_f64();
+            lavapipe = Some(tg);
+            println!(
+                "  {}: {tg:.3} s; lavapipe / cpu backend: {:.2}x",
+                g.describe(),
+                tg / ours
+            );
+            let (a, b) = (to_rgba8(&gimg), to_rgba8(&img));
+            let agree = a
+                .chunks_exact(4)
+                .zip(b.chunks_exact(4))
+                .filter(|(x, y)| x.iter().zip(y.iter()).all(|(u, v)| u.abs_diff(*v) <= 2))
+                .count() as f64
+                / (SIZE * SIZE) as f64;
+            println!("  gpu vs cpu: {:.3}% of pixels within 2/255", 100.0 * agree);
+            // What every call pays regardless of content (pipelines, targets, read-back).
+            let tiny = Frame {
+                width: 8,
+                height: 8,
+                depth_range: frame.depth_range,
+                background: None,
+            };
+            let one = ScreenStrands {
+                points: vec![[1.0, 1.0, 0.0], [6.0, 6.0, 0.0]],
+                counts: vec![2],
+                colors: vec![[1.0; 4]; 2],
+            };
+            let t = Instant::now();
+            render(&g, &tiny, None, Some(&one), &p).unwrap();
+            println!(
+                "  lavapipe fixed cost per call (8x8 frame, one segment): {:.3} s",
+                t.elapsed().as_secs_f64()
+            );
+            save(&gimg, "raster_gpu.png");
+        }
+        Err(e) => println!("  no GPU backend: {e}"),
+    }
+    let dir = tempfile::tempdir().unwrap();
+    write_raw(&dir.path().join("points.f32"), &strands.points);
+    write_raw(&dir.path().join("counts.u32"), &strands.counts);
+    write_raw(&dir.path().join("colors.f32"), &strands.colors);
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/peers/raster_skia.py");
+    let out = Command::new("python3")
+        .arg(&script)
+        .arg(dir.path())
+        .arg(SIZE.to_string())
+        .arg(SIZE.to_string())
+        .arg(p.strand_width.to_string())
+        .arg(reps.to_string())
+        .output();
+    match out {
+        Ok(o) if o.status.success() => {
+            let s = String::from_utf8_lossy(&o.stdout).to_string();
+            println!(
+                "  skia (AA path strokes, one colour per strand): {}",
+                s.trim()
+            );
+            let draw = json_f64(&s, "draw_s").expect("peer prints draw_s");
+            let build = json_f64(&s, "build_s").expect("peer prints build_s");
+            println!(
+                "  ratio ours (cpu backend) / skia draw: {:.2} ({ours:.3} s vs {draw:.3} s; \
+                 skia's Python path building, {build:.3} s, not counted)",
+                ours / draw
+            );
+            if let Some(tg) = lavapipe {
+                println!("  ratio ours (lavapipe) / skia draw: {:.2}", tg / draw);
+            }
+        }
+        Ok(o) => println!(
+            "  skia peer failed (pip install skia-python numpy): {}",
+            String::from_utf8_lossy(&o.stderr)
+        ),
+        Err(e) => println!("  cannot run python3: {e}"),
+    }
+}

@@ -1,0 +1,889 @@
+//! Rendering a hair model back into its photo (C13 §4).
+//!
+//! Layers, back to front:
+//! 1. the background: the photo with the hair (and, for a novel view, the head) removed and
+//!    filled by PatchMatch inpainting ([`crate::inpaint`]);
+//! 2. the head mesh, depth-tested: at the original view it carries the inpainted photo itself
+//!    (screen-space uvs, texel centres on pixel centres, so it reproduces the photo exactly
+//!    and only hides strands behind the head); at a novel view it carries the face texture
+//!    projected from the photo with its unseen parts filled ([`crate::head_texture`]);
+//! 3. the strands, one screen-aligned quad per segment with per-vertex colour and alpha
+//!    (the colours sampled from the photo by `coif model`, recoloured in HSV and given
+//!    highlights by [`crate::shade`]), MSAA with alpha-to-coverage, no depth sorting
+//!    ([`crate::raster`]).
+//!
+//! Views: the model's weak-perspective camera turned about the head centre (the model
+//! origin) by yaw, pitch and roll; optionally a pinhole camera at a distance, whose focal
+//! length keeps the head's scale (`distance`), so the view can also be put inside the head,
+//! which is refused.
+
+use crate::error::{Error, Result};
+use crate::head::{Head, HeadParams, WeakPerspective};
+use crate::head_texture::{head_texture_with, HeadTextureParams};
+use crate::inpaint::{inpaint, InpaintParams};
+use crate::raster::{self, Frame, RasterParams, ScreenMesh, ScreenStrands, Texture};
+use crate::shade::{self, ShadeParams};
+use crate::strands::StrandSet;
+use crate::Engine;
+use glam::{Mat3, Vec2, Vec3};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Colour of strands whose file carries none (a mid brown, linear RGB).
+pub const DEFAULT_HAIR_LINEAR: [f32; 3] = [0.12, 0.06, 0.03];
+
+/// Largest output side: the frame and its 4x MSAA targets must fit a GPU buffer.
+pub const MAX_SIDE: u32 = 8192;
+
+/// What a render needs from a model directory (`coif model` or `coif import` output).
+#[derive(Clone, Debug)]
+pub struct RenderModel {
+    pub dir: PathBuf,
+    pub strands: StrandSet,
+    /// The camera of the photo; None for imported strands (a framing camera is made).
+    pub camera: Option<WeakPerspective>,
+    pub head: Option<Head>,
+    /// The photo (sRGB 8-bit) and the hair mask (nonzero = hair), same size.
+    pub photo: Option<image::RgbImage>,
+    pub mask: Option<Vec<u8>>,
+    pub width: u32,
+    pub height: u32,
+}
+
+fn bad(path: &Path, msg: impl Into<String>) -> Error {
+    Error::bad_file(path, msg)
+}
+
+impl RenderModel {
+    /// Reads `model.json`, `strands.hair` and, when present, the photo (`photo.png`, else the
+    /// `image` path in `model.json`) and the hair mask (`mask.png`).
+    pub fn load(dir: &Path) -> Result<RenderModel> {
+        let meta_path = dir.join("model.json");
+        let text = std::fs::read_to_string(&meta_path).map_err(|e| Error::Io {
+            path: meta_path.clone(),
+            err: e,
+        })?;
+        let meta: serde_json::Value = serde_json::from_str(&text)
+            .map_err(|e| bad(&meta_path, format!("not valid JSON: {e}")))?;
+        let strands_path = dir.join("strands.hair");
+        let strands = crate::strands::read(&strands_path)?;
+        check_strands(&strands, &strands_path)?;
+        let camera = match meta.get("camera") {
+            None | Some(serde_json::Value::Null) => None,
+            Some(c) => Some(
+                serde_json::from_value::<WeakPerspective>(c.clone())
+                    .map_err(|e| bad(&meta_path, format!("camera: {e}")))?,
+            ),
+        };
+        let head = match meta.pointer("/head/params") {
+            None | Some(serde_json::Value::Null) => None,
+            Some(h) => {
+                let hp: HeadParams = serde_json::from_value(h.clone())
+                    .map_err(|e| bad(&meta_path, format!("head parameters: {e}")))?;
+                Some(Head::try_new(&hp).map_err(|e| bad(&meta_path, e.to_string()))?)
+            }
+        };
+        let dim = |k: &str| meta.get(k).and_then(|v| v.as_u64()).map(|v| v as u32);
+        let (mut width, mut height) = (dim("width").unwrap_or(0), dim("height").unwrap_or(0));
+        let photo_path = [
+            Some(dir.join("photo.png")),
+            meta.get("image")
+                .and_then(|v| v.as_str())
+                .map(PathBuf::from),
+        ]
+        .into_iter()
+        .flatten()
+        .find(|p| p.is_file());
+        let photo = match (&camera, photo_path) {
+            (Some(_), Some(p)) => {
+                let img = crate::imgio::load_rgb(&p)?;
+                if (width, height) != (0, 0) && img.dimensions() != (width, height) {
+                    return Err(bad(
+                        &p,
+                        format!(
+                            "the photo is {}x{} but the model was made on {width}x{height}",
+                            img.width(),
+                            img.height()
+                        ),
+                    ));
+                }
+                (width, height) = img.dimensions();
+                Some(img)
+            }
+            _ => None,
+        };
+        let mask_path = dir.join("mask.png");
+        let mask = match (&photo, mask_path.is_file()) {
+            (Some(ph), true) => Some(crate::imgio::load_mask(
+                &mask_path,
+                ph.width(),
+                ph.height(),
+                &mask_path,
+            )?),
+            _ => None,
+        };
+        Ok(RenderModel {
+            dir: dir.to_path_buf(),
+            strands,
+            camera,
+            head,
+            photo,
+            mask,
+            width,
+            height,
+        })
+    }
+}
+
+impl RenderModel {
+    /// A model still in memory (`coif::model` output) with its photo, as `coif model`
+    /// would have written it to `dir`.
+    pub fn from_model(m: &crate::model::Model, photo: &image::RgbImage, dir: &Path) -> RenderModel {
+        RenderModel {
+            dir: dir.to_path_buf(),
+            strands: m.strands.clone(),
+            camera: Some(m.camera),
+            head: Some(m.head.clone()),
+            photo: Some(photo.clone()),
+            mask: Some(m.analysis.mask.clone()),
+            width: photo.width(),
+            height: photo.height(),
+        }
+    }
+
+    /// Strands alone (imported files): rendered with a framing camera, strands only.
+    pub fn from_strands(strands: StrandSet, dir: &Path) -> Result<RenderModel> {
+        check_strands(&strands, &dir.join("strands.hair"))?;
+        Ok(RenderModel {
+            dir: dir.to_path_buf(),
+            strands,
+            camera: None,
+            head: None,
+            photo: None,
+            mask: None,
+            width: 0,
+            height: 0,
+        })
+    }
+}
+
+/// Non-finite points or colours make a file nothing sensible can be drawn from.
+fn check_strands(s: &StrandSet, path: &Path) -> Result<()> {
+    if s.points.is_empty() {
+        return Err(bad(path, "the model has no strand vertex to draw"));
+    }
+    if let Some(i) = s
+        .points
+        .iter()
+        .position(|p| !p.iter().all(|v| v.is_finite()))
+    {
+        return Err(bad(
+            path,
+            format!("vertex {i} is not finite: {:?}", s.points[i]),
+        ));
+    }
+    if let Some(c) = &s.colors {
+        if let Some(i) = c.iter().position(|p| !p.iter().all(|v| v.is_finite())) {
+            return Err(bad(
+                path,
+                format!("vertex {i} has a colour that is not finite: {:?}", c[i]),
+            ));
+        }
+    }
+    if let Some(t) = &s.transparency {
+        if let Some(i) = t.iter().position(|v| !v.is_finite()) {
+            return Err(bad(
+                path,
+                format!("vertex {i} has a transparency that is not finite"),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Every setting of a render (written to the sidecar).
+#[derive(Clone, Debug, Serialize)]
+pub struct RenderParams {
+    /// Degrees the head turns about its vertical axis; positive turns the face toward the
+    /// image's right.
+    pub yaw_deg: f32,
+    /// Degrees the head tilts; positive turns the face up.
+    pub pitch_deg: f32,
+    /// Degrees the head rolls in the image plane; positive is counter-clockwise on screen.
+    pub roll_deg: f32,
+    /// A pinhole camera this far from the head centre (model units: metres for `coif model`
+    /// output) instead of the weak-perspective one; its focal length keeps the head's scale.
+    pub distance: Option<f32>,
+    /// Output size relative to the model's image (strand width scales with it).
+    pub scale: f32,
+    /// Output size for models without a photo (imported strands).
+    pub size: (u32, u32),
+    pub raster: RasterParams,
+    pub shade: ShadeParams,
+    /// Only the strands, over `background` (transparent when None); no photo, no head.
+    pub strands_only: bool,
+    /// sRGB 0..1 background colour for `strands_only`.
+    pub background: Option<[f32; 3]>,
+    /// Spacing (photo px) of extra vertices whose colour is sampled from the photo along each
+    /// strand at render time; 0 (default) draws the model's own vertex colours only. At 1 px
+    /// the synthetic long-hair re-render gains 0.3 dB for 4x the time (issue 5 note).
+    pub colour_spacing_px: f32,
+    /// Pixels the hair mask grows by before it is inpainted (the hair's soft edge).
+    pub hair_margin_px: u32,
+    pub inpaint: InpaintParams,
+    pub head_texture: HeadTextureParams,
+}
+
+impl Default for RenderParams {
+    fn default() -> Self {
+        RenderParams {
+            yaw_deg: 0.0,
+            pitch_deg: 0.0,
+            roll_deg: 0.0,
+            distance: None,
+            scale: 1.0,
+            size: (512, 512),
+            raster: RasterParams::default(),
+            shade: ShadeParams::default(),
+            strands_only: false,
+            background: None,
+            colour_spacing_px: 0.0,
+            hair_margin_px: 2,
+            inpaint: InpaintParams::default(),
+            head_texture: HeadTextureParams::default(),
+        }
+    }
+}
+
+impl RenderParams {
+    pub fn is_original_view(&self) -> bool {
+        self.yaw_deg == 0.0
+            && self.pitch_deg == 0.0
+            && self.roll_deg == 0.0
+            && self.distance.is_none()
+    }
+
+    fn validate(&self) -> Result<()> {
+        let angles = [self.yaw_deg, self.pitch_deg, self.roll_deg];
+        if !angles.iter().all(|a| a.is_finite()) {
+            return Err(Error::Invalid(format!(
+                "view angles must be finite, got {angles:?}"
+            )));
+        }
+        if !(self.scale.is_finite() && self.scale > 0.0) {
+            return Err(Error::Invalid(format!(
+                "scale must be positive, got {}",
+                self.scale
+            )));
+        }
+        if !(self.colour_spacing_px.is_finite() && self.colour_spacing_px >= 0.0) {
+            return Err(Error::Invalid(format!(
+                "colour spacing must be 0 or positive, got {}",
+                self.colour_spacing_px
+            )));
+        }
+        if let Some(d) = self.distance {
+            if !(d.is_finite() && d > 0.0) {
+                return Err(Error::Invalid(format!(
+                    "camera distance must be positive, got {d}"
+                )));
+            }
+        }
+        if let Some(b) = self.background {
+            if !b.iter().all(|v| (0.0..=1.0).contains(v)) {
+                return Err(Error::Invalid(format!(
+                    "background colour out of 0..1: {b:?}"
+                )));
+            }
+            if !self.strands_only {
+                return Err(Error::Invalid(
+                    "a background colour replaces the photo only with --strands-only".into(),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The camera of a render: the model's camera turned about the head centre, optionally a
+/// pinhole at a distance.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct ViewCamera {
+    /// Weak-perspective part (rotation includes the view's turn).
+    pub camera: WeakPerspective,
+    pub distance: Option<f32>,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl ViewCamera {
+    /// Screen point `[x px, y px, depth px]` (larger depth = nearer), None behind the camera
+    /// or too close to it (nearer than 5% of the distance).
+    pub fn project(&self, p: Vec3) -> Option<[f32; 3]> {
+        let c = &self.camera;
+        let v = c.r * p;
+        let (x, y) = match self.distance {
+            None => (v.x, v.y),
+            Some(d) => {
+                let zc = d - v.z;
+                if zc < 0.05 * d {
+                    return None;
+                }
+                (v.x * d / zc, v.y * d / zc)
+            }
+        };
+        Some([c.s * x + c.t.x, -c.s * y + c.t.y, c.s * v.z])
+    }
+
+    /// The camera's position in model space (pinhole only).
+    pub fn position(&self) -> Option<Vec3> {
+        self.distance
+            .map(|d| self.camera.r.transpose() * Vec3::new(0.0, 0.0, d))
+    }
+}
+
+fn rotation(p: &RenderParams) -> Mat3 {
+    // Model-space turn about the head centre: yaw about +y (face toward +x = image right),
+    // pitch about -x (face up), roll about +z.
+    Mat3::from_rotation_y(p.yaw_deg.to_radians())
+        * Mat3::from_rotation_x(-p.pitch_deg.to_radians())
+        * Mat3::from_rotation_z(p.roll_deg.to_radians())
+}
+
+/// A frontal camera framing the strands' bounds in `size` with a 5% margin (imported
+/// strands carry no camera). Model y is up.
+pub fn framing_camera(s: &StrandSet, size: (u32, u32)) -> WeakPerspective {
+    let (lo, hi) = s.bounds();
+    let (lo, hi) = (Vec3::from_array(lo), Vec3::from_array(hi));
+    let ext = (hi - lo).max(Vec3::splat(1e-6));
+    let scale = 0.9 * (size.0 as f32 / ext.x).min(size.1 as f32 / ext.y);
+    let mid = 0.5 * (lo + hi);
+    WeakPerspective::frontal(
+        scale,
+        Vec2::new(
+            0.5 * size.0 as f32 - scale * mid.x,
+            0.5 * size.1 as f32 + scale * mid.y,
+        ),
+    )
+}
+
+/// The view camera of a render of `m` with `p`.
+pub fn view_camera(m: &RenderModel, p: &RenderParams) -> Result<ViewCamera> {
+    p.validate()?;
+    let (base, w, h) = match (&m.camera, m.width > 0 && m.height > 0) {
+        (Some(c), true) => (*c, m.width, m.height),
+        _ => {
+            let c = framing_camera(&m.strands, p.size);
+            (c, p.size.0, p.size.1)
+        }
+    };
+    let w = (w as f32 * p.scale).round() as u32;
+    let h = (h as f32 * p.scale).round() as u32;
+    if w == 0 || h == 0 || w > MAX_SIDE || h > MAX_SIDE {
+        return Err(Error::Invalid(format!(
+            "a {w}x{h} render: each side must be 1..={MAX_SIDE} pixels"
+        )));
+    }
+    let camera = WeakPerspective::new(base.s * p.scale, base.r * rotation(p), base.t * p.scale);
+    let vc = ViewCamera {
+        camera,
+        distance: p.distance,
+        width: w,
+        height: h,
+    };
+    if let (Some(pos), Some(head)) = (vc.position(), &m.head) {
+        if head.sdf(pos) <= 0.0 {
+            return Err(Error::Invalid(format!(
+                "a camera {:.3} from the head centre is inside the head: move it out (--distance)",
+                p.distance.unwrap_or(0.0)
+            )));
+        }
+    }
+    Ok(vc)
+}
+
+/// Figures of one render (written to the sidecar).
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct RenderReport {
+    pub width: u32,
+    pub height: u32,
+    pub strands: usize,
+    pub segments: usize,
+    /// Strand vertices that land inside the frame.
+    pub vertices_on_screen: usize,
+    /// Vertices behind a pinhole camera (their segments are dropped).
+    pub vertices_clipped: usize,
+    pub hole_pixels: usize,
+    pub original_view: bool,
+    pub backend: String,
+    pub seconds: Vec<(String, f64)>,
+}
+
+/// The rendered frame: linear straight RGBA, row-major.
+pub struct Rendered {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<[f32; 4]>,
+    /// Whether the alpha channel carries information (strands over a transparent
+    /// background); otherwise every pixel is opaque.
+    pub has_alpha: bool,
+    pub camera: ViewCamera,
+    pub report: RenderReport,
+}
+
+fn linear_photo(img: &image::RgbImage) -> Vec<[f32; 3]> {
+    img.pixels()
+        .map(|p| p.0.map(raster::srgb_to_linear))
+        .collect()
+}
+
+/// Grows a 0/1 mask by `r` pixels (square neighbourhood, separable).
+fn dilate(mask: &[u8], w: usize, h: usize, r: usize) -> Vec<u8> {
+    if r == 0 {
+        return mask.to_vec();
+    }
+    let mut tmp = vec![0u8; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            let (a, b) = (x.saturating_sub(r), (x + r).min(w - 1));
+            tmp[y * w + x] = mask[y * w + a..=y * w + b].iter().any(|&v| v != 0) as u8;
+        }
+    }
+    let mut out = vec![0u8; w * h];
+    for y in 0..h {
+        let (a, b) = (y.saturating_sub(r), (y + r).min(h - 1));
+        for x in 0..w {
+            out[y * w + x] = (a..=b).any(|yy| tmp[yy * w + x] != 0) as u8;
+        }
+    }
+    out
+}
+
+/// Renders `m` with `p` on `engine`.
+pub fn render(engine: &Engine, m: &RenderModel, p: &RenderParams) -> Result<Rendered> {
+    let vc = view_camera(m, p)?;
+    let (w, h) = (vc.width, vc.height);
+    let mut report = RenderReport {
+        width: w,
+        height: h,
+        strands: m.strands.len(),
+        original_view: p.is_original_view(),
+        backend: engine.describe(),
+        ..Default::default()
+    };
+    let mut clock = Instant::now();
+    let mut lap = |name: &str, report: &mut RenderReport| {
+        report
+            .seconds
+            .push((name.to_string(), clock.elapsed().as_secs_f64()));
+        clock = Instant::now();
+    };
+
+    // Strands: colours resampled along them from the photo, shaded in model space, then
+    // projected.
+    let dense = resample_colours(m, p.colour_spacing_px);
+    let strands_m = dense.as_ref().unwrap_or(&m.strands);
+    let base = shade::base_colours(strands_m, DEFAULT_HAIR_LINEAR);
+    let mut sp = p.shade.clone();
+    if strands_m.colors.is_none() && sp.diffuse == 0.0 {
+        // One flat colour would show no shape: let the lights model it.
+        sp.diffuse = 0.7;
+    }
+    let colors = shade::shade(
+        engine,
+        &strands_m.points,
+        &strands_m.counts,
+        &base,
+        &vc.camera,
+        &sp,
+    )?;
+    lap("shading", &mut report);
+    let mut points = Vec::with_capacity(strands_m.points.len());
+    for q in &strands_m.points {
+        match vc.project(Vec3::from_array(*q)) {
+            Some(s) => {
+                if s[0] >= 0.0 && s[1] >= 0.0 && s[0] < w as f32 && s[1] < h as f32 {
+                    report.vertices_on_screen += 1;
+                }
+                points.push(s);
+            }
+            None => {
+                report.vertices_clipped += 1;
+                // The rasteriser drops segments with a non-finite end.
+                points.push([f32::NAN; 3]);
+            }
+        }
+    }
+    report.segments = strands_m
+        .counts
+        .iter()
+        .map(|&c| c.saturating_sub(1) as usize)
+        .sum();
+    if report.vertices_on_screen == 0 {
+        return Err(Error::Invalid(format!(
+            "none of the {} strand vertices of {} lands in the {w}x{h} view",
+            strands_m.points.len(),
+            m.dir.join("strands.hair").display()
+        )));
+    }
+    let strands = ScreenStrands {
+        points,
+        counts: strands_m.counts.clone(),
+        colors,
+    };
+
+    let composite = !p.strands_only;
+    if composite && (m.photo.is_none() || m.camera.is_none()) {
+        return Err(Error::Invalid(format!(
+            "{} has no photo and camera to render into (imported strands?): use --strands-only",
+            m.dir.display()
+        )));
+    }
+    let (background, mesh) = if composite {
+        let (bg, mesh) = layers(engine, m, &vc, p, &mut report)?;
+        lap("layers", &mut report);
+        (Some(bg), mesh)
+    } else {
+        let bg = p
+            .background
+            .map(|c| vec![c.map(|v| raster::srgb_to_linear((v * 255.0).round() as u8)); 1]);
+        let bg = bg.map(|c| {
+            let c = c[0];
+            vec![[c[0], c[1], c[2], 1.0]; (w * h) as usize]
+        });
+        (bg, None)
+    };
+
+    // Depth range over everything drawn, with a margin.
+    let (mut far, mut near) = (f32::INFINITY, f32::NEG_INFINITY);
+    for q in strands
+        .points
+        .iter()
+        .chain(mesh.iter().flat_map(|m| m.positions.iter()))
+    {
+        if q[2].is_finite() {
+            far = far.min(q[2]);
+            near = near.max(q[2]);
+        }
+    }
+    let frame = Frame {
+        width: w,
+        height: h,
+        depth_range: (far - 1.0, near + 1.0),
+        background,
+    };
+    let mut rp = p.raster;
+    rp.strand_width *= p.scale;
+    let pixels = raster::render(engine, &frame, mesh.as_ref(), Some(&strands), &rp)?;
+    lap("rasterisation", &mut report);
+    Ok(Rendered {
+        width: w,
+        height: h,
+        pixels,
+        has_alpha: p.strands_only && p.background.is_none(),
+        camera: vc,
+        report,
+    })
+}
+
+/// The strands with extra vertices every `spacing` px (as the photo sees them) whose colour
+/// and transparency are sampled from the photo like `coif model` samples the model's own
+/// vertices (C13 §4). The model's vertices sit half a grid cell apart (~3 px at 512²), while
+/// the photo's hair varies at the scale of a pixel across strands: sampling only at the
+/// vertices smears it along the strand. None without a photo, or when `spacing` is 0.
+fn resample_colours(m: &RenderModel, spacing: f32) -> Option<StrandSet> {
+    let (photo, cam) = (m.photo.as_ref()?, m.camera?);
+    if spacing.is_nan() || spacing <= 0.0 || m.strands.colors.is_none() {
+        return None;
+    }
+    let (w, h) = photo.dimensions();
+    let lin = |x: u32, y: u32| photo.get_pixel(x, y).0.map(raster::srgb_to_linear);
+    let sample = |q: Vec3| -> ([f32; 3], f32) {
+        let s = cam.project(q);
+        let fx = (s.x - 0.5).clamp(0.0, (w - 1) as f32);
+        let fy = (s.y - 0.5).clamp(0.0, (h - 1) as f32);
+        let (x0, y0) = (fx.floor() as u32, fy.floor() as u32);
+        let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
+        let (ax, ay) = (fx - x0 as f32, fy - y0 as f32);
+        let (a, b, c, d) = (lin(x0, y0), lin(x1, y0), lin(x0, y1), lin(x1, y1));
+        let rgb = std::array::from_fn(|k| {
+            let top = a[k] + ax * (b[k] - a[k]);
+            let bot = c[k] + ax * (d[k] - c[k]);
+            top + ay * (bot - top)
+        });
+        let on = s.x >= 0.0
+            && s.y >= 0.0
+            && s.x < w as f32
+            && s.y < h as f32
+            && m.mask
+                .as_ref()
+                .is_none_or(|mk| mk[s.y as usize * w as usize + s.x as usize] != 0);
+        (rgb, if on { 0.0 } else { 1.0 })
+    };
+    let mut out = StrandSet::default();
+    let (mut colors, mut transp) = (Vec::new(), Vec::new());
+    let mut start = 0usize;
+    for &c in &m.strands.counts {
+        let pts = &m.strands.points[start..start + c as usize];
+        start += c as usize;
+        let mut n = 0u32;
+        for (k, &q) in pts.iter().enumerate() {
+            let q = Vec3::from_array(q);
+            if k > 0 {
+                let prev = Vec3::from_array(pts[k - 1]);
+                let len = (cam.project(q) - cam.project(prev)).truncate().length();
+                let pieces = ((len / spacing).ceil() as u32).clamp(1, 64);
+                for i in 1..pieces {
+                    let r = prev.lerp(q, i as f32 / pieces as f32);
+                    let (rgb, t) = sample(r);
+                    out.points.push(r.to_array());
+                    colors.push(rgb);
+                    transp.push(t);
+                    n += 1;
+                }
+            }
+            let (rgb, t) = sample(q);
+            out.points.push(q.to_array());
+            colors.push(rgb);
+            transp.push(t);
+            n += 1;
+        }
+        out.counts.push(n);
+    }
+    out.colors = Some(colors);
+    out.transparency = Some(transp);
+    Some(out)
+}
+
+/// The background layer and the head mesh of a composite render.
+fn layers(
+    engine: &Engine,
+    m: &RenderModel,
+    vc: &ViewCamera,
+    p: &RenderParams,
+    report: &mut RenderReport,
+) -> Result<(Vec<[f32; 4]>, Option<ScreenMesh>)> {
+    let photo = m.photo.as_ref().expect("checked by the caller");
+    let cam0 = m.camera.expect("checked by the caller");
+    let (pw, ph) = photo.dimensions();
+    let (pwu, phu) = (pw as usize, ph as usize);
+    let lin = linear_photo(photo);
+    let hair: Vec<u8> = match &m.mask {
+        Some(mk) => mk.iter().map(|&v| (v != 0) as u8).collect(),
+        None => vec![0; pwu * phu],
+    };
+    let hair = dilate(&hair, pwu, phu, p.hair_margin_px as usize);
+    let original = p.is_original_view() && (vc.width, vc.height) == (pw, ph);
+    let head = m.head.as_ref();
+    // Where the head covers the photo (its mesh rasterised at the photo's camera).
+    let head_px: Vec<u8> = match head {
+        Some(hd) if !original => {
+            let (verts, mut tris) = hd.mesh(p.head_texture.mesh_res);
+            // Only the head above the chin leaves the background: the neck hardly moves in
+            // the photo's body, and inpainting a neck-sized hole through the collar smears it.
+            if let Some(chin) = hd.landmark("chin") {
+                tris.retain(|t| t.iter().any(|&i| verts[i as usize].y > chin.y));
+            }
+            let mesh = crate::volume::Mesh {
+                verts: verts.iter().map(|&v| cam0.project(v).to_array()).collect(),
+                tris,
+            };
+            let dm = crate::volume::rasterize_depth(engine, pw, ph, &[&mesh])?;
+            let cov: Vec<u8> = (0..pwu * phu).map(|i| dm.covered(i) as u8).collect();
+            // The parametric head's outline differs from the real face by a few percent of
+            // the image: a wider hole keeps slivers of the photo's face out of the background.
+            let grow = p.hair_margin_px as usize + (0.03 * pwu.min(phu) as f32).round() as usize;
+            dilate(&cov, pwu, phu, grow)
+        }
+        _ => vec![0; pwu * phu],
+    };
+    let hole: Vec<u8> = hair
+        .iter()
+        .zip(&head_px)
+        .map(|(&a, &b)| (a != 0 || b != 0) as u8)
+        .collect();
+    report.hole_pixels = hole.iter().filter(|&&v| v != 0).count();
+    let (filled, _) = inpaint(engine, pw, ph, &lin, &hole, &p.inpaint)?;
+    let bg_photo: Vec<[f32; 4]> = filled.iter().map(|c| [c[0], c[1], c[2], 1.0]).collect();
+
+    let Some(head) = head else {
+        return Ok((resample_to(&bg_photo, pw, ph, vc), None));
+    };
+    if original {
+        // The head hides strands behind it and shows the (inpainted) photo itself.
+        let (verts, tris) = head.mesh(p.head_texture.mesh_res);
+        let positions: Vec<[f32; 3]> = verts
+            .iter()
+            .map(|&v| vc.project(v).unwrap_or([f32::NAN; 3]))
+            .collect();
+        let uvs = positions
+            .iter()
+            .map(|q| [q[0] / pw as f32, q[1] / ph as f32])
+            .collect();
+        let mesh = ScreenMesh {
+            positions,
+            uvs,
+            triangles: tris,
+            texture: Texture {
+                width: pw,
+                height: ph,
+                texels: bg_photo.clone(),
+            },
+        };
+        return Ok((bg_photo, Some(mesh)));
+    }
+    // Novel view: the face texture from the photo where skin shows, the rest inpainted.
+    let usable: Vec<u8> = {
+        let (verts, tris) = head.mesh(p.head_texture.mesh_res);
+        let mesh = crate::volume::Mesh {
+            verts: verts.iter().map(|&v| cam0.project(v).to_array()).collect(),
+            tris,
+        };
+        let dm = crate::volume::rasterize_depth(engine, pw, ph, &[&mesh])?;
+        (0..pwu * phu)
+            .map(|i| (dm.covered(i) && hair[i] == 0) as u8)
+            .collect()
+    };
+    let th = head_texture_with(engine, head, &cam0, &lin, pw, ph, &usable, &p.head_texture)?;
+    let positions: Vec<[f32; 3]> = th
+        .positions
+        .iter()
+        .map(|&v| vc.project(Vec3::from_array(v)).unwrap_or([f32::NAN; 3]))
+        .collect();
+    let (tw, tht, texels) = th.texture;
+    let mesh = ScreenMesh {
+        positions,
+        uvs: th.uvs,
+        triangles: th.triangles,
+        texture: Texture {
+            width: tw,
+            height: tht,
+            texels,
+        },
+    };
+    Ok((resample_to(&bg_photo, pw, ph, vc), Some(mesh)))
+}
+
+/// The background layer at the view's size (a scaled view resamples it bilinearly).
+fn resample_to(bg: &[[f32; 4]], w: u32, h: u32, vc: &ViewCamera) -> Vec<[f32; 4]> {
+    if (vc.width, vc.height) == (w, h) {
+        return bg.to_vec();
+    }
+    let (sx, sy) = (w as f32 / vc.width as f32, h as f32 / vc.height as f32);
+    let at = |x: i64, y: i64| {
+        bg[(y.clamp(0, h as i64 - 1) * w as i64 + x.clamp(0, w as i64 - 1)) as usize]
+    };
+    let mut out = Vec::with_capacity((vc.width * vc.height) as usize);
+    for j in 0..vc.height {
+        for i in 0..vc.width {
+            let x = (i as f32 + 0.5) * sx - 0.5;
+            let y = (j as f32 + 0.5) * sy - 0.5;
+            let (x0, y0) = (x.floor(), y.floor());
+            let (fx, fy) = (x - x0, y - y0);
+            let (x0, y0) = (x0 as i64, y0 as i64);
+            let mut c = [0.0f32; 4];
+            for (dx, dy, wgt) in [
+                (0, 0, (1.0 - fx) * (1.0 - fy)),
+                (1, 0, fx * (1.0 - fy)),
+                (0, 1, (1.0 - fx) * fy),
+                (1, 1, fx * fy),
+            ] {
+                let v = at(x0 + dx, y0 + dy);
+                for k in 0..4 {
+                    c[k] += wgt * v[k];
+                }
+            }
+            out.push(c);
+        }
+    }
+    out
+}
+
+/// PSNR (dB) of `a` against `b` (sRGB 8-bit RGB) over the pixels where `region` is set.
+pub fn psnr_region(a: &image::RgbImage, b: &image::RgbImage, region: &[bool]) -> f64 {
+    let mut se = 0.0f64;
+    let mut n = 0usize;
+    for ((pa, pb), &r) in a.pixels().zip(b.pixels()).zip(region) {
+        if !r {
+            continue;
+        }
+        for k in 0..3 {
+            let d = pa.0[k] as f64 - pb.0[k] as f64;
+            se += d * d;
+        }
+        n += 3;
+    }
+    if n == 0 {
+        return f64::NAN;
+    }
+    let mse = se / n as f64;
+    if mse == 0.0 {
+        return f64::INFINITY;
+    }
+    10.0 * (255.0 * 255.0 / mse).log10()
+}
+
+/// The frame as 8-bit sRGB RGB (alpha dropped: the frame is opaque).
+pub fn to_rgb8(r: &Rendered) -> image::RgbImage {
+    let bytes = raster::to_rgba8(&r.pixels);
+    let rgb: Vec<u8> = bytes.chunks(4).flat_map(|c| [c[0], c[1], c[2]]).collect();
+    image::RgbImage::from_raw(r.width, r.height, rgb).expect("frame size")
+}
+
+/// Writes the frame as PNG (8-bit sRGB, or 16-bit with `sixteen`; RGBA when it has alpha)
+/// atomically, and a sidecar `<path>.json` with the camera, the settings and the report.
+pub fn write(path: &Path, r: &Rendered, p: &RenderParams, sixteen: bool) -> Result<PathBuf> {
+    use image::ImageEncoder;
+    let mut bytes = Vec::new();
+    let enc = image::codecs::png::PngEncoder::new(&mut bytes);
+    let res = if sixteen {
+        let px = raster::to_rgba16(&r.pixels);
+        let (data, ct): (Vec<u16>, _) = if r.has_alpha {
+            (px, image::ExtendedColorType::Rgba16)
+        } else {
+            (
+                px.chunks(4).flat_map(|c| [c[0], c[1], c[2]]).collect(),
+                image::ExtendedColorType::Rgb16,
+            )
+        };
+        // PNG stores 16-bit samples big-endian.
+        let be: Vec<u8> = data.iter().flat_map(|v| v.to_be_bytes()).collect();
+        enc.write_image(&be, r.width, r.height, ct)
+    } else {
+        let px = raster::to_rgba8(&r.pixels);
+        if r.has_alpha {
+            enc.write_image(&px, r.width, r.height, image::ExtendedColorType::Rgba8)
+        } else {
+            let rgb: Vec<u8> = px.chunks(4).flat_map(|c| [c[0], c[1], c[2]]).collect();
+            enc.write_image(&rgb, r.width, r.height, image::ExtendedColorType::Rgb8)
+        }
+    };
+    res.map_err(|e| bad(path, format!("PNG encoding failed: {e}")))?;
+    crate::io::write_atomic(path, &bytes)?;
+    let side = sidecar_path(path);
+    let meta = serde_json::json!({
+        "version": 1,
+        "coif": env!("CARGO_PKG_VERSION"),
+        "image": path.display().to_string(),
+        "encoding": if sixteen { "16-bit sRGB PNG" } else { "8-bit sRGB PNG" },
+        "camera": r.camera,
+        "image_from_model": r.camera.camera.image_from_model(),
+        "settings": p,
+        "report": r.report,
+    });
+    crate::io::write_atomic(
+        &side,
+        serde_json::to_string_pretty(&meta)
+            .map_err(|e| Error::Invalid(e.to_string()))?
+            .as_bytes(),
+    )?;
+    Ok(side)
+}
+
+/// `render.png` -> `render.png.json`.
+pub fn sidecar_path(path: &Path) -> PathBuf {
+    let mut s = path.as_os_str().to_owned();
+    s.push(".json");
+    PathBuf::from(s)
+}

@@ -1,0 +1,896 @@
+//! The strand rasteriser: lavapipe against the CPU mirror on small scenes, coverage and
+//! anti-aliasing rules checked pixel by pixel on both paths, bad input, determinism, limits.
+//! Run with `--release` (shaders on lavapipe).
+
+use coif::gpu::GpuContext;
+use coif::head::{Head, WeakPerspective};
+use coif::raster::*;
+use coif::rng::Rng;
+use glam::{Vec2, Vec3};
+use std::sync::OnceLock;
+
+fn ctx() -> &'static GpuContext {
+    static CTX: OnceLock<GpuContext> = OnceLock::new();
+    CTX.get_or_init(|| GpuContext::new().expect("a wgpu adapter (lavapipe) is needed"))
+}
+
+/// Share of pixels whose 8-bit sRGB channels (and alpha) all differ by at most `tol`, and
+/// the largest channel difference seen.
+fn srgb8_agreement(a: &[[f32; 4]], b: &[[f32; 4]], tol: u8) -> (f64, u8) {
+    assert_eq!(a.len(), b.len(), "images differ in size");
+    let (a8, b8) = (to_rgba8(a), to_rgba8(b));
+    let mut ok = 0usize;
+    let mut worst = 0u8;
+    for (p, q) in a8.chunks_exact(4).zip(b8.chunks_exact(4)) {
+        let d = p.iter().zip(q).map(|(x, y)| x.abs_diff(*y)).max().unwrap();
+        worst = worst.max(d);
+        ok += (d <= tol) as usize;
+    }
+    (ok as f64 / a.len().max(1) as f64, worst)
+}
+
+/// The acceptance figure: Ok(share) when >= `min_share` of pixels are within `tol` levels.
+fn agree(
+    what: &str,
+    a: &[[f32; 4]],
+    b: &[[f32; 4]],
+    tol: u8,
+    min_share: f64,
+) -> Result<f64, String> {
+    let (share, worst) = srgb8_agreement(a, b, tol);
+    println!(
+        "{what}: {:.3}% of pixels within {tol}/255 (worst channel difference {worst})",
+        100.0 * share
+    );
+    if share >= min_share {
+        Ok(share)
+    } else {
+        Err(format!(
+            "{what}: only {:.3}% of pixels within {tol}/255, need {:.1}%",
+            100.0 * share,
+            100.0 * min_share
+        ))
+    }
+}
+
+#[test]
+fn image_agreement_helper_can_fail() {
+    let a = vec![[0.5f32, 0.5, 0.5, 1.0]; 100];
+    let mut b = a.clone();
+    assert_eq!(srgb8_agreement(&a, &b, 0), (1.0, 0));
+    // Two pixels off by far more than 2/255: 98% agree, below a 99% bar.
+    b[3] = [0.6, 0.5, 0.5, 1.0];
+    b[70] = [0.5, 0.5, 0.5, 0.9];
+    let (share, worst) = srgb8_agreement(&a, &b, 2);
+    assert_eq!(share, 0.98);
+    assert!(worst > 2);
+    assert!(
+        agree("pair", &a, &b, 2, 0.99).is_err(),
+        "a 98% agreement passed a 99% bar"
+    );
+    assert!(agree("pair", &a, &b, 2, 0.98).is_ok());
+    // One level of difference is within tolerance 2.
+    let c: Vec<[f32; 4]> = a.iter().map(|p| [p[0] * 1.004, p[1], p[2], 1.0]).collect();
+    assert_eq!(srgb8_agreement(&a, &c, 2).0, 1.0);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Colour helpers
+// ---------------------------------------------------------------------------------------------
+
+#[test]
+fn srgb_round_trips_and_matches_the_curve() {
+    for v in 0..=255u8 {
+        assert_eq!(linear_to_srgb(srgb_to_linear(v)), v);
+    }
+    assert_eq!(srgb_to_linear(0), 0.0);
+    assert_eq!(srgb_to_linear(255), 1.0);
+    // Mid-grey 0.5 linear is sRGB 187.5 -> 188 (the curve, not a 2.2 gamma: 186).
+    assert_eq!(linear_to_srgb(0.5), 188);
+    assert_eq!(linear_to_srgb(f32::NAN), 0);
+    assert_eq!(linear_to_srgb(2.0), 255);
+    assert_eq!(linear_to_srgb16(1.0), 65535);
+    assert!((srgb_to_linear(10) - 10.0 / 255.0 / 12.92).abs() < 1e-9);
+    let img = [[1.0f32, 0.5, 0.0, 0.5]];
+    assert_eq!(to_rgba8(&img), vec![255, 188, 0, 128]);
+    assert_eq!(to_rgba16(&img)[3], 32768);
+}
+
+#[test]
+fn f16_conversion_is_exact_and_rounds_to_even() {
+    for h in 0..=u16::MAX {
+        let f = f16_bits_to_f32(h);
+        if f.is_nan() {
+            assert!(f32_to_f16_bits(f) & 0x7c00 == 0x7c00 && f32_to_f16_bits(f) & 0x3ff != 0);
+            continue;
+        }
+        assert_eq!(f32_to_f16_bits(f), h, "round trip of {h:#06x} ({f})");
+        // Midpoint to the next value up rounds to the even one of the two.
+        let next = h.wrapping_add(1);
+        if h & 0x7fff < 0x7bff {
+            let g = f16_bits_to_f32(next);
+            let mid = ((f as f64 + g as f64) / 2.0) as f32;
+            if mid as f64 == (f as f64 + g as f64) / 2.0 {
+                let even = if h & 1 == 0 { h } else { next };
+                assert_eq!(
+                    f32_to_f16_bits(mid),
+                    even,
+                    "tie between {h:#06x} and {next:#06x}"
+                );
+            }
+        }
+    }
+    assert_eq!(f16_bits_to_f32(0x3c00), 1.0);
+    assert_eq!(f32_to_f16_bits(65520.0), 0x7c00, "rounds up to infinity");
+    assert_eq!(f32_to_f16_bits(1e-8), 0);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Shaders: naga validation and host/WGSL struct layouts (the render shaders in wgsl/render/
+// are not compute stages, so `shader_validation` does not see them).
+// ---------------------------------------------------------------------------------------------
+
+fn parse(src: &str) -> naga::Module {
+    let m =
+        naga::front::wgsl::parse_str(src).unwrap_or_else(|e| panic!("{}", e.emit_to_string(src)));
+    naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::default(),
+    )
+    .validate(&m)
+    .unwrap_or_else(|e| panic!("validation: {:?}", e.into_inner()));
+    m
+}
+
+fn struct_layout(m: &naga::Module, name: &str) -> (Vec<u32>, u32) {
+    let (_, ty) = m
+        .types
+        .iter()
+        .find(|(_, t)| t.name.as_deref() == Some(name))
+        .unwrap_or_else(|| panic!("no struct {name}"));
+    let naga::TypeInner::Struct { members, span } = &ty.inner else {
+        panic!("{name} is not a struct")
+    };
+    (members.iter().map(|m| m.offset).collect(), *span)
+}
+
+#[test]
+fn shaders_validate_and_structs_match_the_host() {
+    use std::mem::{offset_of, size_of};
+    let strand = parse(STRAND_WGSL);
+    let mesh = parse(MESH_WGSL);
+    for (m, eps) in [
+        (&strand, &["vs_main", "fs_main"][..]),
+        (
+            &mesh,
+            &["vs_mesh", "fs_mesh", "vs_background", "fs_background"][..],
+        ),
+    ] {
+        for e in eps {
+            assert!(
+                m.entry_points.iter().any(|p| p.name == *e),
+                "no entry point {e}"
+            );
+        }
+    }
+    let seg = [
+        offset_of!(SegRec, p0),
+        offset_of!(SegRec, p1),
+        offset_of!(SegRec, z0),
+        offset_of!(SegRec, z1),
+        offset_of!(SegRec, strand),
+        offset_of!(SegRec, _pad),
+        offset_of!(SegRec, c0),
+        offset_of!(SegRec, c1),
+    ];
+    let (off, span) = struct_layout(&strand, "Seg");
+    assert_eq!(off, seg.map(|o| o as u32).to_vec());
+    assert_eq!(span as usize, size_of::<SegRec>());
+    let (off, span) = struct_layout(&mesh, "Tri");
+    let tri = [
+        offset_of!(TriRec, a),
+        offset_of!(TriRec, b),
+        offset_of!(TriRec, c),
+        offset_of!(TriRec, v),
+    ];
+    assert_eq!(off, tri.map(|o| o as u32).to_vec());
+    assert_eq!(span as usize, size_of::<TriRec>());
+    // Config: encase writes field k holding the bits k+1; each WGSL member must find its own.
+    let f = f32::from_bits;
+    let cfg = Config {
+        width: 1,
+        height: 2,
+        samples: 3,
+        half_width: f(4),
+        ndc_scale_x: f(5),
+        ndc_scale_y: f(6),
+        _pad0: 7,
+        _pad1: 8,
+    };
+    let mut ub = encase::UniformBuffer::new(Vec::<u8>::new());
+    ub.write(&cfg).unwrap();
+    let bytes = ub.into_inner();
+    for m in [&strand, &mesh] {
+        let (off, span) = struct_layout(m, "Config");
+        assert_eq!(span as usize, bytes.len());
+        for (k, o) in off.iter().enumerate() {
+            let o = *o as usize;
+            assert_eq!(
+                u32::from_le_bytes(bytes[o..o + 4].try_into().unwrap()),
+                k as u32 + 1
+            );
+        }
+    }
+}
+
+#[test]
+fn lavapipe_format_features() {
+    // Why Rgba16Float: it is multisampled and resolvable on every WebGPU device; report what
+    // the adapter would offer for Rgba32Float (needs an adapter-specific feature).
+    let inst = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle());
+    let adapters = pollster::block_on(inst.enumerate_adapters(wgpu::Backends::all()));
+    let a = adapters
+        .iter()
+        .find(|a| a.get_info().name == ctx().info.name)
+        .expect("the context's adapter is listed");
+    let f16 = a.get_texture_format_features(wgpu::TextureFormat::Rgba16Float);
+    let f32f = a.get_texture_format_features(wgpu::TextureFormat::Rgba32Float);
+    println!(
+        "{}: Rgba16Float {:?}; Rgba32Float {:?}; device has TEXTURE_ADAPTER_SPECIFIC_FORMAT_FEATURES: {}",
+        a.get_info().name,
+        f16.flags,
+        f32f.flags,
+        ctx()
+            .device
+            .features()
+            .contains(wgpu::Features::TEXTURE_ADAPTER_SPECIFIC_FORMAT_FEATURES)
+    );
+    use wgpu::TextureFormatFeatureFlags as F;
+    assert!(f16
+        .flags
+        .contains(F::MULTISAMPLE_X4 | F::MULTISAMPLE_RESOLVE));
+}
+
+// ---------------------------------------------------------------------------------------------
+// Scenes
+// ---------------------------------------------------------------------------------------------
+
+fn frame(w: u32, h: u32) -> Frame {
+    Frame {
+        width: w,
+        height: h,
+        depth_range: (-100.0, 100.0),
+        background: None,
+    }
+}
+
+fn strands(lines: &[(&[[f32; 3]], [f32; 4])]) -> ScreenStrands {
+    let mut s = ScreenStrands::default();
+    for (pts, c) in lines {
+        s.points.extend_from_slice(pts);
+        s.colors.extend(std::iter::repeat_n(*c, pts.len()));
+        s.counts.push(pts.len() as u32);
+    }
+    s
+}
+
+fn both(f: &Frame, m: Option<&ScreenMesh>, s: Option<&ScreenStrands>) -> [Vec<[f32; 4]>; 2] {
+    both_with(f, m, s, &RasterParams::default())
+}
+
+fn both_with(
+    f: &Frame,
+    m: Option<&ScreenMesh>,
+    s: Option<&ScreenStrands>,
+    p: &RasterParams,
+) -> [Vec<[f32; 4]>; 2] {
+    [
+        render_gpu(ctx(), f, m, s, p).expect("gpu render"),
+        render_cpu(f, m, s, p).expect("cpu render"),
+    ]
+}
+
+fn alpha_at(img: &[[f32; 4]], w: u32, x: u32, y: u32) -> f32 {
+    img[(y * w + x) as usize][3]
+}
+
+const WHITE: [f32; 4] = [1.0, 1.0, 1.0, 1.0];
+
+#[test]
+fn horizontal_strand_coverage() {
+    let (w, h) = (32, 24);
+    // (y, alpha) -> expected coverage of rows 9, 10, 11 in the strand's interior columns.
+    let cases: [(f32, f32, [f32; 3]); 5] = [
+        (10.5, 1.0, [0.0, 1.0, 0.0]),
+        (10.0, 1.0, [0.5, 0.5, 0.0]),
+        (10.5, 0.5, [0.0, 0.5, 0.0]),
+        // Edges through sample rows: top edge at 9.875 includes sample 3 of row 9, bottom
+        // edge at 10.875 excludes sample 3 of row 10 (top-left rule).
+        (10.375, 1.0, [0.25, 0.75, 0.0]),
+        // Edges at 10.125 (included) and 11.125 (excluded).
+        (10.625, 1.0, [0.0, 1.0, 0.0]),
+    ];
+    for (y, alpha, want) in cases {
+        let s = strands(&[(&[[4.0, y, 0.0], [28.0, y, 0.0]], [1.0, 1.0, 1.0, alpha])]);
+        for (path, img) in ["gpu", "cpu"]
+            .iter()
+            .zip(both(&frame(w, h), None, Some(&s)))
+        {
+            for x in 5..27 {
+                for (row, want) in [9, 10, 11].iter().zip(want) {
+                    let a = alpha_at(&img, w, x, *row);
+                    assert_eq!(a, want, "{path}: y {y} alpha {alpha}: pixel ({x}, {row})");
+                }
+            }
+            // Ends are extended by half a width: x from 3.5 to 28.5.
+            assert_eq!(alpha_at(&img, w, 2, 10), 0.0, "{path}");
+            assert!(alpha_at(&img, w, 3, 10) > 0.0 && alpha_at(&img, w, 28, 10) > 0.0);
+            assert_eq!(alpha_at(&img, w, 29, 10), 0.0, "{path}");
+            for (k, px) in img.iter().enumerate() {
+                if px[3] > 0.0 {
+                    assert_eq!(&px[..3], &[1.0, 1.0, 1.0], "{path}: pixel {k} colour");
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn vertical_strand_obeys_the_left_edge_rule() {
+    // Edges at x = 10.125 (left, included: sample 2 at x .125) and 11.125 (right, excluded).
+    let s = strands(&[(&[[10.625, 3.0, 0.0], [10.625, 20.0, 0.0]], WHITE)]);
+    for img in both(&frame(24, 24), None, Some(&s)) {
+        for y in 4..19 {
+            assert_eq!(alpha_at(&img, 24, 9, y), 0.0);
+            assert_eq!(alpha_at(&img, 24, 10, y), 1.0);
+            assert_eq!(alpha_at(&img, 24, 11, y), 0.0);
+        }
+    }
+}
+
+#[test]
+fn sample_positions_and_mask_bits_follow_the_vulkan_standard_pattern() {
+    // A 0.1 px square around one sample position covers that sample only. With alpha 0.25
+    // (keep 1 of 4) the kept sample is r = (x + 2y + strand) mod 4, so the pixel shows only
+    // when the tiny square sits on sample r: this ties mask bit i to position i.
+    let (w, h) = (16, 16);
+    let (px, py) = (10u32, 10u32);
+    for (k, pos) in SAMPLE_POSITIONS_4.iter().enumerate() {
+        let (cx, cy) = (px as f32 + pos[0], py as f32 + pos[1]);
+        let seg = [[cx - 0.05, cy, 0.0], [cx + 0.05, cy, 0.0]];
+        for strand in 0..4u32 {
+            for alpha in [1.0f32, 0.25] {
+                // Empty strands first, so the drawn one has index `strand`.
+                let mut counts = vec![0; strand as usize];
+                counts.push(2);
+                let s = ScreenStrands {
+                    points: seg.to_vec(),
+                    counts,
+                    colors: vec![[1.0, 1.0, 1.0, alpha]; 2],
+                };
+                let p = RasterParams {
+                    samples: 4,
+                    strand_width: 0.1,
+                };
+                let imgs = both_with(&frame(w, h), None, Some(&s), &p);
+                for (path, img) in ["gpu", "cpu"].iter().zip(imgs) {
+                    let kept = alpha == 1.0 || (px + 2 * py + strand) % 4 == k as u32;
+                    let want = if kept { 0.25 } else { 0.0 };
+                    assert_eq!(
+                        alpha_at(&img, w, px, py),
+                        want,
+                        "{path}: sample {k} strand {strand} alpha {alpha}"
+                    );
+                    let total: f32 = img.iter().map(|p| p[3]).sum();
+                    assert_eq!(total, want, "{path}: coverage elsewhere");
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn edges_and_corners_through_sample_positions_agree_exactly() {
+    // End points on the 1/8 px grid, axis-aligned and diagonal, widths 1 and 0.75: quad
+    // edges and corners fall exactly on sample positions, where only the fill rule decides
+    // (the CPU mirror tests a strand's quad as one polygon, the GPU as two triangles).
+    let (w, h) = (40u32, 40u32);
+    let mut rng = Rng::new(99);
+    let mut s = ScreenStrands::default();
+    for i in 0..120 {
+        let g = |r: &mut Rng| (8 + r.below(24 * 8)) as f32 / 8.0;
+        let (x, y) = (g(&mut rng), g(&mut rng));
+        let l = (1 + rng.below(40)) as f32 / 8.0;
+        let (dx, dy) = match i % 4 {
+            0 => (l, 0.0),
+            1 => (0.0, l),
+            2 => (l, l),
+            _ => (l, -l),
+        };
+        s.points.push([x, y, i as f32 * 0.1]);
+        s.points.push([x + dx, y + dy, i as f32 * 0.1]);
+        let c = [rng.next_f32(), rng.next_f32(), rng.next_f32(), 1.0];
+        s.colors.extend([c, c]);
+        s.counts.push(2);
+    }
+    for width in [1.0f32, 0.75] {
+        let p = RasterParams {
+            samples: 4,
+            strand_width: width,
+        };
+        let [gpu, cpu] = both_with(&frame(w, h), None, Some(&s), &p);
+        let same = gpu
+            .iter()
+            .zip(&cpu)
+            .filter(|(a, b)| {
+                a.iter()
+                    .zip(b.iter())
+                    .all(|(x, y)| x.to_bits() == y.to_bits())
+            })
+            .count();
+        println!(
+            "width {width}: {same} of {} pixels float-identical",
+            gpu.len()
+        );
+        agree("sample-aligned", &gpu, &cpu, 0, 1.0).unwrap();
+    }
+}
+
+/// A flat square at depth `depth`, textured with one colour, covering [x0, x1] x [y0, y1].
+fn square_mesh(x0: f32, y0: f32, x1: f32, y1: f32, depth: f32, c: [f32; 4]) -> ScreenMesh {
+    ScreenMesh {
+        // Counter-clockwise as viewed (y down): (x0,y0) -> (x0,y1) -> (x1,y1).
+        positions: vec![
+            [x0, y0, depth],
+            [x0, y1, depth],
+            [x1, y1, depth],
+            [x1, y0, depth],
+        ],
+        uvs: vec![[0.0, 0.0], [0.0, 1.0], [1.0, 1.0], [1.0, 0.0]],
+        triangles: vec![[0, 1, 2], [0, 2, 3]],
+        texture: Texture {
+            width: 1,
+            height: 1,
+            texels: vec![c],
+        },
+    }
+}
+
+#[test]
+fn depth_test_hides_strands_behind_the_mesh() {
+    let (w, h) = (32, 32);
+    let red = [1.0, 0.0, 0.0, 1.0];
+    let mesh = square_mesh(8.0, 8.0, 24.0, 24.0, 0.0, red);
+    let mut f = frame(w, h);
+    f.background = Some(vec![[0.0, 0.0, 1.0, 1.0]; (w * h) as usize]);
+    for (depth, visible) in [(-10.0f32, false), (10.0, true)] {
+        let s = strands(&[(
+            &[[2.0, 16.5, depth], [30.0, 16.5, depth]],
+            [0.0, 1.0, 0.0, 1.0],
+        )]);
+        for (path, img) in ["gpu", "cpu"].iter().zip(both(&f, Some(&mesh), Some(&s))) {
+            let at = |x: u32, y: u32| img[(y * w + x) as usize];
+            // Over the square: green in front, red behind; outside it the strand shows on blue.
+            let want_mid = if visible { [0.0, 1.0, 0.0, 1.0] } else { red };
+            assert_eq!(at(16, 16), want_mid, "{path}: depth {depth}");
+            assert_eq!(at(4, 16), [0.0, 1.0, 0.0, 1.0], "{path}");
+            assert_eq!(at(16, 12), red, "{path}");
+            assert_eq!(at(2, 2), [0.0, 0.0, 1.0, 1.0], "{path}");
+        }
+    }
+    // Strands write depth: a near strand drawn first still wins over a later, farther one.
+    let s = strands(&[
+        (&[[2.0, 4.5, 20.0], [30.0, 4.5, 20.0]], [0.0, 1.0, 0.0, 1.0]),
+        (&[[16.5, 1.0, 5.0], [16.5, 30.0, 5.0]], [1.0, 1.0, 0.0, 1.0]),
+    ]);
+    for img in both(&f, Some(&mesh), Some(&s)) {
+        assert_eq!(img[(4 * w + 16) as usize], [0.0, 1.0, 0.0, 1.0]);
+        assert_eq!(img[(16 * w + 16) as usize], [1.0, 1.0, 0.0, 1.0]);
+    }
+}
+
+#[test]
+fn back_faces_are_culled() {
+    let (w, h) = (16, 16);
+    let mut front = square_mesh(2.0, 2.0, 14.0, 14.0, 0.0, WHITE);
+    for (path, img) in ["gpu", "cpu"]
+        .iter()
+        .zip(both(&frame(w, h), Some(&front), None))
+    {
+        assert_eq!(alpha_at(&img, w, 8, 8), 1.0, "{path}: front face drawn");
+    }
+    for t in &mut front.triangles {
+        t.swap(1, 2);
+    }
+    for (path, img) in ["gpu", "cpu"]
+        .iter()
+        .zip(both(&frame(w, h), Some(&front), None))
+    {
+        assert!(img.iter().all(|p| p[3] == 0.0), "{path}: back face culled");
+    }
+}
+
+#[test]
+fn texture_is_bilinear_with_texel_centres_at_half_integers() {
+    // A 2x1 texture black|white stretched over 16 px: uv u = (x + 0.5) / 16 at pixel x, so the
+    // texel coordinate is 2u - 0.5 and the value ramps from 0 at u = 1/4 to 1 at u = 3/4.
+    let (w, h) = (16, 4);
+    let mut mesh = square_mesh(0.0, 0.0, 16.0, 4.0, 0.0, WHITE);
+    mesh.texture = Texture {
+        width: 2,
+        height: 1,
+        texels: vec![[0.0, 0.0, 0.0, 1.0], [1.0, 1.0, 1.0, 1.0]],
+    };
+    for (path, img) in ["gpu", "cpu"]
+        .iter()
+        .zip(both(&frame(w, h), Some(&mesh), None))
+    {
+        for x in 0..w {
+            let u = (x as f32 + 0.5) / 16.0;
+            let want = (2.0 * u - 0.5).clamp(0.0, 1.0);
+            let got = img[(w + x) as usize][0];
+            assert!((got - want).abs() < 2e-3, "{path}: x {x}: {got} vs {want}");
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Parity on a head + random strands
+// ---------------------------------------------------------------------------------------------
+
+fn head_mesh(w: u32, h: u32, rng: &mut Rng) -> ScreenMesh {
+    let head = Head::new(&Default::default());
+    let (pos, tris) = head.mesh(24);
+    let (lo, hi) = head.bounds();
+    let ext = (hi - lo).max_element();
+    let s = 0.9 * w.min(h) as f32 / ext;
+    let centre = (lo + hi) * 0.5;
+    let t = Vec2::new(w as f32 * 0.5 - s * centre.x, h as f32 * 0.5 + s * centre.y);
+    let cam = WeakPerspective::frontal(s, t);
+    let positions: Vec<[f32; 3]> = pos.iter().map(|p| cam.project(*p).to_array()).collect();
+    // Planar uv from the image position: smooth but not trivial across the face.
+    let uvs = positions
+        .iter()
+        .map(|p| [p[0] / w as f32, p[1] / h as f32])
+        .collect();
+    let (tw, th) = (12u32, 12u32);
+    let texels = (0..tw * th)
+        .map(|_| [rng.next_f32(), rng.next_f32(), rng.next_f32(), 1.0])
+        .collect();
+    ScreenMesh {
+        positions,
+        uvs,
+        triangles: tris,
+        texture: Texture {
+            width: tw,
+            height: th,
+            texels,
+        },
+    }
+}
+
+fn random_strands(w: u32, h: u32, n: usize, rng: &mut Rng) -> ScreenStrands {
+    let mut s = ScreenStrands::default();
+    for _ in 0..n {
+        let len = 6 + rng.below(14) as usize;
+        let mut p = Vec3::new(
+            rng.range_f32(0.0, w as f32),
+            rng.range_f32(0.0, h as f32),
+            rng.range_f32(-60.0, 90.0),
+        );
+        let mut dir = rng.range_f32(0.0, std::f32::consts::TAU);
+        let base = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
+        let alpha = rng.range_f32(0.05, 1.0);
+        for k in 0..len {
+            s.points.push(p.to_array());
+            let f = k as f32 / len as f32;
+            s.colors.push([
+                base[0] * (1.0 - 0.5 * f),
+                base[1],
+                (base[2] + 0.3 * f).min(1.0),
+                (alpha * (1.0 - 0.6 * f) + 0.2 * rng.next_f32()).min(1.0),
+            ]);
+            dir += rng.range_f32(-0.5, 0.5);
+            let step = rng.range_f32(1.5, 5.0);
+            p += Vec3::new(dir.cos() * step, dir.sin() * step, rng.range_f32(-3.0, 3.0));
+        }
+        s.counts.push(len as u32);
+    }
+    s
+}
+
+fn gradient_background(w: u32, h: u32) -> Vec<[f32; 4]> {
+    (0..w * h)
+        .map(|i| {
+            let (x, y) = ((i % w) as f32 / w as f32, (i / w) as f32 / h as f32);
+            [0.2 + 0.6 * x, 0.3 * y, 0.5 - 0.4 * x * y, 1.0]
+        })
+        .collect()
+}
+
+#[test]
+fn gpu_matches_cpu_on_head_and_strands() {
+    for (w, h, seed, samples) in [
+        (128u32, 112u32, 7u64, 4u32),
+        (96, 96, 11, 4),
+        (160, 120, 3, 1),
+    ] {
+        let mut rng = Rng::new(seed);
+        let mesh = head_mesh(w, h, &mut rng);
+        let s = random_strands(w, h, 300, &mut rng);
+        let p = RasterParams {
+            samples,
+            strand_width: 1.0,
+        };
+        let mut f = Frame {
+            width: w,
+            height: h,
+            depth_range: (-200.0, 200.0),
+            background: None,
+        };
+        // Coverage of mesh + strands alone, so agreement is not won on bare background.
+        let alone = render_cpu(&f, Some(&mesh), Some(&s), &p).unwrap();
+        let covered = alone.iter().filter(|p| p[3] > 0.0).count() as f64 / alone.len() as f64;
+        let strand_px = render_cpu(&f, None, Some(&s), &p)
+            .unwrap()
+            .iter()
+            .filter(|p| p[3] > 0.0)
+            .count() as f64
+            / alone.len() as f64;
+        println!(
+            "{w}x{h}, {samples} samples: mesh+strands cover {:.1}% of pixels, strands alone {:.1}%",
+            100.0 * covered,
+            100.0 * strand_px
+        );
+        assert!(covered >= 0.30, "scene covers only {:.1}%", 100.0 * covered);
+        assert!(
+            strand_px >= 0.15,
+            "strands cover only {:.1}%",
+            100.0 * strand_px
+        );
+        let gpu_alone = render_gpu(ctx(), &f, Some(&mesh), Some(&s), &p).unwrap();
+        agree("no background", &gpu_alone, &alone, 2, 0.99).unwrap();
+        f.background = Some(gradient_background(w, h));
+        let cpu = render_cpu(&f, Some(&mesh), Some(&s), &p).unwrap();
+        let gpu = render_gpu(ctx(), &f, Some(&mesh), Some(&s), &p).unwrap();
+        agree("over background", &gpu, &cpu, 2, 0.99).unwrap();
+        let exact = gpu
+            .iter()
+            .zip(&cpu)
+            .filter(|(a, b)| {
+                a.iter()
+                    .zip(b.iter())
+                    .all(|(x, y)| x.to_bits() == y.to_bits())
+            })
+            .count();
+        println!(
+            "  float-identical pixels: {:.3}%",
+            100.0 * exact as f64 / cpu.len() as f64
+        );
+        if std::env::var_os("RASTER_DUMP").is_some() {
+            let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"));
+            for (name, img) in [("gpu", &gpu), ("cpu", &cpu)] {
+                let path = dir.join(format!("raster_{w}x{h}_{name}.png"));
+                image::RgbaImage::from_raw(w, h, to_rgba8(img))
+                    .unwrap()
+                    .save(&path)
+                    .unwrap();
+                println!("  wrote {}", path.display());
+            }
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Bad input, determinism, splitting, limits
+// ---------------------------------------------------------------------------------------------
+
+#[test]
+fn bad_segments_are_skipped_identically() {
+    let (w, h) = (48, 40);
+    let nan = f32::NAN;
+    let good: &[[f32; 3]] = &[[4.0, 4.0, 0.0], [20.0, 30.0, 5.0], [40.0, 10.0, 0.0]];
+    let mut s = strands(&[
+        (good, [0.8, 0.4, 0.1, 1.0]),
+        // Zero-length segments inside a strand, and a repeated end point.
+        (
+            &[
+                [10.0, 20.0, 0.0],
+                [10.0, 20.0, 0.0],
+                [30.0, 20.0, 0.0],
+                [30.0, 20.0, 0.0],
+            ],
+            [0.2, 0.9, 0.3, 0.7],
+        ),
+        // NaN and infinite points.
+        (
+            &[
+                [nan, 5.0, 0.0],
+                [20.0, 5.0, 0.0],
+                [30.0, f32::INFINITY, 0.0],
+            ],
+            WHITE,
+        ),
+        // Entirely off-screen, and off-screen both ends but crossing the frame.
+        (&[[-50.0, -50.0, 0.0], [-20.0, -60.0, 0.0]], WHITE),
+        (
+            &[[-1e30, 35.5, 0.0], [1e30, 35.5, 0.0]],
+            [0.1, 0.1, 0.9, 1.0],
+        ),
+        // Beyond the depth range (clipped away), and a single-point strand.
+        (&[[5.0, 38.0, 500.0], [40.0, 38.0, 500.0]], WHITE),
+        (&[[12.0, 12.0, 0.0]], WHITE),
+    ]);
+    // A NaN colour on the middle vertex of a fresh strand: both its segments go.
+    s.points
+        .extend_from_slice(&[[5.0, 25.0, 0.0], [25.0, 26.0, 0.0], [45.0, 27.0, 0.0]]);
+    s.colors
+        .extend_from_slice(&[WHITE, [nan, 0.0, 0.0, 1.0], WHITE]);
+    s.counts.push(3);
+    let mut mesh = square_mesh(30.0, 28.0, 44.0, 38.0, -20.0, [0.3, 0.3, 0.3, 1.0]);
+    mesh.positions.push([nan, 0.0, 0.0]);
+    mesh.uvs.push([0.0, 0.0]);
+    mesh.triangles.push([0, 4, 1]);
+    let [gpu, cpu] = both(&frame(w, h), Some(&mesh), Some(&s));
+    agree("bad input", &gpu, &cpu, 0, 1.0).unwrap();
+    // Only the good geometry shows: the NaN strand and the off-screen one add nothing.
+    let row = |img: &[[f32; 4]], y: u32, x0: u32| {
+        (x0..w).filter(|&x| alpha_at(img, w, x, y) > 0.0).count()
+    };
+    // (The good strand crosses row 5 near x = 4.)
+    assert_eq!(row(&cpu, 5, 10), 0, "the NaN strand's segments are skipped");
+    assert_eq!(
+        row(&cpu, 35, 0),
+        w as usize,
+        "the huge segment is clipped, not lost"
+    );
+    assert_eq!(
+        row(&cpu, 38, 0),
+        0,
+        "geometry beyond the depth range is clipped"
+    );
+    assert_eq!(
+        row(&cpu, 25, 30),
+        0,
+        "a NaN colour drops the segments that use it"
+    );
+    let only_off = strands(&[(&[[-50.0, -50.0, 0.0], [-20.0, -60.0, 0.0]], WHITE)]);
+    for img in both(&frame(w, h), None, Some(&only_off)) {
+        assert!(img.iter().all(|p| *p == [0.0; 4]));
+    }
+}
+
+#[test]
+fn huge_mesh_triangles_are_clipped_not_lost() {
+    // A quad reaching a million px off-screen on three sides: clipped on the host to the
+    // guard band, identical on both paths, covering exactly x < 20.
+    let (w, h) = (40, 24);
+    let mut mesh = square_mesh(-1e6, -1e6, 20.0, 1e6, -50.0, WHITE);
+    mesh.texture = Texture {
+        width: 2,
+        height: 2,
+        texels: vec![
+            [0.0, 0.0, 0.0, 1.0],
+            [1.0, 0.0, 0.0, 1.0],
+            [0.0, 1.0, 0.0, 1.0],
+            WHITE,
+        ],
+    };
+    let [gpu, cpu] = both(&frame(w, h), Some(&mesh), None);
+    agree("clipped mesh", &gpu, &cpu, 0, 1.0).unwrap();
+    for y in 0..h {
+        for x in 0..w {
+            assert_eq!(
+                alpha_at(&cpu, w, x, y),
+                if x < 20 { 1.0 } else { 0.0 },
+                "({x}, {y})"
+            );
+        }
+    }
+}
+
+#[test]
+fn gpu_renders_are_deterministic_and_chunking_is_invisible() {
+    let (w, h) = (96, 80);
+    let mut rng = Rng::new(5);
+    let mesh = head_mesh(w, h, &mut rng);
+    let s = random_strands(w, h, 200, &mut rng);
+    let mut f = frame(w, h);
+    f.depth_range = (-200.0, 200.0);
+    let p = RasterParams::default();
+    let a = render_gpu(ctx(), &f, Some(&mesh), Some(&s), &p).unwrap();
+    let b = render_gpu(ctx(), &f, Some(&mesh), Some(&s), &p).unwrap();
+    let bits = |v: &[[f32; 4]]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&a), bits(&b), "two GPU renders differ");
+    // 100 segments / 40 triangles per draw: many draws, same image.
+    let c = render_gpu_chunked(ctx(), &f, Some(&mesh), Some(&s), &p, 64 * 100).unwrap();
+    assert_eq!(bits(&a), bits(&c), "splitting into draws changed the image");
+    let d = render_cpu(&f, Some(&mesh), Some(&s), &p).unwrap();
+    let e = render_cpu(&f, Some(&mesh), Some(&s), &p).unwrap();
+    assert_eq!(bits(&d), bits(&e), "two CPU renders differ");
+}
+
+#[test]
+fn invalid_input_is_an_error_not_a_panic() {
+    let s = strands(&[(&[[1.0, 1.0, 0.0], [5.0, 5.0, 0.0]], WHITE)]);
+    let p = RasterParams::default();
+    let limit = ctx().limits.max_texture_dimension_2d;
+    let expect_invalid = |f: &Frame,
+                          m: Option<&ScreenMesh>,
+                          s: Option<&ScreenStrands>,
+                          p: &RasterParams,
+                          what: &str| {
+        for r in [render_cpu(f, m, s, p), render_gpu(ctx(), f, m, s, p)] {
+            match r {
+                Err(coif::Error::Invalid(msg)) => println!("{what}: {msg}"),
+                other => panic!(
+                    "{what}: expected Error::Invalid, got {:?}",
+                    other.map(|v| v.len())
+                ),
+            }
+        }
+    };
+    expect_invalid(&frame(0, 10), None, Some(&s), &p, "zero width");
+    expect_invalid(
+        &frame(limit.max(CPU_MAX_DIM) + 1, 4),
+        None,
+        Some(&s),
+        &p,
+        "too wide",
+    );
+    let mut f = frame(8, 8);
+    f.background = Some(vec![WHITE; 63]);
+    expect_invalid(&f, None, None, &p, "short background");
+    let mut f = frame(8, 8);
+    f.depth_range = (10.0, -10.0);
+    expect_invalid(&f, None, Some(&s), &p, "reversed depth range");
+    for bad in [
+        RasterParams { samples: 3, ..p },
+        RasterParams {
+            strand_width: 0.0,
+            ..p
+        },
+        RasterParams {
+            strand_width: f32::NAN,
+            ..p
+        },
+    ] {
+        expect_invalid(&frame(8, 8), None, Some(&s), &bad, "bad params");
+    }
+    let mut short = s.clone();
+    short.colors.pop();
+    expect_invalid(&frame(8, 8), None, Some(&short), &p, "colour count");
+    let mut counts = s.clone();
+    counts.counts = vec![3];
+    expect_invalid(&frame(8, 8), None, Some(&counts), &p, "counts");
+    let mut m = square_mesh(1.0, 1.0, 6.0, 6.0, 0.0, WHITE);
+    m.triangles.push([0, 1, 9]);
+    expect_invalid(&frame(8, 8), Some(&m), None, &p, "triangle index");
+    let mut m = square_mesh(1.0, 1.0, 6.0, 6.0, 0.0, WHITE);
+    m.texture.width = 0;
+    expect_invalid(&frame(8, 8), Some(&m), None, &p, "empty texture");
+    // Empty but valid input renders the background.
+    let mut f = frame(4, 4);
+    f.background = Some(vec![[0.5, 0.25, 0.125, 1.0]; 16]);
+    for img in both(&f, None, Some(&ScreenStrands::default())) {
+        assert!(img.iter().all(|p| *p == [0.5, 0.25, 0.125, 1.0]));
+    }
+}
+
+#[test]
+fn render_picks_the_engine_backend() {
+    let s = strands(&[(&[[1.0, 2.5, 0.0], [7.0, 2.5, 0.0]], WHITE)]);
+    let a = render(
+        &coif::Engine::cpu(),
+        &frame(8, 8),
+        None,
+        Some(&s),
+        &RasterParams::default(),
+    )
+    .unwrap();
+    assert_eq!(
+        a,
+        render_cpu(&frame(8, 8), None, Some(&s), &RasterParams::default()).unwrap()
+    );
+    assert_eq!(alpha_at(&a, 8, 4, 2), 1.0);
+}
