@@ -157,6 +157,19 @@ fn struct_layout(m: &naga::Module, name: &str) -> (Vec<u32>, u32) {
 #[test]
 fn shaders_validate_and_structs_match_the_host() {
     use std::mem::{offset_of, size_of};
+    // The render pipelines' shaders are exactly the files in wgsl/render/ (the GPU/CPU
+    // parity of both is tested below).
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("wgsl/render");
+    for (file, src) in [
+        ("strand_raster.wgsl", STRAND_WGSL),
+        ("mesh_raster.wgsl", MESH_WGSL),
+    ] {
+        assert_eq!(
+            std::fs::read_to_string(dir.join(file)).unwrap(),
+            src,
+            "{file} is stale"
+        );
+    }
     let strand = parse(STRAND_WGSL);
     let mesh = parse(MESH_WGSL);
     for (m, eps) in [
