@@ -150,7 +150,14 @@ pub struct SolveReport {
     pub runs: u32,
     /// H cells zeroed because their connected component has no constraint.
     pub unconstrained_cells: usize,
+    /// Set when the multigrid diverged and the f64 conjugate-gradient fallback solved the
+    /// system instead: its iterations.
+    pub fallback_cg_iterations: Option<u64>,
 }
+
+/// A relative residual above this means the multigrid diverges (a working cycle never lifts
+/// it far above the starting 1).
+const DIVERGED: f64 = 1e3;
 
 /// Inputs checked and reduced to per-cell arrays.
 struct Prepared {
@@ -687,6 +694,7 @@ pub fn solve(
             .collect(),
         runs: 0,
         unconstrained_cells: prep.unconstrained,
+        fallback_cg_iterations: None,
     };
     let tol = p.tol as f64;
     let mut batch = p.check_every.min(p.max_cycles);
@@ -727,10 +735,22 @@ pub fn solve(
         report.work_units += t.work;
         report.rel_residual = rel;
         report.history.push((report.cycles, rel));
-        if !rel.is_finite() {
-            return Err(Error::Invalid(format!(
-                "field multigrid diverged (relative residual {rel})"
-            )));
+        if !rel.is_finite() || rel > DIVERGED {
+            // The rediscretised coarse levels can misrepresent thin or oddly connected
+            // volumes (see the issue 4 note); plain CG on the same normal equations is slow
+            // but cannot diverge.
+            log::warn!(
+                "direction field: multigrid diverged (relative residual {rel:.2e} after {} \
+                 cycles); solving by conjugate gradients instead",
+                report.cycles
+            );
+            let sys = NormalSystem::new(grid, h, constraints, p.w_c)?;
+            let (x, it, rel) = cg_f64(&sys, p.tol as f64, CG_MAX_ITER);
+            report.fallback_cg_iterations = Some(it);
+            report.rel_residual = rel;
+            report.converged = rel <= p.tol as f64;
+            report.history.push((report.cycles, rel));
+            return Ok((sys.scatter(&x).iter().map(|&v| v as f32).collect(), report));
         }
         if rel <= tol {
             report.converged = true;
@@ -897,6 +917,13 @@ pub fn solve_cg_f64(
     w_c: f32,
 ) -> Result<(Vec<f64>, u64)> {
     let sys = NormalSystem::new(grid, h, constraints, w_c)?;
+    let (x, it, _) = cg_f64(&sys, CG_TOL, CG_MAX_ITER);
+    Ok((sys.scatter(&x), it))
+}
+
+/// Unpreconditioned CG on `sys` from zero to relative residual `tol` or `max_iter`
+/// iterations: the compact solution, the iterations and the relative residual reached.
+fn cg_f64(sys: &NormalSystem, tol: f64, max_iter: u64) -> (Vec<f64>, u64, f64) {
     let m = 3 * sys.len();
     let mut x = vec![0.0f64; m];
     let mut r = sys.b.clone();
@@ -905,7 +932,7 @@ pub fn solve_cg_f64(
     let bnorm = dot(&sys.b, &sys.b).sqrt();
     let mut rr = dot(&r, &r);
     let mut it = 0;
-    while it < CG_MAX_ITER && rr.sqrt() > CG_TOL * bnorm {
+    while it < max_iter && rr.sqrt() > tol * bnorm {
         sys.apply(&p, &mut w, &mut ap);
         let alpha = rr / dot(&p, &ap);
         x.par_iter_mut().zip(&p).for_each(|(x, p)| *x += alpha * p);
@@ -918,7 +945,7 @@ pub fn solve_cg_f64(
             .for_each(|(p, r)| *p = r + beta * *p);
         it += 1;
     }
-    Ok((sys.scatter(&x), it))
+    (x, it, rr.sqrt() / bnorm.max(f64::MIN_POSITIVE))
 }
 
 /// Outcome of [`jacobi_sweeps_to`].

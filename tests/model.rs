@@ -97,3 +97,38 @@ fn astronaut_photo_gives_rooted_smooth_strands() {
         );
     }
 }
+
+#[test]
+fn a_volume_where_multigrid_diverges_still_gets_a_field() {
+    // The astronaut's strokes plus one more on the narrow side of her parting: on this hair
+    // volume the W-cycles diverge (issue 4 note); the solve must still return a converged
+    // field (conjugate-gradient fallback) and the model its strands.
+    let engine = Engine::cpu();
+    let p = ModelParams::default();
+    let img = image::load_from_memory(coif::assets::ASTRONAUT_PNG)
+        .unwrap()
+        .to_rgb8();
+    let mut doc: serde_json::Value = serde_json::from_str(coif::assets::ASTRONAUT_STROKES).unwrap();
+    doc["strokes"].as_array_mut().unwrap().insert(
+        4,
+        serde_json::json!({"kind": "direction",
+            "points": [[178.0, 36.0], [163.0, 48.0], [154.0, 66.0], [151.0, 88.0]]}),
+    );
+    let strokes = Strokes::parse(
+        &doc.to_string(),
+        std::path::Path::new("astronaut_strokes_plus_one.json"),
+        Some(img.dimensions()),
+    )
+    .unwrap();
+    let t = std::time::Instant::now();
+    let an = analyze(&engine, &img, &strokes, None, &p.analyze).unwrap();
+    let m = model_from_analysis(&engine, &img, an, None, &p).unwrap();
+    assert!(m.solve.converged, "{:?}", m.solve);
+    let f = figures(&m);
+    print("astronaut + 1 stroke", &f, t.elapsed().as_secs_f64());
+    println!(
+        "  field: {} cycles, CG fallback iterations {:?}, relative residual {:.1e}",
+        m.solve.cycles, m.solve.fallback_cg_iterations, m.solve.rel_residual
+    );
+    check_common("astronaut + 1 stroke", &f);
+}
