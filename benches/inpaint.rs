@@ -13,29 +13,11 @@
 //! pictures: photo with the hole in magenta, our fill, Telea's.)
 
 use coif::inpaint::{inpaint, InpaintParams};
+use coif::raster::{linear_to_srgb, srgb_to_linear};
 use coif::{BackendChoice, Engine};
 use std::path::Path;
 use std::process::Command;
 use std::time::Instant;
-
-fn srgb_to_linear(v: u8) -> f32 {
-    let c = v as f32 / 255.0;
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
-}
-
-fn linear_to_srgb(l: f32) -> u8 {
-    let c = l.clamp(0.0, 1.0);
-    let v = if c <= 0.003_130_8 {
-        12.92 * c
-    } else {
-        1.055 * c.powf(1.0 / 2.4) - 0.055
-    };
-    (v * 255.0).round() as u8
-}
 
 fn median(mut t: Vec<f64>) -> f64 {
     t.sort_by(f64::total_cmp);

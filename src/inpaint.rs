@@ -159,12 +159,17 @@ fn dilate_1d(v: &[u8], w: usize, h: usize, r: usize, along_x: bool) -> Vec<u8> {
     out
 }
 
+/// `mask` (nonzero = set) grown by `r` pixels in a (2r+1)² square (separable).
+pub fn dilate(mask: &[u8], w: usize, h: usize, r: usize) -> Vec<u8> {
+    dilate_1d(&dilate_1d(mask, w, h, r, true), w, h, r, false)
+}
+
 /// Per-pixel flags for a hole (nonzero = hole) and patch half-side `radius`: a target's
 /// image-clipped patch overlaps the hole (the hole dilated by `radius`, Chebyshev); a source's
 /// patch lies inside the image and off the dilated hole.
 pub fn level_flags(width: u32, height: u32, hole: &[u8], radius: u32) -> Vec<u32> {
     let (w, h, r) = (width as usize, height as usize, radius as usize);
-    let near = dilate_1d(&dilate_1d(hole, w, h, r, true), w, h, r, false);
+    let near = dilate(hole, w, h, r);
     (0..w * h)
         .map(|i| {
             let (x, y) = (i % w, i / w);

@@ -370,7 +370,7 @@ fn to_model_space(
 }
 
 /// Bilinear sample of the photo at pixel coordinates (pixel centres at +0.5), linear 0..1.
-fn sample_rgb(img: &image::RgbImage, x: f32, y: f32) -> [f32; 3] {
+pub(crate) fn sample_rgb(img: &image::RgbImage, x: f32, y: f32) -> [f32; 3] {
     let (w, h) = img.dimensions();
     let fx = (x - 0.5).clamp(0.0, (w - 1) as f32);
     let fy = (y - 0.5).clamp(0.0, (h - 1) as f32);

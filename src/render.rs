@@ -20,7 +20,7 @@
 use crate::error::{Error, Result};
 use crate::head::{Head, HeadParams, WeakPerspective};
 use crate::head_texture::{head_texture_with, HeadTextureParams};
-use crate::inpaint::{inpaint, InpaintParams};
+use crate::inpaint::{dilate, inpaint, InpaintParams};
 use crate::raster::{self, Frame, RasterParams, ScreenMesh, ScreenStrands, Texture};
 use crate::shade::{self, ShadeParams};
 use crate::strands::StrandSet;
@@ -438,28 +438,6 @@ fn linear_photo(img: &image::RgbImage) -> Vec<[f32; 3]> {
         .collect()
 }
 
-/// Grows a 0/1 mask by `r` pixels (square neighbourhood, separable).
-fn dilate(mask: &[u8], w: usize, h: usize, r: usize) -> Vec<u8> {
-    if r == 0 {
-        return mask.to_vec();
-    }
-    let mut tmp = vec![0u8; w * h];
-    for y in 0..h {
-        for x in 0..w {
-            let (a, b) = (x.saturating_sub(r), (x + r).min(w - 1));
-            tmp[y * w + x] = mask[y * w + a..=y * w + b].iter().any(|&v| v != 0) as u8;
-        }
-    }
-    let mut out = vec![0u8; w * h];
-    for y in 0..h {
-        let (a, b) = (y.saturating_sub(r), (y + r).min(h - 1));
-        for x in 0..w {
-            out[y * w + x] = (a..=b).any(|yy| tmp[yy * w + x] != 0) as u8;
-        }
-    }
-    out
-}
-
 /// Renders `m` with `p` on `engine`.
 pub fn render(engine: &Engine, m: &RenderModel, p: &RenderParams) -> Result<Rendered> {
     let vc = view_camera(m, p)?;
@@ -598,20 +576,9 @@ fn resample_colours(m: &RenderModel, spacing: f32) -> Option<StrandSet> {
         return None;
     }
     let (w, h) = photo.dimensions();
-    let lin = |x: u32, y: u32| photo.get_pixel(x, y).0.map(raster::srgb_to_linear);
     let sample = |q: Vec3| -> ([f32; 3], f32) {
         let s = cam.project(q);
-        let fx = (s.x - 0.5).clamp(0.0, (w - 1) as f32);
-        let fy = (s.y - 0.5).clamp(0.0, (h - 1) as f32);
-        let (x0, y0) = (fx.floor() as u32, fy.floor() as u32);
-        let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
-        let (ax, ay) = (fx - x0 as f32, fy - y0 as f32);
-        let (a, b, c, d) = (lin(x0, y0), lin(x1, y0), lin(x0, y1), lin(x1, y1));
-        let rgb = std::array::from_fn(|k| {
-            let top = a[k] + ax * (b[k] - a[k]);
-            let bot = c[k] + ax * (d[k] - c[k]);
-            top + ay * (bot - top)
-        });
+        let rgb = crate::model::sample_rgb(photo, s.x, s.y);
         let on = s.x >= 0.0
             && s.y >= 0.0
             && s.x < w as f32
@@ -676,21 +643,31 @@ fn layers(
     let hair = dilate(&hair, pwu, phu, p.hair_margin_px as usize);
     let original = p.is_original_view() && (vc.width, vc.height) == (pw, ph);
     let head = m.head.as_ref();
-    // Where the head covers the photo (its mesh rasterised at the photo's camera).
-    let head_px: Vec<u8> = match head {
-        Some(hd) if !original => {
-            let (verts, mut tris) = hd.mesh(p.head_texture.mesh_res);
+    // The head mesh once, in model space and as the photo's camera sees it.
+    let head_mesh = head.map(|hd| {
+        let (verts, tris) = hd.mesh(p.head_texture.mesh_res);
+        let seen = crate::volume::Mesh {
+            verts: verts.iter().map(|&v| cam0.project(v).to_array()).collect(),
+            tris: tris.clone(),
+        };
+        (verts, tris, seen)
+    });
+    // Pixels of the photo the head mesh covers.
+    let covered = |mesh: &crate::volume::Mesh| -> Result<Vec<bool>> {
+        let dm = crate::volume::rasterize_depth(engine, pw, ph, &[mesh])?;
+        Ok((0..pwu * phu).map(|i| dm.covered(i)).collect())
+    };
+    let head_px: Vec<u8> = match (head, &head_mesh) {
+        (Some(hd), Some((verts, _, seen))) if !original => {
+            let mut above = seen.clone();
             // Only the head above the chin leaves the background: the neck hardly moves in
             // the photo's body, and inpainting a neck-sized hole through the collar smears it.
             if let Some(chin) = hd.landmark("chin") {
-                tris.retain(|t| t.iter().any(|&i| verts[i as usize].y > chin.y));
+                above
+                    .tris
+                    .retain(|t| t.iter().any(|&i| verts[i as usize].y > chin.y));
             }
-            let mesh = crate::volume::Mesh {
-                verts: verts.iter().map(|&v| cam0.project(v).to_array()).collect(),
-                tris,
-            };
-            let dm = crate::volume::rasterize_depth(engine, pw, ph, &[&mesh])?;
-            let cov: Vec<u8> = (0..pwu * phu).map(|i| dm.covered(i) as u8).collect();
+            let cov: Vec<u8> = covered(&above)?.into_iter().map(u8::from).collect();
             // The parametric head's outline differs from the real face by a few percent of
             // the image: a wider hole keeps slivers of the photo's face out of the background.
             let grow = p.hair_margin_px as usize + (0.03 * pwu.min(phu) as f32).round() as usize;
@@ -707,12 +684,11 @@ fn layers(
     let (filled, _) = inpaint(engine, pw, ph, &lin, &hole, &p.inpaint)?;
     let bg_photo: Vec<[f32; 4]> = filled.iter().map(|c| [c[0], c[1], c[2], 1.0]).collect();
 
-    let Some(head) = head else {
+    let (Some(head), Some((verts, tris, seen))) = (head, head_mesh) else {
         return Ok((resample_to(&bg_photo, pw, ph, vc), None));
     };
     if original {
         // The head hides strands behind it and shows the (inpainted) photo itself.
-        let (verts, tris) = head.mesh(p.head_texture.mesh_res);
         let positions: Vec<[f32; 3]> = verts
             .iter()
             .map(|&v| vc.project(v).unwrap_or([f32::NAN; 3]))
@@ -734,17 +710,11 @@ fn layers(
         return Ok((bg_photo, Some(mesh)));
     }
     // Novel view: the face texture from the photo where skin shows, the rest inpainted.
-    let usable: Vec<u8> = {
-        let (verts, tris) = head.mesh(p.head_texture.mesh_res);
-        let mesh = crate::volume::Mesh {
-            verts: verts.iter().map(|&v| cam0.project(v).to_array()).collect(),
-            tris,
-        };
-        let dm = crate::volume::rasterize_depth(engine, pw, ph, &[&mesh])?;
-        (0..pwu * phu)
-            .map(|i| (dm.covered(i) && hair[i] == 0) as u8)
-            .collect()
-    };
+    let usable: Vec<u8> = covered(&seen)?
+        .iter()
+        .zip(&hair)
+        .map(|(&c, &hr)| (c && hr == 0) as u8)
+        .collect();
     let th = head_texture_with(engine, head, &cam0, &lin, pw, ph, &usable, &p.head_texture)?;
     let positions: Vec<[f32; 3]> = th
         .positions
