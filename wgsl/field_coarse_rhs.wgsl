@@ -16,15 +16,18 @@ struct Config {
 
 @group(0) @binding(0) var<uniform> cfg: Config;
 @group(0) @binding(1) var<storage, read> cells: array<u32>;
-@group(0) @binding(2) var<storage, read> cellw: array<f32>;
-@group(0) @binding(3) var<storage, read> f: array<f32>;
-@group(0) @binding(4) var<storage, read_write> g: array<f32>;
+@group(0) @binding(2) var<storage, read> f: array<f32>;
+@group(0) @binding(3) var<storage, read_write> g: array<f32>;
+// Link weights to the +x, +y, +z neighbour, 3 per cell (0: no link). 1 between fine H
+// cells; on coarse levels the fine links between the two blocks / 4, so blocks that touch
+// only through cells the fine level keeps apart stay apart.
+@group(0) @binding(4) var<storage, read> links: array<f32>;
 
-fn add_nb(j: u32, s: ptr<function, vec3<f32>>, d: ptr<function, f32>) {
-    if cellw[j] >= 0.0 {
+fn add_nb(j: u32, w: f32, s: ptr<function, vec3<f32>>, d: ptr<function, f32>) {
+    if w > 0.0 {
         let b = 6u * j;
-        *s = *s + vec3<f32>(f[b], f[b + 1u], f[b + 2u]);
-        *d = *d + 1.0;
+        *s = *s + w * vec3<f32>(f[b], f[b + 1u], f[b + 2u]);
+        *d = *d + w;
     }
 }
 
@@ -42,12 +45,12 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let sz = cfg.nx * cfg.ny;
     var s = vec3<f32>(0.0);
     var d = 0.0;
-    if x > 0u { add_nb(i - 1u, &s, &d); }
-    if x + 1u < cfg.nx { add_nb(i + 1u, &s, &d); }
-    if y > 0u { add_nb(i - sy, &s, &d); }
-    if y + 1u < cfg.ny { add_nb(i + sy, &s, &d); }
-    if z > 0u { add_nb(i - sz, &s, &d); }
-    if z + 1u < cfg.nz { add_nb(i + sz, &s, &d); }
+    if x > 0u { add_nb(i - 1u, links[3u * (i - 1u)], &s, &d); }
+    if x + 1u < cfg.nx { add_nb(i + 1u, links[3u * i], &s, &d); }
+    if y > 0u { add_nb(i - sy, links[3u * (i - sy) + 1u], &s, &d); }
+    if y + 1u < cfg.ny { add_nb(i + sy, links[3u * i + 1u], &s, &d); }
+    if z > 0u { add_nb(i - sz, links[3u * (i - sz) + 2u], &s, &d); }
+    if z + 1u < cfg.nz { add_nb(i + sz, links[3u * i + 2u], &s, &d); }
     let b = 6u * i;
     let f1 = vec3<f32>(f[b], f[b + 1u], f[b + 2u]);
     let out = vec3<f32>(f[b + 3u], f[b + 4u], f[b + 5u]) + cfg.sigma * (s - d * f1);

@@ -20,13 +20,17 @@ struct Config {
 @group(0) @binding(3) var<storage, read> uv: array<f32>;
 // [r1.xyz, r2.xyz] per cell.
 @group(0) @binding(4) var<storage, read_write> r: array<f32>;
+// Link weights to the +x, +y, +z neighbour, 3 per cell (0: no link). 1 between fine H
+// cells; on coarse levels the fine links between the two blocks / 4, so blocks that touch
+// only through cells the fine level keeps apart stay apart.
+@group(0) @binding(5) var<storage, read> links: array<f32>;
 
-fn add_nb(j: u32, su: ptr<function, vec3<f32>>, sv: ptr<function, vec3<f32>>, d: ptr<function, f32>) {
-    if cellw[j] >= 0.0 {
+fn add_nb(j: u32, w: f32, su: ptr<function, vec3<f32>>, sv: ptr<function, vec3<f32>>, d: ptr<function, f32>) {
+    if w > 0.0 {
         let b = 6u * j;
-        *su = *su + vec3<f32>(uv[b], uv[b + 1u], uv[b + 2u]);
-        *sv = *sv + vec3<f32>(uv[b + 3u], uv[b + 4u], uv[b + 5u]);
-        *d = *d + 1.0;
+        *su = *su + w * vec3<f32>(uv[b], uv[b + 1u], uv[b + 2u]);
+        *sv = *sv + w * vec3<f32>(uv[b + 3u], uv[b + 4u], uv[b + 5u]);
+        *d = *d + w;
     }
 }
 
@@ -52,12 +56,12 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var su = vec3<f32>(0.0);
     var sv = vec3<f32>(0.0);
     var d = 0.0;
-    if x > 0u { add_nb(i - 1u, &su, &sv, &d); }
-    if x + 1u < cfg.nx { add_nb(i + 1u, &su, &sv, &d); }
-    if y > 0u { add_nb(i - sy, &su, &sv, &d); }
-    if y + 1u < cfg.ny { add_nb(i + sy, &su, &sv, &d); }
-    if z > 0u { add_nb(i - sz, &su, &sv, &d); }
-    if z + 1u < cfg.nz { add_nb(i + sz, &su, &sv, &d); }
+    if x > 0u { add_nb(i - 1u, links[3u * (i - 1u)], &su, &sv, &d); }
+    if x + 1u < cfg.nx { add_nb(i + 1u, links[3u * i], &su, &sv, &d); }
+    if y > 0u { add_nb(i - sy, links[3u * (i - sy) + 1u], &su, &sv, &d); }
+    if y + 1u < cfg.ny { add_nb(i + sy, links[3u * i + 1u], &su, &sv, &d); }
+    if z > 0u { add_nb(i - sz, links[3u * (i - sz) + 2u], &su, &sv, &d); }
+    if z + 1u < cfg.nz { add_nb(i + sz, links[3u * i + 2u], &su, &sv, &d); }
     let u = vec3<f32>(uv[b], uv[b + 1u], uv[b + 2u]);
     let v = vec3<f32>(uv[b + 3u], uv[b + 4u], uv[b + 5u]);
     let r1 = vec3<f32>(f[b], f[b + 1u], f[b + 2u]) - (cfg.sigma * (sv - d * v) - u);

@@ -45,33 +45,36 @@ pub fn groups3(nx: u32, ny: u32, nz: u32) -> [u32; 3] {
     ]
 }
 
-/// Calls `f(j)` for each in-grid 6-neighbour `j` of cell `(x, y, z)` whose `cellw` marks it
-/// inside H, in the shaders' order (-x, +x, -y, +y, -z, +z).
+/// Calls `f(j, w)` for each in-grid 6-neighbour `j` of cell `(x, y, z)` linked to it with
+/// weight `w > 0` (`links`: 3 per cell, the links to +x, +y, +z), in the shaders' order
+/// (-x, +x, -y, +y, -z, +z).
 #[inline]
-pub fn for_h_neighbours(
+pub fn for_links(
     cfg: &Config,
-    cellw: &[f32],
+    links: &[f32],
     x: u32,
     y: u32,
     z: u32,
-    mut f: impl FnMut(usize),
+    mut f: impl FnMut(usize, f32),
 ) {
     let (nx, ny, nz) = (cfg.nx, cfg.ny, cfg.nz);
     let i = (x + nx * (y + ny * z)) as usize;
-    let sx = 1usize;
     let sy = nx as usize;
     let sz = (nx * ny) as usize;
     let cand = [
-        (x > 0, i.wrapping_sub(sx)),
-        (x + 1 < nx, i + sx),
-        (y > 0, i.wrapping_sub(sy)),
-        (y + 1 < ny, i + sy),
-        (z > 0, i.wrapping_sub(sz)),
-        (z + 1 < nz, i + sz),
+        (x > 0, i.wrapping_sub(1), 0usize),
+        (x + 1 < nx, i + 1, 0),
+        (y > 0, i.wrapping_sub(sy), 1),
+        (y + 1 < ny, i + sy, 1),
+        (z > 0, i.wrapping_sub(sz), 2),
+        (z + 1 < nz, i + sz, 2),
     ];
-    for (ok, j) in cand {
-        if ok && cellw[j] >= 0.0 {
-            f(j);
+    for (ok, j, a) in cand {
+        if ok {
+            let w = links[3 * i.min(j) + a];
+            if w > 0.0 {
+                f(j, w);
+            }
         }
     }
 }

@@ -1,7 +1,7 @@
 //! Right-hand side `f2 + σ L f1` of the coarsest level's direct solve (see
 //! `wgsl/field_coarse_rhs.wgsl`).
 
-use super::field_cfg::{for_h_neighbours, Config};
+use super::field_cfg::{for_links, Config};
 use crate::engine::{Bind, CpuBinding, StageDef};
 use rayon::prelude::*;
 
@@ -12,8 +12,8 @@ pub const STAGE: StageDef = StageDef {
         Bind::Uniform,
         Bind::Read,
         Bind::Read,
-        Bind::Read,
         Bind::ReadWrite,
+        Bind::Read,
     ],
     cpu: field_coarse_rhs_cpu,
 };
@@ -25,9 +25,9 @@ pub fn workgroups(cfg: &Config) -> [u32; 3] {
 
 fn field_coarse_rhs_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
     let cfg: Config = b[0].uniform();
-    let (g_cells, g_cellw, g_f) = (b[1].get::<u32>(), b[2].get::<f32>(), b[3].get::<f32>());
-    let (cells, cellw, f): (&[u32], &[f32], &[f32]) = (&g_cells, &g_cellw, &g_f);
-    let mut g = b[4].get_mut::<f32>();
+    let (g_cells, g_f, g_links) = (b[1].get::<u32>(), b[2].get::<f32>(), b[4].get::<f32>());
+    let (cells, f, links): (&[u32], &[f32], &[f32]) = (&g_cells, &g_f, &g_links);
+    let mut g = b[3].get_mut::<f32>();
     g[..3 * cfg.count as usize]
         .par_chunks_mut(3)
         .enumerate()
@@ -36,11 +36,11 @@ fn field_coarse_rhs_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
             let (x, y, z) = (i % cfg.nx, (i / cfg.nx) % cfg.ny, i / (cfg.nx * cfg.ny));
             let i = i as usize;
             let (mut s, mut d) = ([0.0f32; 3], 0.0f32);
-            for_h_neighbours(&cfg, cellw, x, y, z, |j| {
+            for_links(&cfg, links, x, y, z, |j, w| {
                 for c in 0..3 {
-                    s[c] += f[6 * j + c];
+                    s[c] += w * f[6 * j + c];
                 }
-                d += 1.0;
+                d += w;
             });
             for c in 0..3 {
                 out[c] = f[6 * i + 3 + c] + cfg.sigma * (s[c] - d * f[6 * i + c]);

@@ -1,6 +1,6 @@
 //! Residual of the mixed form of C13 Eq. (3) on one level (see `wgsl/field_resid.wgsl`).
 
-use super::field_cfg::{for_h_neighbours, groups3, Config};
+use super::field_cfg::{for_links, groups3, Config};
 use crate::engine::{Bind, CpuBinding, StageDef};
 use rayon::prelude::*;
 
@@ -13,6 +13,7 @@ pub const STAGE: StageDef = StageDef {
         Bind::Read,
         Bind::Read,
         Bind::ReadWrite,
+        Bind::Read,
     ],
     cpu: field_resid_cpu,
 };
@@ -25,6 +26,8 @@ fn field_resid_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
     let cfg: Config = b[0].uniform();
     let (g_cellw, g_f, g_uv) = (b[1].get::<f32>(), b[2].get::<f32>(), b[3].get::<f32>());
     let (cellw, f, uv): (&[f32], &[f32], &[f32]) = (&g_cellw, &g_f, &g_uv);
+    let g_links = b[5].get::<f32>();
+    let links: &[f32] = &g_links;
     let mut r = b[4].get_mut::<f32>();
     let slab = 6 * (cfg.nx * cfg.ny) as usize;
     r[..6 * cfg.cells()]
@@ -42,12 +45,12 @@ fn field_resid_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
                         continue;
                     }
                     let (mut su, mut sv, mut d) = ([0.0f32; 3], [0.0f32; 3], 0.0f32);
-                    for_h_neighbours(&cfg, cellw, x, y, z, |j| {
+                    for_links(&cfg, links, x, y, z, |j, w| {
                         for c in 0..3 {
-                            su[c] += uv[6 * j + c];
-                            sv[c] += uv[6 * j + 3 + c];
+                            su[c] += w * uv[6 * j + c];
+                            sv[c] += w * uv[6 * j + 3 + c];
                         }
-                        d += 1.0;
+                        d += w;
                     });
                     for c in 0..3 {
                         let (u, v) = (uv[6 * i + c], uv[6 * i + 3 + c]);

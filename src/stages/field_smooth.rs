@@ -1,14 +1,20 @@
 //! One red-black half-sweep of collective Gauss-Seidel on the mixed form of C13 Eq. (3)
 //! (see `wgsl/field_smooth.wgsl`).
 
-use super::field_cfg::{for_h_neighbours, groups3, Config};
+use super::field_cfg::{for_links, groups3, Config};
 use crate::engine::{Bind, CpuBinding, StageDef};
 use rayon::prelude::*;
 
 pub const STAGE: StageDef = StageDef {
     name: "field_smooth",
     wgsl: include_str!("../../wgsl/field_smooth.wgsl"),
-    bindings: &[Bind::Uniform, Bind::Read, Bind::Read, Bind::ReadWrite],
+    bindings: &[
+        Bind::Uniform,
+        Bind::Read,
+        Bind::Read,
+        Bind::ReadWrite,
+        Bind::Read,
+    ],
     cpu: field_smooth_cpu,
 };
 
@@ -17,8 +23,8 @@ pub fn workgroups(cfg: &Config) -> [u32; 3] {
     groups3(cfg.nx.div_ceil(2), cfg.ny, cfg.nz)
 }
 
-/// The 2x2 collective update of one cell with penalty `p`, `d` in-H neighbours whose u and
-/// v sum to `su`, `sv`; `mode` 1 keeps `v` and solves the u row only.
+/// The 2x2 collective update of one cell with penalty `p`, linked neighbours of total weight
+/// `d` whose weighted u and v sum to `su`, `sv`; `mode` 1 keeps `v` and solves the u row only.
 #[inline]
 fn relax_cell(
     cfg: &Config,
@@ -53,6 +59,8 @@ fn field_smooth_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
     let cfg: Config = b[0].uniform();
     let (g_cellw, g_f) = (b[1].get::<f32>(), b[2].get::<f32>());
     let (cellw, f): (&[f32], &[f32]) = (&g_cellw, &g_f);
+    let g_links = b[4].get::<f32>();
+    let links: &[f32] = &g_links;
     let mut uv = b[3].get_mut::<f32>();
     // Cells of one colour read only the other colour: relax from a snapshot.
     let old = uv[..6 * cfg.cells()].to_vec();
@@ -71,12 +79,12 @@ fn field_smooth_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
                         continue;
                     }
                     let (mut su, mut sv, mut d) = ([0.0f32; 3], [0.0f32; 3], 0.0f32);
-                    for_h_neighbours(&cfg, cellw, x, y, z, |j| {
+                    for_links(&cfg, links, x, y, z, |j, w| {
                         for c in 0..3 {
-                            su[c] += old[6 * j + c];
-                            sv[c] += old[6 * j + 3 + c];
+                            su[c] += w * old[6 * j + c];
+                            sv[c] += w * old[6 * j + 3 + c];
                         }
-                        d += 1.0;
+                        d += w;
                     });
                     let old_v = [old[6 * i + 3], old[6 * i + 4], old[6 * i + 5]];
                     let r = relax_cell(&cfg, (p, d), (su, sv), &f[6 * i..6 * i + 6], old_v);

@@ -7,7 +7,6 @@ pub mod dir_diffuse;
 pub mod field_cfg;
 pub mod field_coarse_rhs;
 pub mod field_dense;
-pub mod field_nres;
 pub mod field_prolong;
 pub mod field_resid;
 pub mod field_restrict;
@@ -36,7 +35,6 @@ pub const ALL: &[&StageDef] = &[
     &density_splat::STAGE,
     &field_smooth::STAGE,
     &field_resid::STAGE,
-    &field_nres::STAGE,
     &field_restrict::STAGE,
     &field_prolong::STAGE,
     &field_coarse_rhs::STAGE,
