@@ -1242,3 +1242,33 @@ fn neighbours6(i: usize, [nx, ny, nz]: [usize; 3]) -> [(bool, usize); 6] {
         (z + 1 < nz, i + nx * ny),
     ]
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn coarse_links_follow_fine_connectivity() {
+        // Two slabs of H, x in 0..=2 and 4..=7, apart at x = 3. Block x 1 (cells 2, 3) holds
+        // the end of the first slab, block 2 (cells 4, 5) the start of the second: no fine
+        // link crosses between them, so the coarse level must not link them either.
+        let grid = Grid {
+            dims: [8, 4, 4],
+            origin: [0.0; 3],
+            cell: 1.0,
+        };
+        let h: Vec<u32> = (0..grid.len()).map(|i| (i % 8 != 3) as u32).collect();
+        let cons = [(0u32, [1.0, 0.0, 0.0]), (7u32, [1.0, 0.0, 0.0])];
+        let prep = prepare(&grid, &h, &cons, 10.0).unwrap();
+        let levels = hierarchy(&grid, &prep, 1);
+        let c = &levels[1];
+        assert_eq!(c.dims, [4, 2, 2]);
+        for row in (0..16).step_by(4) {
+            let x_links: Vec<f32> = (0..4).map(|x| c.links[3 * (row + x)]).collect();
+            assert_eq!(x_links, [1.0, 0.0, 1.0, 0.0], "row {row}");
+        }
+        // Volumes and penalty: block 1 holds 4 of its 8 cells, block 0 all 8.
+        assert_eq!(c.vol[1], 4.0);
+        assert_eq!(c.vol[0], 8.0);
+    }
+}
