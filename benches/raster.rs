@@ -199,6 +199,7 @@ fn main() {
                 points: vec![[1.0, 1.0, 0.0], [6.0, 6.0, 0.0]],
                 counts: vec![2],
                 colors: vec![[1.0; 4]; 2],
+                photo: None,
             };
             let t = Instant::now();
             render(&g, &tiny, None, Some(&one), &p).unwrap();

@@ -111,6 +111,10 @@ struct RenderArgs {
     /// model's vertex colours only).
     #[arg(long, default_value_t = 0.0)]
     colour_spacing: f32,
+    /// Strand colour of a composite render: the photo under every fragment, or C13's
+    /// per-vertex samples.
+    #[arg(long, value_enum, default_value_t = coif::render::ColourSource::Photo)]
+    colour: coif::render::ColourSource,
     /// 16-bit PNG output.
     #[arg(long = "16bit")]
     sixteen: bool,
@@ -972,6 +976,7 @@ fn cmd_render(a: RenderArgs) -> anyhow::Result<()> {
         strands_only: a.strands_only,
         background: a.background,
         colour_spacing_px: a.colour_spacing,
+        colour: a.colour,
         ..Default::default()
     };
     p.raster.strand_width = a.width;

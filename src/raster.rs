@@ -32,6 +32,12 @@
 //!   colour is not finite, when they are shorter than 1e-4 px, when both alphas are <= 0,
 //!   and when they cannot touch the frame; segments leaving the frame are clipped to a guard
 //!   band (frame grown by 16 + 2 x width px) with depth and colour interpolated.
+//! - **Photo colour** ([`StrandPhoto`], optional): the quad's corners get photo points built
+//!   like the screen corners, o = o0 + t (o1 - o0) ± n_o with t = -h/len or 1 + h/len and
+//!   n_o the unit normal of o1 - o0 times the photo half width (0 when o1 = o0); the
+//!   fragment's photo point is their screen-linear interpolation at the pixel centre, its
+//!   colour clamp(HSV(bilinear photo at that point) + vertex colour rgb, 0, 1) (bilinear as
+//!   the mesh texture, in photo px). Segments with a non-finite photo point are skipped.
 //! - **Alpha-to-coverage**, explicit (see the WGSL for why): a strand fragment keeps
 //!   k = floor(alpha·N + 0.5) of its samples, taken in the order r, r+1, ... (mod N) with
 //!   r = (x + 2·y + strand index) mod N. Adding the strand index lets overlapping
@@ -99,8 +105,29 @@ pub struct ScreenStrands {
     pub points: Vec<[f32; 3]>,
     /// Vertices per strand; they sum to `points.len()`.
     pub counts: Vec<u32>,
-    /// Linear straight RGBA per vertex; alpha = 1 - transparency.
+    /// Linear straight RGBA per vertex; alpha = 1 - transparency. With `photo`, the rgb is
+    /// an offset added to the photo's colour (see [`StrandPhoto`]).
     pub colors: Vec<[f32; 4]>,
+    /// Colour from a photo under each fragment, instead of from the vertices alone.
+    pub photo: Option<StrandPhoto>,
+}
+
+/// Strand colour taken from a photo at every fragment (rule **Photo colour** above): each
+/// vertex also has the point where the photo's camera saw it, and a fragment takes the photo
+/// at the matching point of the quad built the same way around those points. At the photo's
+/// own view that point is the pixel centre itself, so a strand shows the photo exactly
+/// where it covers the hair; in other views the colour stays attached to the strand.
+#[derive(Clone, Debug)]
+pub struct StrandPhoto {
+    /// Photo px per vertex (pixel (i, j) centred at (i + 0.5, j + 0.5)).
+    pub points: Vec<[f32; 2]>,
+    /// The photo, linear straight RGBA (alpha unused).
+    pub texture: Texture,
+    /// Half the strand width in photo px.
+    pub half_width: f32,
+    /// HSV adjustment of the photo colour: hue shift (degrees), saturation and value scales,
+    /// as [`crate::shade::hsv_adjust`]; None = unchanged.
+    pub hsv: Option<[f32; 3]>,
 }
 
 /// Rasteriser settings.
@@ -328,6 +355,8 @@ pub struct SegRec {
     pub _pad: u32,
     pub c0: [f32; 4],
     pub c1: [f32; 4],
+    /// Photo points of the two ends (o0.xy, o1.xy); zero without a photo.
+    pub o: [f32; 4],
 }
 
 /// One mesh triangle as both paths see it (the WGSL `Tri`): corners (x, y, z, u), then v.
@@ -349,8 +378,13 @@ pub struct Config {
     pub half_width: f32,
     pub ndc_scale_x: f32,
     pub ndc_scale_y: f32,
-    pub _pad0: u32,
-    pub _pad1: u32,
+    /// 0: vertex colours; 1: photo colour; 2: photo colour with the HSV adjustment.
+    pub photo: u32,
+    pub photo_half_width: f32,
+    pub hue_deg: f32,
+    pub saturation: f32,
+    pub value: f32,
+    pub _pad: u32,
 }
 
 /// Everything a render needs, validated and prepared on the host once for either path.
@@ -360,6 +394,8 @@ struct Scene {
     background: Option<Vec<[f32; 4]>>,
     /// Sanitised texture of the mesh (present iff `mesh` was given).
     texture: Option<Texture>,
+    /// Sanitised photo of the strands' photo colour.
+    photo: Option<Texture>,
     tris: Vec<TriRec>,
     segs: Vec<SegRec>,
 }
@@ -525,8 +561,12 @@ impl Scene {
             half_width: 0.5 * p.strand_width,
             ndc_scale_x: 2.0 / w as f32,
             ndc_scale_y: 2.0 / h as f32,
-            _pad0: 0,
-            _pad1: 0,
+            photo: 0,
+            photo_half_width: 0.0,
+            hue_deg: 0.0,
+            saturation: 1.0,
+            value: 1.0,
+            _pad: 0,
         };
         let depth = DepthMap { far, near };
         let guard = 16.0 + 2.0 * p.strand_width;
@@ -536,6 +576,7 @@ impl Scene {
             cfg,
             background,
             texture: None,
+            photo: None,
             tris: Vec::new(),
             segs: Vec::new(),
         };
@@ -595,6 +636,49 @@ impl Scene {
                     s.colors.len()
                 ));
             }
+            if let Some(ph) = &s.photo {
+                let t = &ph.texture;
+                check_dims("strand photo", t.width, t.height, max_dim)?;
+                if t.texels.len() != t.width as usize * t.height as usize {
+                    return invalid(format!(
+                        "strand photo has {} texels, {}x{} needs {}",
+                        t.texels.len(),
+                        t.width,
+                        t.height,
+                        t.width as usize * t.height as usize
+                    ));
+                }
+                if ph.points.len() != s.points.len() {
+                    return invalid(format!(
+                        "strands have {} points but {} photo points",
+                        s.points.len(),
+                        ph.points.len()
+                    ));
+                }
+                if !(ph.half_width.is_finite() && ph.half_width >= 0.0) {
+                    return invalid(format!(
+                        "photo half width {} must be finite and >= 0",
+                        ph.half_width
+                    ));
+                }
+                scene.cfg.photo = 1;
+                scene.cfg.photo_half_width = ph.half_width;
+                if let Some([hue, sat, val]) = ph.hsv {
+                    if !(hue.is_finite() && sat.is_finite() && val.is_finite()) {
+                        return invalid(format!("photo HSV adjustment {:?} is not finite", ph.hsv));
+                    }
+                    scene.cfg.photo = 2;
+                    scene.cfg.hue_deg = hue.rem_euclid(360.0);
+                    scene.cfg.saturation = sat;
+                    scene.cfg.value = val;
+                }
+                scene.photo = Some(Texture {
+                    width: t.width,
+                    height: t.height,
+                    texels: t.texels.par_iter().map(|&c| sanitise(c)).collect(),
+                });
+            }
+            let opoint = |i: usize| s.photo.as_ref().map(|ph| ph.points[i]);
             let mut starts = Vec::with_capacity(s.counts.len());
             let mut acc = 0usize;
             for &c in &s.counts {
@@ -620,6 +704,7 @@ impl Scene {
                             s.points[i + 1],
                             s.colors[i],
                             s.colors[i + 1],
+                            (opoint(i), opoint(i + 1)),
                             k as u32,
                         )
                     })
@@ -658,9 +743,14 @@ impl SegPrep {
         b: [f32; 3],
         ca: [f32; 4],
         cb: [f32; 4],
+        photo: (Option<[f32; 2]>, Option<[f32; 2]>),
         strand: u32,
     ) -> Option<SegRec> {
         if !(finite(&a) && finite(&b) && finite(&ca) && finite(&cb)) {
+            return None;
+        }
+        let (mut oa, mut ob) = (photo.0.unwrap_or([0.0; 2]), photo.1.unwrap_or([0.0; 2]));
+        if !(finite(&oa) && finite(&ob)) {
             return None;
         }
         // Both alphas <= 0: every pixel's alpha is <= 0, so no sample is kept on either path.
@@ -687,15 +777,19 @@ impl SegPrep {
         if outside(pa) || outside(pb) {
             let [e0, e1] = clip_segment(pa, pb, self.lo, self.hi)?;
             let (qa, qb, ya, yb, da, db) = (pa, pb, za, zb, ca, cb);
+            let (ra, rb) = (oa, ob);
+            let lerp2 = |t: f32| [lerp(ra[0], rb[0], t), lerp(ra[1], rb[1], t)];
             if e0.1.is_some() {
                 pa = clip_point(qa, qb, e0);
                 za = lerp(ya, yb, e0.0);
                 ca = lerp4(da, db, e0.0);
+                oa = lerp2(e0.0);
             }
             if e1.1.is_some() {
                 pb = clip_point(qa, qb, e1);
                 zb = lerp(ya, yb, e1.0);
                 cb = lerp4(da, db, e1.0);
+                ob = lerp2(e1.0);
             }
         }
         let d = [pb[0] - pa[0], pb[1] - pa[1]];
@@ -711,6 +805,7 @@ impl SegPrep {
             _pad: 0,
             c0: ca,
             c1: cb,
+            o: [oa[0], oa[1], ob[0], ob[1]],
         })
     }
 }
@@ -1196,12 +1291,18 @@ mod gpu {
                 &strand_module,
                 "vs_main",
                 "fs_main",
-                &[uniform_entry(0), storage_entry(1)],
+                &[uniform_entry(0), storage_entry(1), texture_entry(2)],
                 None,
                 true,
                 less,
                 n,
             );
+            // The shader only reads the photo when `cfg.photo` says so; a 1x1 texture stands
+            // in otherwise (the layout needs a binding).
+            let photo = match &s.photo {
+                Some(t) => texture_rgba32(ctx, "raster.photo", t.width, t.height, &t.texels),
+                None => texture_rgba32(ctx, "raster.photo", 1, 1, &[[0.0; 4]]),
+            };
             let groups: Vec<(wgpu::BindGroup, u32)> =
                 chunks(ctx, "raster.segments", &s.segs, chunk_bytes)
                     .into_iter()
@@ -1217,6 +1318,10 @@ mod gpu {
                                 wgpu::BindGroupEntry {
                                     binding: 1,
                                     resource: buf.as_entire_binding(),
+                                },
+                                wgpu::BindGroupEntry {
+                                    binding: 2,
+                                    resource: wgpu::BindingResource::TextureView(&photo),
                                 },
                             ],
                         });
@@ -1592,9 +1697,14 @@ mod cpu {
 
     /// Clamp-to-edge bilinear fetch with the f32 operations of `fs_mesh`.
     fn sample_bilinear(t: &Texture, uv: [f32; 2]) -> [f32; 4] {
+        let s = uv[0] * t.width as f32 - 0.5;
+        let r = uv[1] * t.height as f32 - 0.5;
+        bilinear_at(t, s, r)
+    }
+
+    /// The same fetch at texel coordinates (s, r) = px - 0.5.
+    fn bilinear_at(t: &Texture, s: f32, r: f32) -> [f32; 4] {
         let (w, h) = (t.width as i32, t.height as i32);
-        let s = uv[0] * w as f32 - 0.5;
-        let r = uv[1] * h as f32 - 0.5;
         let (fs, fr) = (s.floor(), r.floor());
         let (ax, ay) = (s - fs, r - fr);
         let (i, j) = (fs as i32, fr as i32);
@@ -1781,7 +1891,14 @@ mod cpu {
             }
         }
         for &i in segs {
-            strand_quad(&mut buf, &s.segs[i as usize], cfg, &fb, &offs);
+            strand_quad(
+                &mut buf,
+                &s.segs[i as usize],
+                cfg,
+                s.photo.as_ref().filter(|_| cfg.photo != 0),
+                &fb,
+                &offs,
+            );
         }
         // Resolve: f16 samples (the target format), f32 mean, f16 result, as lavapipe.
         let inv = 1.0 / N as f32;
@@ -1847,7 +1964,7 @@ mod cpu {
     }
 
     /// What a covered strand pixel needs once its raster coverage is known.
-    struct Shade<const N: usize> {
+    struct Shade<'a, const N: usize> {
         p0: [f32; 2],
         d: [f32; 2],
         inv_len2: f32,
@@ -1856,19 +1973,46 @@ mod cpu {
         strand: u32,
         zp: Plane,
         z_off: [f64; N],
+        /// Photo colour: the photo, o0, o1 - o0, n_o, the screen normal n / h² (so that
+        /// (c - p0)·it is the signed width fraction), the mode and the HSV settings.
+        photo: Option<PhotoShade<'a>>,
     }
 
-    impl<const N: usize> Shade<N> {
+    struct PhotoShade<'a> {
+        tex: &'a Texture,
+        o0: [f32; 2],
+        od: [f32; 2],
+        on: [f32; 2],
+        nl: [f32; 2],
+        hsv: Option<[f32; 3]>,
+    }
+
+    impl<const N: usize> Shade<'_, N> {
         #[inline(always)]
         fn pixel(&self, buf: &mut TileBuf<N>, lx: i32, ly: i32, cov: u32) {
             let n = N as u32;
             let (px, py) = (buf.x0 + lx, buf.y0 + ly);
             // Colour at the pixel centre: position along the segment, clamped.
             let (cx, cy) = (px as f32 + 0.5, py as f32 + 0.5);
-            let t = (((cx - self.p0[0]) * self.d[0] + (cy - self.p0[1]) * self.d[1])
-                * self.inv_len2)
-                .clamp(0.0, 1.0);
-            let col: [f32; 4] = std::array::from_fn(|k| self.c0[k] * (1.0 - t) + self.c1[k] * t);
+            let (rx, ry) = (cx - self.p0[0], cy - self.p0[1]);
+            let t_raw = (rx * self.d[0] + ry * self.d[1]) * self.inv_len2;
+            let t = t_raw.clamp(0.0, 1.0);
+            let mut col: [f32; 4] =
+                std::array::from_fn(|k| self.c0[k] * (1.0 - t) + self.c1[k] * t);
+            if let Some(ph) = &self.photo {
+                let l = rx * ph.nl[0] + ry * ph.nl[1];
+                let o: [f32; 2] =
+                    std::array::from_fn(|k| ph.o0[k] + ph.od[k] * t_raw + ph.on[k] * l);
+                let p = bilinear_at(ph.tex, o[0] - 0.5, o[1] - 0.5);
+                let p = [p[0], p[1], p[2]].map(|v| v.clamp(0.0, 1.0));
+                let p = match ph.hsv {
+                    Some([hue, sat, val]) => crate::shade::hsv_adjust(p, hue, sat, val),
+                    None => p,
+                };
+                for k in 0..3 {
+                    col[k] = (p[k] + col[k]).clamp(0.0, 1.0);
+                }
+            }
             // Alpha-to-coverage (see the WGSL): keep floor(alpha·N + 0.5) samples.
             let k = (col[3].clamp(0.0, 1.0) * n as f32 + 0.5) as u32;
             let r = (px as u32)
@@ -1955,6 +2099,7 @@ mod cpu {
         buf: &mut TileBuf<N>,
         s: &SegRec,
         cfg: &Config,
+        photo: Option<&Texture>,
         fb: &Fb,
         offs: &Offsets<N>,
     ) {
@@ -2034,6 +2179,25 @@ mod cpu {
             strand: s.strand,
             zp,
             z_off,
+            photo: photo.map(|tex| {
+                let o0 = [s.o[0], s.o[1]];
+                let od = [s.o[2] - s.o[0], s.o[3] - s.o[1]];
+                let ol = (od[0] * od[0] + od[1] * od[1]).sqrt();
+                let hp = cfg.photo_half_width;
+                let on = if ol > 1e-6 {
+                    [-od[1] / ol * hp, od[0] / ol * hp]
+                } else {
+                    [0.0; 2]
+                };
+                PhotoShade {
+                    tex,
+                    o0,
+                    od,
+                    on,
+                    nl: [nn[0] / (h * h), nn[1] / (h * h)],
+                    hsv: (cfg.photo == 2).then_some([cfg.hue_deg, cfg.saturation, cfg.value]),
+                }
+            }),
         };
         let (rows, cols) = ((ly0, ly1), (lx_min, lx_max));
         // The quad A C D B as one convex polygon covers exactly the samples of ABC ∪ CBD:

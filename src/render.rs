@@ -21,7 +21,7 @@ use crate::error::{Error, Result};
 use crate::head::{Head, HeadParams, WeakPerspective};
 use crate::head_texture::{head_texture_with, HeadTextureParams};
 use crate::inpaint::{dilate, inpaint, InpaintParams};
-use crate::raster::{self, Frame, RasterParams, ScreenMesh, ScreenStrands, Texture};
+use crate::raster::{self, Frame, RasterParams, ScreenMesh, ScreenStrands, StrandPhoto, Texture};
 use crate::shade::{self, ShadeParams};
 use crate::strands::StrandSet;
 use crate::Engine;
@@ -202,6 +202,21 @@ fn check_strands(s: &StrandSet, path: &Path) -> Result<()> {
     Ok(())
 }
 
+/// Where a composite render's strand colour comes from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ColourSource {
+    /// The photo at every fragment, at the point where the photo's camera saw that part of
+    /// the strand ([`crate::raster::StrandPhoto`]); shading and recolouring apply on top. The
+    /// limit of C13 §4's per-vertex sampling as the vertex spacing goes to zero: at the
+    /// original view the covered hair reproduces the photo (synthetic re-renders 27-29 dB
+    /// where the strands cover the hair, against 20-24 dB from vertex colours; issue 5 note).
+    #[default]
+    Photo,
+    /// C13 §4 as written: the colour sampled at each vertex, interpolated along segments.
+    Vertex,
+}
+
 /// Every setting of a render (written to the sidecar).
 #[derive(Clone, Debug, Serialize)]
 pub struct RenderParams {
@@ -229,6 +244,8 @@ pub struct RenderParams {
     /// strand at render time; 0 (default) draws the model's own vertex colours only. At 1 px
     /// the synthetic long-hair re-render gains 0.3 dB for 4x the time (issue 5 note).
     pub colour_spacing_px: f32,
+    /// Where strand colour comes from in a composite render of a model with a photo.
+    pub colour: ColourSource,
     /// Pixels the hair mask grows by before it is inpainted (the hair's soft edge).
     pub hair_margin_px: u32,
     pub inpaint: InpaintParams,
@@ -249,6 +266,7 @@ impl Default for RenderParams {
             strands_only: false,
             background: None,
             colour_spacing_px: 0.0,
+            colour: ColourSource::default(),
             hair_margin_px: 2,
             inpaint: InpaintParams::default(),
             head_texture: HeadTextureParams::default(),
@@ -505,13 +523,37 @@ pub fn render(engine: &Engine, m: &RenderModel, p: &RenderParams) -> Result<Rend
             m.dir.join("strands.hair").display()
         )));
     }
+    let composite = !p.strands_only;
+    let photo = match (&m.photo, &m.camera, &strands_m.colors) {
+        (Some(img), Some(cam0), Some(_)) if composite && p.colour == ColourSource::Photo => {
+            Some(strand_photo(img, cam0, strands_m, p))
+        }
+        _ => None,
+    };
+    let colors = match &photo {
+        // The vertex colours become what shading added to the (HSV-adjusted) base colour;
+        // the rasteriser adds it to the photo under each fragment.
+        Some(ph) => colors
+            .iter()
+            .zip(&base)
+            .map(|(c, b)| {
+                let b = [b[0], b[1], b[2]];
+                let b = match ph.hsv {
+                    Some([hue, sat, val]) => shade::hsv_adjust(b, hue, sat, val),
+                    None => b.map(shade::unit_or_zero),
+                };
+                [c[0] - b[0], c[1] - b[1], c[2] - b[2], c[3]]
+            })
+            .collect(),
+        None => colors,
+    };
     let strands = ScreenStrands {
         points,
         counts: strands_m.counts.clone(),
         colors,
+        photo,
     };
 
-    let composite = !p.strands_only;
     if composite && (m.photo.is_none() || m.camera.is_none()) {
         return Err(Error::Invalid(format!(
             "{} has no photo and camera to render into (imported strands?): use --strands-only",
@@ -563,6 +605,40 @@ pub fn render(engine: &Engine, m: &RenderModel, p: &RenderParams) -> Result<Rend
         camera: vc,
         report,
     })
+}
+
+/// The photo colour of a composite render: every vertex's point in the photo as the model's
+/// camera sees it, the photo in linear light, the strand width in photo px (the view's
+/// `scale` widens strands on screen only) and the HSV adjustment.
+fn strand_photo(
+    img: &image::RgbImage,
+    cam0: &WeakPerspective,
+    s: &StrandSet,
+    p: &RenderParams,
+) -> StrandPhoto {
+    let points = s
+        .points
+        .iter()
+        .map(|&q| {
+            let o = cam0.project(Vec3::from_array(q));
+            [o.x, o.y]
+        })
+        .collect();
+    let texels = linear_photo(img)
+        .into_iter()
+        .map(|c| [c[0], c[1], c[2], 1.0])
+        .collect();
+    let sp = &p.shade;
+    StrandPhoto {
+        points,
+        texture: Texture {
+            width: img.width(),
+            height: img.height(),
+            texels,
+        },
+        half_width: 0.5 * p.raster.strand_width,
+        hsv: (!sp.hsv_is_identity()).then_some([sp.hue, sp.saturation, sp.value]),
+    }
 }
 
 /// The strands with extra vertices every `spacing` px (as the photo sees them) whose colour

@@ -38,7 +38,7 @@ use crate::stages::strand_shade::{self, Config, HAS_NEXT, HAS_PREV};
 use crate::strands::StrandSet;
 use glam::Vec3;
 
-pub use crate::stages::strand_shade::{kajiya_kay, marschner_lobes, Lobes};
+pub use crate::stages::strand_shade::{kajiya_kay, marschner_lobes, unit_or_zero, Lobes};
 
 /// The highlight model.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]

@@ -195,6 +195,7 @@ fn shaders_validate_and_structs_match_the_host() {
         offset_of!(SegRec, _pad),
         offset_of!(SegRec, c0),
         offset_of!(SegRec, c1),
+        offset_of!(SegRec, o),
     ];
     let (off, span) = struct_layout(&strand, "Seg");
     assert_eq!(off, seg.map(|o| o as u32).to_vec());
@@ -217,8 +218,12 @@ fn shaders_validate_and_structs_match_the_host() {
         half_width: f(4),
         ndc_scale_x: f(5),
         ndc_scale_y: f(6),
-        _pad0: 7,
-        _pad1: 8,
+        photo: 7,
+        photo_half_width: f(8),
+        hue_deg: f(9),
+        saturation: f(10),
+        value: f(11),
+        _pad: 12,
     };
     let mut ub = encase::UniformBuffer::new(Vec::<u8>::new());
     ub.write(&cfg).unwrap();
@@ -380,6 +385,7 @@ fn sample_positions_and_mask_bits_follow_the_vulkan_standard_pattern() {
                     points: seg.to_vec(),
                     counts,
                     colors: vec![[1.0, 1.0, 1.0, alpha]; 2],
+                    photo: None,
                 };
                 let p = RasterParams {
                     samples: 4,
@@ -694,6 +700,129 @@ fn gpu_matches_cpu_on_head_and_strands() {
     }
 }
 
+/// A photo with detail at the pixel scale (the case where sampling only at vertices fails).
+fn noisy_photo(w: u32, h: u32, rng: &mut Rng) -> Texture {
+    Texture {
+        width: w,
+        height: h,
+        texels: (0..w * h)
+            .map(|_| [rng.next_f32(), rng.next_f32(), rng.next_f32(), 1.0])
+            .collect(),
+    }
+}
+
+/// Photo colour for `s`: the photo's camera sees screen point p at `map(p)`.
+fn with_photo(
+    mut s: ScreenStrands,
+    tex: Texture,
+    map: impl Fn([f32; 3]) -> [f32; 2],
+    hsv: Option<[f32; 3]>,
+) -> ScreenStrands {
+    s.photo = Some(StrandPhoto {
+        points: s.points.iter().map(|&p| map(p)).collect(),
+        texture: tex,
+        half_width: 0.5,
+        hsv,
+    });
+    s
+}
+
+#[test]
+fn photo_colour_reproduces_the_photo_at_its_own_view() {
+    // Opaque strands with a zero offset, photo points = screen points: wherever the strands
+    // cover all samples of a pixel, the pixel is the photo's texel, on both paths.
+    let (w, h) = (96u32, 80u32);
+    let mut rng = Rng::new(5);
+    let tex = noisy_photo(w, h, &mut rng);
+    let mut s = random_strands(w, h, 400, &mut rng);
+    for c in &mut s.colors {
+        *c = [0.0, 0.0, 0.0, 1.0];
+    }
+    let s = with_photo(s, tex.clone(), |p| [p[0], p[1]], None);
+    let f = Frame {
+        width: w,
+        height: h,
+        depth_range: (-200.0, 200.0),
+        background: None,
+    };
+    for (path, img) in ["gpu", "cpu"].iter().zip(both(&f, None, Some(&s))) {
+        let (mut full, mut worst) = (0usize, 0.0f32);
+        for (px, t) in img.iter().zip(&tex.texels) {
+            if px[3] >= 1.0 {
+                full += 1;
+                for k in 0..3 {
+                    worst = worst.max((px[k] - t[k]).abs());
+                }
+            }
+        }
+        println!(
+            "{path}: {full} fully covered pixels, largest difference from the photo {worst:.2e}"
+        );
+        assert!(
+            full > (w * h / 4) as usize,
+            "{path}: only {full} covered pixels"
+        );
+        // f16 target (11 bits) and interpolation rounding of the photo point.
+        assert!(
+            worst <= 2e-3,
+            "{path}: covered pixel differs from the photo by {worst}"
+        );
+    }
+}
+
+#[test]
+fn gpu_matches_cpu_with_photo_colour() {
+    let (w, h) = (112u32, 96u32);
+    let mut rng = Rng::new(23);
+    let tex = noisy_photo(w, h, &mut rng);
+    let base = random_strands(w, h, 300, &mut rng);
+    let mut offsets = base.clone();
+    for c in &mut offsets.colors {
+        // Offsets as shading leaves them: small, either sign.
+        *c = [0.3 * c[0] - 0.15, 0.2 * c[1] - 0.1, 0.1 * c[2], c[3]];
+    }
+    // The photo's view, and a turned, scaled one (a novel view).
+    let (cs, sn) = (0.3f32.cos(), 0.3f32.sin());
+    let turned = move |p: [f32; 3]| {
+        [
+            0.9 * (cs * p[0] - sn * p[1]) + 20.0,
+            0.9 * (sn * p[0] + cs * p[1]),
+        ]
+    };
+    let cases: [(&str, ScreenStrands); 3] = [
+        (
+            "own view",
+            with_photo(offsets.clone(), tex.clone(), |p| [p[0], p[1]], None),
+        ),
+        (
+            "novel view",
+            with_photo(offsets.clone(), tex.clone(), turned, None),
+        ),
+        (
+            "own view, HSV",
+            with_photo(offsets, tex, |p| [p[0], p[1]], Some([130.0, 0.7, 1.2])),
+        ),
+    ];
+    for (what, s) in cases {
+        let f = Frame {
+            width: w,
+            height: h,
+            depth_range: (-200.0, 200.0),
+            background: Some(gradient_background(w, h)),
+        };
+        let [gpu, cpu] = both(&f, None, Some(&s));
+        agree(what, &gpu, &cpu, 2, 0.99).unwrap();
+        // The photo shows: the render differs from the vertex-colour render.
+        let mut plain = s.clone();
+        plain.photo = None;
+        let v = render_cpu(&f, None, Some(&plain), &RasterParams::default()).unwrap();
+        assert!(
+            agree(what, &cpu, &v, 2, 0.99).is_err(),
+            "{what}: photo colour had no effect"
+        );
+    }
+}
+
 // ---------------------------------------------------------------------------------------------
 // Bad input, determinism, splitting, limits
 // ---------------------------------------------------------------------------------------------
@@ -882,6 +1011,19 @@ fn invalid_input_is_an_error_not_a_panic() {
     let mut m = square_mesh(1.0, 1.0, 6.0, 6.0, 0.0, WHITE);
     m.texture.width = 0;
     expect_invalid(&frame(8, 8), Some(&m), None, &p, "empty texture");
+    let tex = Texture {
+        width: 2,
+        height: 2,
+        texels: vec![WHITE; 4],
+    };
+    let mut ph = with_photo(s.clone(), tex.clone(), |q| [q[0], q[1]], None);
+    ph.photo.as_mut().unwrap().points.pop();
+    expect_invalid(&frame(8, 8), None, Some(&ph), &p, "photo point count");
+    let mut ph = with_photo(s.clone(), tex.clone(), |q| [q[0], q[1]], None);
+    ph.photo.as_mut().unwrap().texture.texels.pop();
+    expect_invalid(&frame(8, 8), None, Some(&ph), &p, "photo texel count");
+    let ph = with_photo(s.clone(), tex, |q| [q[0], q[1]], Some([f32::NAN, 1.0, 1.0]));
+    expect_invalid(&frame(8, 8), None, Some(&ph), &p, "photo HSV");
     // Empty but valid input renders the background.
     let mut f = frame(4, 4);
     f.background = Some(vec![[0.5, 0.25, 0.125, 1.0]; 16]);

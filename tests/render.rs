@@ -7,7 +7,7 @@ mod common;
 use coif::analyze::analyze;
 use coif::annot::Strokes;
 use coif::model::{model_from_analysis, ModelParams};
-use coif::render::{psnr_region, render, to_rgb8, RenderModel, RenderParams};
+use coif::render::{psnr_region, render, to_rgb8, ColourSource, RenderModel, RenderParams};
 use coif::synth::{synth, Style, SynthParams};
 use coif::testing::check_golden_rgb;
 use coif::Engine;
@@ -60,20 +60,31 @@ fn original_view_reproduces_the_hair_region() {
         let psnr = psnr_region(&img, &photo, &region);
         let outside: Vec<bool> = region.iter().map(|&v| !v).collect();
         let psnr_out = psnr_region(&img, &photo, &outside);
+        // C13's per-vertex colours, for comparison (the photo colour must beat them).
+        let vertex = RenderParams {
+            colour: ColourSource::Vertex,
+            ..Default::default()
+        };
+        let vimg = to_rgb8(&render(&engine, &m, &vertex).unwrap());
+        let psnr_vertex = psnr_region(&vimg, &photo, &region);
         println!(
-            "{style} seed 1: re-render PSNR {psnr:.2} dB over the hair region, {psnr_out:.2} dB \
-             elsewhere ({} strands)",
+            "{style} seed 1: re-render PSNR {psnr:.2} dB over the hair region ({psnr_vertex:.2} \
+             dB with vertex colours), {psnr_out:.2} dB elsewhere ({} strands)",
             r.report.strands
         );
-        side_by_side(&photo, &img)
+        side_by_side(&side_by_side(&photo, &img), &vimg)
             .save(out_dir().join(format!("rerender_{style}.png")))
             .unwrap();
+        assert!(
+            psnr > psnr_vertex + 1.0,
+            "{style}: photo colour {psnr:.2} dB, vertex colour {psnr_vertex:.2} dB"
+        );
         worst = worst.min(psnr);
     }
-    // The issue's goal is 24 dB. Today the strands leave 3-6% of the hair region uncovered
-    // (refinement stops with empty cells in H), and there the inpainted background shows:
-    // this guard holds the current level and the shortfall is printed for the issue note.
-    assert!(worst >= 16.0, "re-render PSNR {worst:.2} dB < 16 dB");
+    // The issue's goal is 24 dB. Where strands cover the hair the photo colour reproduces
+    // it; the hair pixels the strands leave uncovered show the inpainted background: this
+    // guard holds the current level and any shortfall is printed for the issue note.
+    assert!(worst >= 20.0, "re-render PSNR {worst:.2} dB < 20 dB");
     if worst < 24.0 {
         println!("re-render PSNR {worst:.2} dB is below the issue's 24 dB goal");
     }

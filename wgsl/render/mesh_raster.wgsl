@@ -19,8 +19,13 @@ struct Config {
     half_width: f32,
     ndc_scale_x: f32,
     ndc_scale_y: f32,
-    _pad0: u32,
-    _pad1: u32,
+    // Strand photo colour settings (unused here; the uniform is shared).
+    photo: u32,
+    photo_half_width: f32,
+    hue_deg: f32,
+    saturation: f32,
+    value: f32,
+    _pad: u32,
 }
 
 // Corner k is (x, y, depth in [0, 1], u) in screen px; `v` holds the three v coordinates.

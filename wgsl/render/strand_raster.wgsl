@@ -12,6 +12,12 @@
 // rotation r = (x + 2·y + strand) mod N. Colour is per pixel (evaluated at the pixel centre),
 // coverage and depth per sample.
 //
+// Photo colour (cfg.photo != 0): the corners also get photo points built like the screen
+// corners around the ends' photo points o0, o1; the fragment samples the photo (bilinear,
+// clamp-to-edge, by hand as `mesh_raster.wgsl`) at its interpolated point, HSV-adjusts it
+// when cfg.photo == 2, and adds the vertex colour (an offset). At the photo's own view the
+// point is the pixel centre, so covered hair shows the photo itself.
+//
 // Mirrored by `raster.rs` (`cpu_quad`): keep the arithmetic below in step with it.
 
 struct Config {
@@ -22,8 +28,13 @@ struct Config {
     // 2 / width and 2 / height: screen px -> NDC.
     ndc_scale_x: f32,
     ndc_scale_y: f32,
-    _pad0: u32,
-    _pad1: u32,
+    // 0: vertex colours; 1: photo colour; 2: photo colour, HSV-adjusted.
+    photo: u32,
+    photo_half_width: f32,
+    hue_deg: f32,
+    saturation: f32,
+    value: f32,
+    _pad: u32,
 }
 
 // Host-prepared segment (`SegRec`): screen px, depth already mapped to [0, 1] (0 = near).
@@ -36,10 +47,13 @@ struct Seg {
     _pad: u32,
     c0: vec4<f32>,
     c1: vec4<f32>,
+    // Photo points of the ends: o0 = o.xy, o1 = o.zw.
+    o: vec4<f32>,
 }
 
 @group(0) @binding(0) var<uniform> cfg: Config;
 @group(0) @binding(1) var<storage, read> segs: array<Seg>;
+@group(0) @binding(2) var photo: texture_2d<f32>;
 
 struct VsOut {
     @builtin(position) pos: vec4<f32>,
@@ -48,6 +62,7 @@ struct VsOut {
     @location(1) @interpolate(flat) c0: vec4<f32>,
     @location(2) @interpolate(flat) c1: vec4<f32>,
     @location(3) @interpolate(flat) strand: u32,
+    @location(4) @interpolate(linear) o: vec2<f32>,
 }
 
 @vertex
@@ -71,6 +86,16 @@ fn vs_main(@builtin(vertex_index) vi: u32) -> VsOut {
     var out: VsOut;
     out.pos = vec4<f32>(p.x * cfg.ndc_scale_x - 1.0, 1.0 - p.y * cfg.ndc_scale_y, z, 1.0);
     out.t = select(-h / len, 1.0 + h / len, at_end);
+    out.o = vec2<f32>(0.0);
+    if cfg.photo != 0u {
+        let od = s.o.zw - s.o.xy;
+        let ol = sqrt(od.x * od.x + od.y * od.y);
+        var on = vec2<f32>(0.0);
+        if ol > 1e-6 {
+            on = vec2<f32>(-od.y / ol, od.x / ol) * cfg.photo_half_width;
+        }
+        out.o = s.o.xy + od * out.t + select(-on, on, plus);
+    }
     out.c0 = s.c0;
     out.c1 = s.c1;
     out.strand = s.strand;
@@ -82,9 +107,111 @@ struct FsOut {
     @builtin(sample_mask) mask: u32,
 }
 
+fn texel(i: i32, j: i32, dims: vec2<i32>) -> vec4<f32> {
+    return textureLoad(photo, vec2<i32>(clamp(i, 0, dims.x - 1), clamp(j, 0, dims.y - 1)), 0);
+}
+
+// Bilinear at photo px `o` (texel centres at +0.5), as `raster.rs` `bilinear_at`.
+fn photo_at(o: vec2<f32>) -> vec3<f32> {
+    let dims = vec2<i32>(textureDimensions(photo));
+    let s = o.x - 0.5;
+    let t = o.y - 0.5;
+    let fs = floor(s);
+    let ft = floor(t);
+    let ax = s - fs;
+    let ay = t - ft;
+    let i = i32(fs);
+    let j = i32(ft);
+    let top = mix(texel(i, j, dims), texel(i + 1, j, dims), ax);
+    let bottom = mix(texel(i, j + 1, dims), texel(i + 1, j + 1, dims), ax);
+    return mix(top, bottom, ay).rgb;
+}
+
+// The HSV adjustment of `strand_shade.wgsl` (kept in step with it and `shade::hsv_adjust`).
+fn linear_to_srgb(x: f32) -> f32 {
+    if x <= 0.0031308 {
+        return 12.92 * x;
+    }
+    return 1.055 * pow(x, 0.41666666) - 0.055;
+}
+
+fn srgb_to_linear(x: f32) -> f32 {
+    if x <= 0.04045 {
+        return x / 12.92;
+    }
+    return pow((x + 0.055) / 1.055, 2.4);
+}
+
+fn rgb_to_hsv_split(c: vec3<f32>) -> vec4<f32> {
+    let mx = max(max(c.x, c.y), c.z);
+    let mn = min(min(c.x, c.y), c.z);
+    let ch = mx - mn;
+    var s = 0.0;
+    if mx > 0.0 {
+        s = ch / mx;
+    }
+    var base = 0.0;
+    var off = 0.0;
+    if ch <= 0.0 {
+        base = 0.0;
+    } else if mx == c.x {
+        off = (c.y - c.z) / ch;
+    } else if mx == c.y {
+        base = 2.0;
+        off = (c.z - c.x) / ch;
+    } else {
+        base = 4.0;
+        off = (c.x - c.y) / ch;
+    }
+    return vec4<f32>(base, off, s, mx);
+}
+
+fn hsv_split_to_rgb(base: f32, off: f32, s: f32, v: f32) -> vec3<f32> {
+    let fl = floor(off);
+    let f = off - fl;
+    let k = base + fl;
+    let sector = k - 6.0 * floor(k / 6.0);
+    let p = v - v * s;
+    let q = v - v * s * f;
+    let t = v - v * s * (1.0 - f);
+    if sector < 0.5 {
+        return vec3<f32>(v, t, p);
+    } else if sector < 1.5 {
+        return vec3<f32>(q, v, p);
+    } else if sector < 2.5 {
+        return vec3<f32>(p, v, t);
+    } else if sector < 3.5 {
+        return vec3<f32>(p, q, v);
+    } else if sector < 4.5 {
+        return vec3<f32>(t, p, v);
+    }
+    return vec3<f32>(v, p, q);
+}
+
+fn hsv_adjust_linear(rgb: vec3<f32>, hue_deg: f32, sat: f32, val: f32) -> vec3<f32> {
+    let c = vec3<f32>(linear_to_srgb(rgb.x), linear_to_srgb(rgb.y), linear_to_srgb(rgb.z));
+    let hsv = rgb_to_hsv_split(c);
+    let x = hue_deg / 60.0;
+    let xi = floor(x);
+    let o = hsv_split_to_rgb(
+        hsv.x + xi,
+        hsv.y + (x - xi),
+        clamp(hsv.z * sat, 0.0, 1.0),
+        clamp(hsv.w * val, 0.0, 1.0),
+    );
+    return vec3<f32>(srgb_to_linear(o.x), srgb_to_linear(o.y), srgb_to_linear(o.z));
+}
+
 @fragment
 fn fs_main(in: VsOut) -> FsOut {
-    let c = mix(in.c0, in.c1, clamp(in.t, 0.0, 1.0));
+    var c = mix(in.c0, in.c1, clamp(in.t, 0.0, 1.0));
+    if cfg.photo != 0u {
+        var p = clamp(photo_at(in.o), vec3<f32>(0.0), vec3<f32>(1.0));
+        if cfg.photo == 2u {
+            p = hsv_adjust_linear(p, cfg.hue_deg, cfg.saturation, cfg.value);
+        }
+        c = vec4<f32>(clamp(p + c.rgb, vec3<f32>(0.0), vec3<f32>(1.0)), c.a);
+    }
     let n = cfg.samples;
     let k = u32(floor(clamp(c.a, 0.0, 1.0) * f32(n) + 0.5));
     if k == 0u {
