@@ -12,7 +12,7 @@ use crate::field3d::{self, FieldParams, SolveReport};
 use crate::grid::Grid;
 use crate::grow::{grow, GrowParams, Strands};
 use crate::head::{fit_default, fit_landmarks, FitReport, Head, HeadParams, WeakPerspective};
-use crate::refine::{refine, RefineParams, RefineReport};
+use crate::refine::{refine, walk_projected, Coverage, RefineParams, RefineReport};
 use crate::strands::StrandSet;
 use crate::volume::{hair_volume, lift_curves, HairVolume, HeadInput, Mesh, VolumeParams};
 use glam::Vec3;
@@ -240,7 +240,14 @@ pub fn model_from_analysis(
     let grown_strands = grown.len();
     let mut rp = p.refine;
     rp.grow = p.grow;
-    let (strands, refine_report) = refine(engine, &grid, &d, &hg, grown, &rp, p.seed)?;
+    let cover = Coverage {
+        width: w,
+        height: h,
+        mask: &vol.mask,
+        head_front: &vol.head.front,
+    };
+    let (strands, refine_report) =
+        refine(engine, &grid, &d, &hg, grown, &rp, p.seed, Some(&cover))?;
     lap("refinement", &mut timings);
 
     let (set, vol_strands) = to_model_space(&strands, &grid, &camera, image, &an.mask);
@@ -423,29 +430,22 @@ pub fn figures(m: &Model) -> ModelFigures {
     let mut front = vec![f32::NEG_INFINITY; w * h];
     let mut hit = vec![false; w * h];
     let mut turns = Vec::new();
+    let cover = Coverage {
+        width: w as u32,
+        height: h as u32,
+        mask: &m.analysis.mask,
+        head_front: &m.head_front,
+    };
     for s in &m.strands_volume {
         for seg in s.windows(2) {
-            let (a, b) = (seg[0], seg[1]);
-            let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-            let len = dx.hypot(dy);
-            let n = (len * 4.0).ceil().max(1.0) as usize;
-            for k in 0..=n {
-                let f = k as f32 / n as f32;
-                let (x, y) = (a[0] + f * dx, a[1] + f * dy);
-                if x >= 0.0 && y >= 0.0 && (x as usize) < w && (y as usize) < h {
-                    let i = y as usize * w + x as usize;
-                    // Behind the head the strand is hidden, as in a render.
-                    let z = a[2] + f * (b[2] - a[2]);
-                    if z < m.head_front[i] {
-                        continue;
-                    }
-                    hit[i] = true;
-                    if len > 1e-6 && z > front[i] {
-                        front[i] = z;
-                        tan[i] = [dx / len, dy / len];
-                    }
+            // Behind the head the strand is hidden, as in a render.
+            walk_projected(seg[0], seg[1], &cover, |i, z, t| {
+                hit[i] = true;
+                if t != [0.0; 2] && z > front[i] {
+                    front[i] = z;
+                    tan[i] = t;
                 }
-            }
+            });
         }
         for t in s.windows(3) {
             let u = Vec3::from_array(t[1]) - Vec3::from_array(t[0]);

@@ -5,7 +5,11 @@
 //! 2. picks random seeds in empty cells of H (in H, ρ = 0): the grid is cut into blocks of
 //!    `seed_spacing`³ cells and every block with empty cells gets one seed in one of them,
 //!    chosen at random, jittered inside the cell (uniform cover of the empty space without
-//!    piling seeds into one gap; C13 only says "randomly sampled within the empty region");
+//!    piling seeds into one gap; C13 only says "randomly sampled within the empty region").
+//!    With a [`Coverage`] target, also one seed per front cell of H under hair pixels the
+//!    projected strands miss, at one such pixel: C13 refines to remove "discrepancies
+//!    between the original image and the rendering of the hair model", and a cell 6 px wide
+//!    that holds one strand is not empty yet shows mostly background;
 //! 3. traces a candidate ξ* from each seed both ways (one `grow_rk2` pass with signs +1 and
 //!    -1) and joins the halves into one polyline oriented along D;
 //! 4. for every candidate, in parallel, enumerates the vertices ξ(i) of S within `radius`
@@ -13,7 +17,8 @@
 //!    Eq. (4) with the lowest E_c of Eq. (5); i ≥ 1, so the root part of ξ' always comes from
 //!    S and ξ'(0) is an original root on the scalp;
 //! 5. merges the winners in candidate order (deterministic): a candidate whose seed cell an
-//!    earlier joint strand of this iteration already filled is dropped as redundant; otherwise
+//!    earlier joint strand of this iteration already passed through is dropped as redundant;
+//!    otherwise
 //!    ξ' is smoothed (1D Gaussian, variance 2 vertices, on the vertices within two vertices of
 //!    the joint, the root excepted) and added to S (the strand it was cut from stays).
 //!
@@ -21,7 +26,7 @@
 //! candidates can be scored in parallel); the redundancy test in step 5 uses ρ updated as
 //! strands are added. Iterations stop when one connects nothing or after `max_iterations`.
 //!
-//! Radius: C13 gives none; 2 cells (two vertex spacings) by default: near enough that the
+//! Radius: C13 gives none; 3 cells (six vertex spacings) by default: near enough that the
 //! average vertex of Eq. (4) makes a gentle kink, far enough that most candidates meet S.
 
 use crate::engine::Engine;
@@ -33,6 +38,110 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 type V3 = [f32; 3];
+
+/// The picture refinement makes the strands cover (volume space: x, y image px, z depth px
+/// toward the camera): the hair mask and the head's front depth, behind which strands are
+/// hidden.
+#[derive(Clone, Copy, Debug)]
+pub struct Coverage<'a> {
+    pub width: u32,
+    pub height: u32,
+    /// W*H, nonzero on hair.
+    pub mask: &'a [u8],
+    /// W*H, the head's front depth (-inf off the head).
+    pub head_front: &'a [f32],
+}
+
+/// Walks segment a→b (volume space) in quarter-pixel steps and calls `f(pixel, z, t)` at each
+/// sample inside the image that lies in front of the head (what a render shows; t is the
+/// segment's unit image-plane direction, zero for a segment along the view).
+pub fn walk_projected(a: V3, b: V3, cov: &Coverage, mut f: impl FnMut(usize, f32, [f32; 2])) {
+    let (w, h) = (cov.width as usize, cov.height as usize);
+    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+    let len = dx.hypot(dy);
+    let t = if len > 1e-6 {
+        [dx / len, dy / len]
+    } else {
+        [0.0; 2]
+    };
+    let n = (len * 4.0).ceil().max(1.0) as usize;
+    for k in 0..=n {
+        let u = k as f32 / n as f32;
+        let (x, y) = (a[0] + u * dx, a[1] + u * dy);
+        if x >= 0.0 && y >= 0.0 && (x as usize) < w && (y as usize) < h {
+            let i = y as usize * w + x as usize;
+            let z = a[2] + u * (b[2] - a[2]);
+            if z >= cov.head_front[i] {
+                f(i, z, t);
+            }
+        }
+    }
+}
+
+/// Marks the pixels strand `s` (grid coordinates) covers in front of the head.
+fn mark_hits(grid: &Grid, s: &[V3], cov: &Coverage, hit: &mut [bool]) {
+    for seg in s.windows(2) {
+        let (a, b) = (grid.to_volume(seg[0]), grid.to_volume(seg[1]));
+        walk_projected(a, b, cov, |i, _, _| hit[i] = true);
+    }
+}
+
+/// Seeds (grid coordinates, with their pixel) for the hair pixels the strands miss: per front
+/// cell of H (the nearest H cell in front of the head) under such pixels, one seed per
+/// `COVER_PX_PER_SEED` of them (at least one) at missed pixels chosen at random, at a random
+/// depth inside the cell. Also returns the hit map.
+fn coverage_seeds(
+    grid: &Grid,
+    h: &[u32],
+    strands: &Strands,
+    cov: &Coverage,
+    rng: &mut Rng,
+) -> (Vec<(V3, usize)>, Vec<bool>) {
+    let (w, ht) = (cov.width as usize, cov.height as usize);
+    let mut hit = vec![false; w * ht];
+    for s in strands.iter() {
+        mark_hits(grid, s, cov, &mut hit);
+    }
+    // Missed pixels by front cell, in pixel order (deterministic).
+    let mut by_cell: std::collections::BTreeMap<usize, Vec<([f32; 2], usize)>> = Default::default();
+    for (i, (&m, &seen)) in cov.mask.iter().zip(&hit).enumerate() {
+        if m == 0 || seen {
+            continue;
+        }
+        let (x, y) = ((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
+        let g = grid.to_grid([x, y, 0.0]);
+        let (Some(ci), Some(cj)) = (
+            (g[0] >= 0.0 && g[0] < grid.dims[0] as f32).then_some(g[0] as u32),
+            (g[1] >= 0.0 && g[1] < grid.dims[1] as f32).then_some(g[1] as u32),
+        ) else {
+            continue;
+        };
+        let front = (0..grid.dims[2]).rev().find(|&k| {
+            h[grid.index(ci, cj, k)] != 0 && grid.centre([ci, cj, k])[2] > cov.head_front[i]
+        });
+        if let Some(k) = front {
+            by_cell
+                .entry(grid.index(ci, cj, k))
+                .or_default()
+                .push(([g[0], g[1]], i));
+        }
+    }
+    let mut seeds = Vec::new();
+    for (c, mut px) in by_cell {
+        let k = grid.coords(c)[2] as f32;
+        let n = px.len().div_ceil(COVER_PX_PER_SEED);
+        for m in 0..n {
+            let r = m + rng.below((px.len() - m) as u32) as usize;
+            px.swap(m, r);
+            let (q, i) = px[m];
+            seeds.push(([q[0], q[1], k + rng.range_f32(0.1, 0.9)], i));
+        }
+    }
+    (seeds, hit)
+}
+
+/// Missed pixels per coverage seed: a strand is ~1 px wide, so a seed per few pixels.
+const COVER_PX_PER_SEED: usize = 6;
 
 /// Refinement parameters (C13 §2.2: σ_c = 1, w_ρ = 0.01, smoothing variance 2 vertices
 /// within two vertices of the joint, 4-5 iterations).
@@ -115,6 +224,8 @@ pub struct IterationReport {
     /// Share of H cells holding no vertex, before the iteration.
     pub empty_share: f64,
     pub seeds: usize,
+    /// Of the seeds, those placed under hair pixels the strands miss ([`Coverage`]).
+    pub coverage_seeds: usize,
     /// Traced candidates at least `min_candidate_len` long.
     pub candidates: usize,
     /// Candidates for which a joint within the radius exists.
@@ -449,8 +560,12 @@ fn empty_share(h: &[u32], density: &[u32]) -> f64 {
     }
 }
 
-/// Iteratively adds joint strands to `strands` until H is filled (C13 §2.2). Deterministic
-/// for a given `seed` (on either backend, up to GPU rounding of the traced candidates).
+/// Iteratively adds joint strands to `strands` until H is filled (C13 §2.2) and, with
+/// `coverage`, until the projected strands cover the hair pixels in front of the head.
+/// Deterministic for a given `seed` (on either backend, up to GPU rounding of the traced
+/// candidates).
+// The seed and the optional coverage target read best as plain arguments.
+#[allow(clippy::too_many_arguments)]
 pub fn refine(
     engine: &Engine,
     grid: &Grid,
@@ -459,6 +574,7 @@ pub fn refine(
     strands: Strands,
     p: &RefineParams,
     seed: u64,
+    coverage: Option<&Coverage>,
 ) -> Result<(Strands, RefineReport)> {
     validate_field(grid, d, h)?;
     p.validate()?;
@@ -475,6 +591,18 @@ pub fn refine(
             "strand vertex {g} at {:?} is outside the {:?} grid",
             strands.verts[g], grid.dims
         )));
+    }
+    if let Some(c) = coverage {
+        let n = c.width as usize * c.height as usize;
+        if c.mask.len() != n || c.head_front.len() != n {
+            return Err(Error::Invalid(format!(
+                "coverage target: {} mask and {} depth values for a {}x{} image",
+                c.mask.len(),
+                c.head_front.len(),
+                c.width,
+                c.height
+            )));
+        }
     }
     let mut rng = Rng::new(seed);
     let win = (p.sigma_c * (2.0 * 1e4f32.ln()).sqrt()).ceil() as usize;
@@ -493,7 +621,17 @@ pub fn refine(
             empty_share: empty_share(h, &density),
             ..Default::default()
         };
-        let seeds = pick_seeds(grid, h, &density, p, &mut it_rng);
+        let mut seeds = pick_seeds(grid, h, &density, p, &mut it_rng);
+        let n_empty = seeds.len();
+        // For coverage seeds: their pixel, and the pixels covered so far this iteration.
+        let (mut seed_px, mut hit) = (Vec::new(), Vec::new());
+        if let Some(cov) = coverage {
+            let (extra, hits) = coverage_seeds(grid, h, &strands, cov, &mut it_rng);
+            ir.coverage_seeds = extra.len();
+            seeds.extend(extra.iter().map(|e| e.0));
+            seed_px = extra.iter().map(|e| e.1).collect();
+            hit = hits;
+        }
         ir.seeds = seeds.len();
         if seeds.is_empty() {
             report.iterations.push(ir);
@@ -538,8 +676,14 @@ pub fn refine(
         for ((c, cand), jt) in candidates.iter().zip(joints) {
             let Some(jt) = jt else { continue };
             ir.connected += 1;
-            let seed_cell = grid.cell_of(seeds[*c]).expect("seeds lie inside the grid");
-            if running[seed_cell] != 0 {
+            // Redundant: an earlier joint strand of this iteration passed the seed's cell
+            // (empty-cell seeds) or covered its pixel (coverage seeds).
+            if *c < n_empty {
+                let seed_cell = grid.cell_of(seeds[*c]).expect("seeds lie inside the grid");
+                if running[seed_cell] != 0 {
+                    continue;
+                }
+            } else if hit[seed_px[*c - n_empty]] {
                 continue;
             }
             let xi = strands.strand(jt.s as usize);
@@ -548,6 +692,9 @@ pub fn refine(
                 if let Some(cell) = grid.cell_of(*v) {
                     running[cell] += 1;
                 }
+            }
+            if let Some(cov) = coverage {
+                mark_hits(grid, &joined, cov, &mut hit);
             }
             strands.push(&joined);
         }

@@ -289,6 +289,13 @@ pub struct VolumeParams {
     pub cells: u32,
     /// Empty cells added on each side of the hair's bounding box.
     pub margin_cells: u32,
+    /// A cell column belongs to the hair when at least this share of the pixels under it is
+    /// hair. With the pixel under the cell's centre instead (about one half), the cells along
+    /// the mask's edge whose centre falls just outside were lost, and with them a band up to
+    /// half a cell (3 px at 512²) along the hair's edge that no strand could reach: the
+    /// synthetic long hair's re-render went 21.7 -> 24.5 dB and its coverage IoU 0.962 ->
+    /// 0.974 with 1/4 (issue 5 note).
+    pub min_hair_fraction: f32,
     pub shape: HairShapeParams,
 }
 
@@ -297,6 +304,7 @@ impl Default for VolumeParams {
         VolumeParams {
             cells: 80,
             margin_cells: 1,
+            min_hair_fraction: 0.25,
             shape: HairShapeParams::default(),
         }
     }
@@ -530,10 +538,11 @@ fn fit_grid(lo: [f32; 3], hi: [f32; 3], cells: u32, margin: u32) -> Grid {
 /// The hair volume (C13 §2.1). `mask` is W*H (value > 127 = hair). The head mesh is
 /// rasterised, the initial hair mesh built over it ([`hair_shape_mesh`]) and both rasterised
 /// together; the grid covers the mask's bounding box and the depth range over the mask with
-/// `params.cells` cells on its largest axis plus margins. Cell c is in H when the pixel under
-/// its centre is hair, its depth extent [z_c - cell/2, z_c + cell/2] overlaps [back, front]
-/// at that pixel (so a column is never lost between two cell centres) and its centre is
-/// outside the head (`head.sdf > 0`).
+/// `params.cells` cells on its largest axis plus margins. Cell c is in H when at least
+/// `params.min_hair_fraction` of the pixels under its x-y footprint are hair (covered by the
+/// depth maps), its depth extent [z_c - cell/2, z_c + cell/2] overlaps [back, front] at the
+/// hair pixel nearest its centre (so a column is never lost between two cell centres) and
+/// its centre is outside the head (`head.sdf > 0`).
 ///
 /// Errors: mask size not W*H, empty mask, non-finite centre depth, bad parameters, a mask
 /// that does not overlap the head's front map, an empty H, and what the rasteriser refuses.
@@ -556,6 +565,12 @@ pub fn hair_volume(
         return Err(Error::Invalid(format!(
             "hair volume: {} cells cannot hold {} margin cells on each side",
             params.cells, params.margin_cells
+        )));
+    }
+    if !(params.min_hair_fraction > 0.0 && params.min_hair_fraction <= 1.0) {
+        return Err(Error::Invalid(format!(
+            "hair volume: min_hair_fraction {} must lie in (0, 1]",
+            params.min_hair_fraction
         )));
     }
     if !(params.shape.thickness_cells > 0.0 && params.shape.thickness_cells.is_finite()) {
@@ -619,22 +634,54 @@ pub fn hair_volume(
     }
     let (grid, hair_mesh, maps) = built.expect("at least one round");
     let plane = grid.dims[0] as usize * grid.dims[1] as usize;
+    let half = 0.5 * grid.cell;
+    // Per cell column: the hair pixel that stands for it (see `min_hair_fraction`).
+    let columns: Vec<Option<usize>> = (0..plane)
+        .into_par_iter()
+        .map(|ij| {
+            let c = grid.centre([
+                (ij % grid.dims[0] as usize) as u32,
+                (ij / grid.dims[0] as usize) as u32,
+                0,
+            ]);
+            let span = |v: f32, n: u32| {
+                (
+                    ((v - half).floor().max(0.0) as u32).min(n),
+                    ((v + half).ceil().max(0.0) as u32).min(n),
+                )
+            };
+            let ((x0, x1), (y0, y1)) = (span(c[0], width), span(c[1], height));
+            let (mut total, mut on, mut best) = (0u32, 0u32, None);
+            let mut best_d = f32::INFINITY;
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    total += 1;
+                    let i = y as usize * w + x as usize;
+                    if hair[i] && maps.covered(i) {
+                        on += 1;
+                        let d = (x as f32 + 0.5 - c[0]).powi(2) + (y as f32 + 0.5 - c[1]).powi(2);
+                        if d < best_d {
+                            best_d = d;
+                            best = Some(i);
+                        }
+                    }
+                }
+            }
+            best.filter(|_| on as f32 >= params.min_hair_fraction * total as f32)
+        })
+        .collect();
     let mut h = vec![0u32; grid.len()];
     h.par_chunks_mut(plane).enumerate().for_each(|(k, slab)| {
         for (ij, out) in slab.iter_mut().enumerate() {
+            let Some(p) = columns[ij] else {
+                continue;
+            };
             let c = grid.centre([
                 (ij % grid.dims[0] as usize) as u32,
                 (ij / grid.dims[0] as usize) as u32,
                 k as u32,
             ]);
-            let (px, py) = (c[0].floor(), c[1].floor());
-            if px < 0.0 || py < 0.0 || px >= width as f32 || py >= height as f32 {
-                continue;
-            }
-            let p = py as usize * w + px as usize;
-            let half = 0.5 * grid.cell;
-            if hair[p]
-                && maps.covered(p)
+            if maps.covered(p)
                 && c[2] - half <= maps.front[p]
                 && c[2] + half >= maps.back[p]
                 && (head.sdf)(c) > 0.0

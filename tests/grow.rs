@@ -510,7 +510,7 @@ fn refinement_fills_the_volume() {
     let t_grow = t0.elapsed();
     let p = RefineParams::default();
     let t1 = std::time::Instant::now();
-    let (st, rep) = refine(&e, &sc.grid, &sc.d, &sc.h, initial.clone(), &p, 7).unwrap();
+    let (st, rep) = refine(&e, &sc.grid, &sc.d, &sc.h, initial.clone(), &p, 7, None).unwrap();
     let t_refine = t1.elapsed();
     println!(
         "refine: {} roots, {} initial strands ({} vertices) grown in {t_grow:.2?}, refined in \
@@ -595,14 +595,14 @@ fn refinement_is_deterministic() {
         max_iterations: 3,
         ..Default::default()
     };
-    let a = refine(&e, &sc.grid, &sc.d, &sc.h, initial.clone(), &p, 3).unwrap();
-    let b = refine(&e, &sc.grid, &sc.d, &sc.h, initial.clone(), &p, 3).unwrap();
+    let a = refine(&e, &sc.grid, &sc.d, &sc.h, initial.clone(), &p, 3, None).unwrap();
+    let b = refine(&e, &sc.grid, &sc.d, &sc.h, initial.clone(), &p, 3, None).unwrap();
     assert_eq!(a.0, b.0);
     assert_eq!(a.1, b.1);
-    let c = refine(&e, &sc.grid, &sc.d, &sc.h, initial.clone(), &p, 4).unwrap();
+    let c = refine(&e, &sc.grid, &sc.d, &sc.h, initial.clone(), &p, 4, None).unwrap();
     assert_ne!(a.0, c.0, "another seed should pick other seeds");
     // The GPU backend runs the same host logic; its strands are the CPU's up to rounding.
-    let g = refine(&gpu(), &sc.grid, &sc.d, &sc.h, initial, &p, 3).unwrap();
+    let g = refine(&gpu(), &sc.grid, &sc.d, &sc.h, initial, &p, 3, None).unwrap();
     println!(
         "determinism: {} strands (cpu), {} strands (gpu)",
         a.0.len(),
@@ -653,7 +653,16 @@ fn bad_input_is_invalid_not_a_panic() {
     let rinv = |r: Result<(Strands, coif::refine::RefineReport), Error>| {
         assert!(matches!(r, Err(Error::Invalid(_))), "{:?}", r.err());
     };
-    rinv(refine(&e, &sc.grid, &nan, &sc.h, strands.clone(), &rp, 1));
+    rinv(refine(
+        &e,
+        &sc.grid,
+        &nan,
+        &sc.h,
+        strands.clone(),
+        &rp,
+        1,
+        None,
+    ));
     rinv(refine(
         &e,
         &sc.grid,
@@ -662,13 +671,14 @@ fn bad_input_is_invalid_not_a_panic() {
         strands.clone(),
         &rp,
         1,
+        None,
     ));
     let mut outside = strands.clone();
     outside.verts[0] = [100.0, 0.0, 0.0];
-    rinv(refine(&e, &sc.grid, &sc.d, &sc.h, outside, &rp, 1));
+    rinv(refine(&e, &sc.grid, &sc.d, &sc.h, outside, &rp, 1, None));
     let mut broken = strands.clone();
     broken.offsets.push(broken.verts.len() + 5);
-    rinv(refine(&e, &sc.grid, &sc.d, &sc.h, broken, &rp, 1));
+    rinv(refine(&e, &sc.grid, &sc.d, &sc.h, broken, &rp, 1, None));
     rinv(refine(
         &e,
         &sc.grid,
@@ -680,12 +690,13 @@ fn bad_input_is_invalid_not_a_panic() {
             ..rp
         },
         1,
+        None,
     ));
     // Empty inputs are fine.
     assert!(grow(&e, &sc.grid, &sc.d, &sc.h, &[], &[], &p)
         .unwrap()
         .is_empty());
-    let (st, rep) = refine(&e, &sc.grid, &sc.d, &sc.h, Strands::new(), &rp, 1).unwrap();
+    let (st, rep) = refine(&e, &sc.grid, &sc.d, &sc.h, Strands::new(), &rp, 1, None).unwrap();
     // Without strands nothing can be connected: one iteration, nothing added.
     assert!(st.is_empty());
     assert_eq!(rep.iterations.len(), 1);

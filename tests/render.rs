@@ -81,13 +81,10 @@ fn original_view_reproduces_the_hair_region() {
         );
         worst = worst.min(psnr);
     }
-    // The issue's goal is 24 dB. Where strands cover the hair the photo colour reproduces
-    // it; the hair pixels the strands leave uncovered show the inpainted background: this
-    // guard holds the current level and any shortfall is printed for the issue note.
-    assert!(worst >= 20.0, "re-render PSNR {worst:.2} dB < 20 dB");
-    if worst < 24.0 {
-        println!("re-render PSNR {worst:.2} dB is below the issue's 24 dB goal");
-    }
+    // The issue's goal. Where strands cover the hair the photo colour reproduces it; what is
+    // left is the hair the strands miss (the inpainted background shows there) and the
+    // mask's edge.
+    assert!(worst >= 24.0, "re-render PSNR {worst:.2} dB < 24 dB");
 }
 
 #[test]

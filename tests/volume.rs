@@ -321,16 +321,36 @@ fn hair_volume_on_synthetic_portrait() {
     assert_eq!(g.dims.iter().max(), Some(&80));
     assert_eq!(vol.h.len(), g.len());
     assert!(vol.count > 0 && vol.count == vol.h.iter().filter(|&&v| v == 1).count());
-    // No H cell inside the head; every H cell inside the mask and between the maps.
+    // No H cell inside the head; every H cell over hair (at least `min_hair_fraction` of the
+    // pixels under it) and between the maps at one of those hair pixels.
+    let frac = VolumeParams::default().min_hair_fraction;
+    let half = 0.5 * g.cell;
     for (idx, _) in vol.h.iter().enumerate().filter(|(_, &v)| v != 0) {
         let c = g.centre(g.coords(idx));
         assert!(
             head.sdf(c) > 0.0,
             "H cell {idx} at {c:?} is inside the head"
         );
-        let p = vol.pixel(c[0], c[1]).unwrap();
-        assert_eq!(vol.mask[p], 1);
-        assert!(c[2] - 0.5 * g.cell <= vol.front[p] && c[2] + 0.5 * g.cell >= vol.back[p]);
+        let (mut total, mut hair, mut between) = (0, 0, false);
+        for y in
+            (c[1] - half).floor().max(0.0) as u32..((c[1] + half).ceil() as u32).min(vol.height)
+        {
+            for x in
+                (c[0] - half).floor().max(0.0) as u32..((c[0] + half).ceil() as u32).min(vol.width)
+            {
+                total += 1;
+                let p = (y * vol.width + x) as usize;
+                if vol.mask[p] != 0 {
+                    hair += 1;
+                    between |= c[2] - half <= vol.front[p] && c[2] + half >= vol.back[p];
+                }
+            }
+        }
+        assert!(
+            hair as f32 >= frac * total as f32,
+            "H cell {idx}: {hair}/{total} hair pixels"
+        );
+        assert!(between, "H cell {idx} at {c:?} is outside the depth maps");
     }
     // Front before back on every hair pixel, and the hair encloses the head there.
     let mut hair_px = 0;
