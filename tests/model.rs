@@ -48,9 +48,10 @@ fn synthetic_portraits_give_rooted_covering_directed_strands() {
             print(&name, &f, t.elapsed().as_secs_f64());
             check_common(&name, &f);
             // The issue's goals: IoU ≥ 0.90, direction agreement ≥ 95%. The whorl (seed 1)
-            // misses the second: two short curve pieces near its centre, cut at their apex
-            // (`TraceParams::apex_drop`), resolve the wrong way in direction.npy, and the
-            // smooth 3D field does not follow them (93.5%); this guards that level.
+            // misses the second (94.5%): two short curve pieces near its centre, cut at their
+            // apex (`TraceParams::apex_drop`), resolve the wrong way in direction.npy, and the
+            // front strands in a band left of the centre do not follow the map's turn even
+            // with its constraints; this guards that level.
             assert!(f.coverage_iou >= 0.90, "{name}: IoU {}", f.coverage_iou);
             let goal = if style == Style::Whorl { 0.93 } else { 0.95 };
             assert!(
@@ -107,13 +108,11 @@ fn astronaut_photo_gives_rooted_smooth_strands() {
     }
     check_common("astronaut", &f);
     assert!(f.coverage_iou >= 0.90, "IoU {}", f.coverage_iou);
-    // Guard only: the issue asks 95%; next to her parting the 2D direction flips within a
-    // few pixels and the smooth 3D field does not (see the issue note).
-    assert!(f.direction_agreement >= 0.9, "{}", f.direction_agreement);
-    if f.direction_agreement < 0.95 {
-        println!(
-            "astronaut: direction agreement below the issue's 95% goal ({:.1}%)",
-            100.0 * f.direction_agreement
-        );
-    }
+    // The issue's goal (with the direction map's constraints where no curve reaches, see
+    // `ModelParams::direction_step_px`; the curves alone gave 93.5%).
+    assert!(
+        f.direction_agreement >= 0.95,
+        "direction agreement {}",
+        f.direction_agreement
+    );
 }
