@@ -98,10 +98,29 @@ fn coverage_seeds(
     rng: &mut Rng,
 ) -> (Vec<(V3, usize)>, Vec<bool>) {
     let (w, ht) = (cov.width as usize, cov.height as usize);
-    let mut hit = vec![false; w * ht];
-    for s in strands.iter() {
-        mark_hits(grid, s, cov, &mut hit);
-    }
+    // One map per chunk of strands, OR-ed: the walk is most of the cost.
+    let ids: Vec<usize> = (0..strands.len()).collect();
+    let hit = ids
+        .par_chunks(
+            strands
+                .len()
+                .div_ceil(4 * rayon::current_num_threads())
+                .max(1),
+        )
+        .map(|chunk| {
+            let mut hit = vec![false; w * ht];
+            for &s in chunk {
+                mark_hits(grid, strands.strand(s), cov, &mut hit);
+            }
+            hit
+        })
+        .reduce(
+            || vec![false; w * ht],
+            |mut a, b| {
+                a.iter_mut().zip(&b).for_each(|(x, &y)| *x |= y);
+                a
+            },
+        );
     // Missed pixels by front cell, in pixel order (deterministic).
     let mut by_cell: std::collections::BTreeMap<usize, Vec<([f32; 2], usize)>> = Default::default();
     for (i, (&m, &seen)) in cov.mask.iter().zip(&hit).enumerate() {
