@@ -413,6 +413,25 @@ fn check_dims(what: &str, w: u32, h: u32, max_dim: u32) -> Result<()> {
     Ok(())
 }
 
+/// `t` with its size checked and its texels sanitised.
+fn checked_texture(what: &str, t: &Texture, max_dim: u32) -> Result<Texture> {
+    check_dims(what, t.width, t.height, max_dim)?;
+    let n = t.width as usize * t.height as usize;
+    if t.texels.len() != n {
+        return invalid(format!(
+            "{what} has {} texels, {}x{} needs {n}",
+            t.texels.len(),
+            t.width,
+            t.height
+        ));
+    }
+    Ok(Texture {
+        width: t.width,
+        height: t.height,
+        texels: t.texels.par_iter().map(|&c| sanitise(c)).collect(),
+    })
+}
+
 fn finite<const N: usize>(v: &[f32; N]) -> bool {
     v.iter().all(|x| x.is_finite())
 }
@@ -581,17 +600,7 @@ impl Scene {
             segs: Vec::new(),
         };
         if let Some(m) = mesh {
-            let t = &m.texture;
-            check_dims("mesh texture", t.width, t.height, max_dim)?;
-            if t.texels.len() != t.width as usize * t.height as usize {
-                return invalid(format!(
-                    "mesh texture has {} texels, {}x{} needs {}",
-                    t.texels.len(),
-                    t.width,
-                    t.height,
-                    t.width as usize * t.height as usize
-                ));
-            }
+            let texture = checked_texture("mesh texture", &m.texture, max_dim)?;
             if m.uvs.len() != m.positions.len() {
                 return invalid(format!(
                     "mesh has {} positions but {} uvs",
@@ -610,11 +619,7 @@ impl Scene {
                     m.positions.len()
                 ));
             }
-            scene.texture = Some(Texture {
-                width: t.width,
-                height: t.height,
-                texels: t.texels.par_iter().map(|&c| sanitise(c)).collect(),
-            });
+            scene.texture = Some(texture);
             scene.tris = m
                 .triangles
                 .par_iter()
@@ -637,17 +642,7 @@ impl Scene {
                 ));
             }
             if let Some(ph) = &s.photo {
-                let t = &ph.texture;
-                check_dims("strand photo", t.width, t.height, max_dim)?;
-                if t.texels.len() != t.width as usize * t.height as usize {
-                    return invalid(format!(
-                        "strand photo has {} texels, {}x{} needs {}",
-                        t.texels.len(),
-                        t.width,
-                        t.height,
-                        t.width as usize * t.height as usize
-                    ));
-                }
+                let texture = checked_texture("strand photo", &ph.texture, max_dim)?;
                 if ph.points.len() != s.points.len() {
                     return invalid(format!(
                         "strands have {} points but {} photo points",
@@ -672,11 +667,7 @@ impl Scene {
                     scene.cfg.saturation = sat;
                     scene.cfg.value = val;
                 }
-                scene.photo = Some(Texture {
-                    width: t.width,
-                    height: t.height,
-                    texels: t.texels.par_iter().map(|&c| sanitise(c)).collect(),
-                });
+                scene.photo = Some(texture);
             }
             let opoint = |i: usize| s.photo.as_ref().map(|ph| ph.points[i]);
             let mut starts = Vec::with_capacity(s.counts.len());
