@@ -524,10 +524,12 @@ pub fn render(engine: &Engine, m: &RenderModel, p: &RenderParams) -> Result<Rend
         )));
     }
     let composite = !p.strands_only;
+    // The photo in linear light, once for the strands' photo colour and the layers.
+    let lin = m.photo.as_ref().filter(|_| composite).map(linear_photo);
     let photo = match (&m.photo, &m.camera, &strands_m.colors) {
-        (Some(img), Some(cam0), Some(_)) if composite && p.colour == ColourSource::Photo => {
-            Some(strand_photo(img, cam0, strands_m, p))
-        }
+        (Some(img), Some(cam0), Some(_)) if composite && p.colour == ColourSource::Photo => Some(
+            strand_photo(img, lin.as_deref().expect("composite"), cam0, strands_m, p),
+        ),
         _ => None,
     };
     let colors = match &photo {
@@ -561,7 +563,10 @@ pub fn render(engine: &Engine, m: &RenderModel, p: &RenderParams) -> Result<Rend
         )));
     }
     let (background, mesh) = if composite {
-        let (bg, mesh) = layers(engine, m, &vc, p, &mut report)?;
+        let lin = lin
+            .as_deref()
+            .expect("checked above: composite renders have a photo");
+        let (bg, mesh) = layers(engine, m, lin, &vc, p, &mut report)?;
         lap("layers", &mut report);
         (Some(bg), mesh)
     } else {
@@ -612,6 +617,7 @@ pub fn render(engine: &Engine, m: &RenderModel, p: &RenderParams) -> Result<Rend
 /// `scale` widens strands on screen only) and the HSV adjustment.
 fn strand_photo(
     img: &image::RgbImage,
+    lin: &[[f32; 3]],
     cam0: &WeakPerspective,
     s: &StrandSet,
     p: &RenderParams,
@@ -624,10 +630,7 @@ fn strand_photo(
             [o.x, o.y]
         })
         .collect();
-    let texels = linear_photo(img)
-        .into_iter()
-        .map(|c| [c[0], c[1], c[2], 1.0])
-        .collect();
+    let texels = lin.iter().map(|c| [c[0], c[1], c[2], 1.0]).collect();
     let sp = &p.shade;
     StrandPhoto {
         points,
@@ -703,6 +706,7 @@ fn resample_colours(m: &RenderModel, spacing: f32) -> Option<StrandSet> {
 fn layers(
     engine: &Engine,
     m: &RenderModel,
+    lin: &[[f32; 3]],
     vc: &ViewCamera,
     p: &RenderParams,
     report: &mut RenderReport,
@@ -711,7 +715,6 @@ fn layers(
     let cam0 = m.camera.expect("checked by the caller");
     let (pw, ph) = photo.dimensions();
     let (pwu, phu) = (pw as usize, ph as usize);
-    let lin = linear_photo(photo);
     let hair: Vec<u8> = match &m.mask {
         Some(mk) => mk.iter().map(|&v| (v != 0) as u8).collect(),
         None => vec![0; pwu * phu],
@@ -757,7 +760,7 @@ fn layers(
         .map(|(&a, &b)| (a != 0 || b != 0) as u8)
         .collect();
     report.hole_pixels = hole.iter().filter(|&&v| v != 0).count();
-    let (filled, _) = inpaint(engine, pw, ph, &lin, &hole, &p.inpaint)?;
+    let (filled, _) = inpaint(engine, pw, ph, lin, &hole, &p.inpaint)?;
     let bg_photo: Vec<[f32; 4]> = filled.iter().map(|c| [c[0], c[1], c[2], 1.0]).collect();
 
     let (Some(head), Some((verts, tris, seen))) = (head, head_mesh) else {
@@ -791,7 +794,7 @@ fn layers(
         .zip(&hair)
         .map(|(&c, &hr)| (c && hr == 0) as u8)
         .collect();
-    let th = head_texture_with(engine, head, &cam0, &lin, pw, ph, &usable, &p.head_texture)?;
+    let th = head_texture_with(engine, head, &cam0, lin, pw, ph, &usable, &p.head_texture)?;
     let positions: Vec<[f32; 3]> = th
         .positions
         .iter()
