@@ -89,10 +89,6 @@ pub struct Model {
     pub roots_kept: usize,
     pub grown_strands: usize,
     pub refine: RefineReport,
-    /// The solved direction field D (3 per cell of `grid`, volume space) and the cells it
-    /// was solved on (H and the scalp shell).
-    pub field: Vec<f32>,
-    pub field_cells: Vec<u32>,
     /// Strands in model space (metres), root first, with per-vertex colour and transparency.
     pub strands: StrandSet,
     /// The same strands in volume space (image px, depth px).
@@ -288,8 +284,6 @@ pub fn model_from_analysis(
         roots_kept: roots.len(),
         grown_strands,
         refine: refine_report,
-        field: d,
-        field_cells: hg,
         strands: set,
         strands_volume: vol_strands,
         head_front: vol.head.front.clone(),
