@@ -7,7 +7,7 @@
 //! Run: `CARGO_TARGET_DIR=/work/target-h cargo bench --bench field`
 //! (COIF_BENCH_REPS sets repetitions; needs `pip install pyamg scipy` for the peer.)
 
-use coif::field3d::{solve, test_shell, FieldParams, NormalSystem};
+use coif::model::field3d::{solve, test_shell, FieldParams, NormalSystem};
 use coif::{BackendChoice, Engine};
 use std::io::Write;
 use std::path::Path;

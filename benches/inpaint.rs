@@ -5,15 +5,15 @@
 //! photo and hole in the same run. cv2.inpaint is a diffusion-type method (it propagates
 //! smooth colour, copies no texture), so the ratio compares cost, not results.
 //!
-//! The hole: coif's stroke segmentation of the hair (`coif::segment` with the shipped
+//! The hole: coif's stroke segmentation of the hair (`coif::analyze::segment` with the shipped
 //! `ASTRONAUT_STROKES`), dilated by 4 px (a disc) to take the hair's soft edge too.
 //!
 //! Run: `CARGO_TARGET_DIR=/work/target-h cargo bench --bench inpaint`
 //! (needs `pip install opencv-python-headless` for the peer; COIF_BENCH_OUT=dir keeps the
 //! pictures: photo with the hole in magenta, our fill, Telea's.)
 
-use coif::inpaint::{inpaint, InpaintParams};
-use coif::raster::{linear_to_srgb, srgb_to_linear};
+use coif::render::inpaint::{inpaint, InpaintParams};
+use coif::render::raster::{linear_to_srgb, srgb_to_linear};
 use coif::{BackendChoice, Engine};
 use std::path::Path;
 use std::process::Command;
@@ -34,13 +34,14 @@ fn json_f64(s: &str, key: &str) -> Option<f64> {
 /// The astronaut's hair mask from the shipped strokes, dilated by `r` px.
 fn hair_hole(img: &image::RgbImage, r: i32) -> Vec<u8> {
     let (w, h) = img.dimensions();
-    let strokes = coif::annot::Strokes::parse(
-        coif::assets::ASTRONAUT_STROKES,
+    let strokes = coif::io::annot::Strokes::parse(
+        coif::io::assets::ASTRONAUT_STROKES,
         Path::new("astronaut_strokes.json"),
         Some((w, h)),
     )
     .expect("shipped strokes parse");
-    let mask = coif::segment::segment(img, &strokes, &Default::default()).expect("segmentation");
+    let mask =
+        coif::analyze::segment::segment(img, &strokes, &Default::default()).expect("segmentation");
     let (w, h) = (w as i32, h as i32);
     (0..w * h)
         .map(|i| {
@@ -72,7 +73,7 @@ fn main() {
         .ok()
         .and_then(|s| s.parse().ok())
         .unwrap_or(5);
-    let photo = image::load_from_memory(coif::assets::ASTRONAUT_PNG)
+    let photo = image::load_from_memory(coif::io::assets::ASTRONAUT_PNG)
         .expect("embedded photo decodes")
         .to_rgb8();
     let (w, h) = photo.dimensions();

@@ -6,7 +6,7 @@
 //! (COIF_BENCH_REPS sets CPU repetitions, default 2; lavapipe runs once: it is slow software.)
 
 use coif::analyze::analyze;
-use coif::annot::{Landmarks, Strokes};
+use coif::io::annot::{Landmarks, Strokes};
 use coif::model::{model_from_analysis, ModelParams};
 use coif::synth::{synth, Style, SynthParams};
 use coif::{BackendChoice, Engine};
@@ -50,7 +50,7 @@ fn main() {
         .and_then(|s| s.parse().ok())
         .unwrap_or(2);
     let s = synth(&SynthParams::new(Style::Long, 1));
-    let astro = image::load_from_memory(coif::assets::ASTRONAUT_PNG)
+    let astro = image::load_from_memory(coif::io::assets::ASTRONAUT_PNG)
         .unwrap()
         .to_rgb8();
     let cases = [
@@ -65,7 +65,7 @@ fn main() {
             name: "astronaut 512²",
             image: astro,
             strokes: Strokes::parse(
-                coif::assets::ASTRONAUT_STROKES,
+                coif::io::assets::ASTRONAUT_STROKES,
                 std::path::Path::new("assets/astronaut_strokes.json"),
                 Some((512, 512)),
             )

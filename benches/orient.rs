@@ -5,8 +5,8 @@
 //! Run: `cargo bench --bench orient` (COIF_BENCH_REPS sets repetitions, COIF_BENCH_SIZES
 //! e.g. "512,1024", COIF_BENCH_GPU=0 skips lavapipe).
 
-use coif::engine::{BackendChoice, Engine, Recording};
-use coif::orient::{orient, GrayImage, OrientParams, SENTINEL};
+use coif::analyze::orient::{orient, GrayImage, OrientParams, SENTINEL};
+use coif::gpu::engine::{BackendChoice, Engine, Recording};
 use coif::stages::gabor;
 use std::process::Command;
 use std::time::Instant;
@@ -51,7 +51,7 @@ fn peer(img: &GrayImage, p: &OrientParams, reps: usize) -> serde_json::Value {
     let (w, h) = (img.width as usize, img.height as usize);
     let ip = dir.path().join("image.npy");
     let kp = dir.path().join("kernels.npy");
-    coif::npy::write_f32(&ip, &[h, w], &img.data).expect("write image");
+    coif::io::npy::write_f32(&ip, &[h, w], &img.data).expect("write image");
     let k = &p.kernel;
     let ks = k.ksize as usize;
     let hf = k.half() as i32;
@@ -63,7 +63,7 @@ fn peer(img: &GrayImage, p: &OrientParams, reps: usize) -> serde_json::Value {
             }
         }
     }
-    coif::npy::write_f32(&kp, &[k.n_orient as usize, ks, ks], &kern).expect("write kernels");
+    coif::io::npy::write_f32(&kp, &[k.n_orient as usize, ks, ks], &kern).expect("write kernels");
     let script = concat!(env!("CARGO_MANIFEST_DIR"), "/benches/peers/gabor_opencv.py");
     let out = Command::new("python3")
         .arg(script)

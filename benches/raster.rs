@@ -9,8 +9,8 @@
 //! run; needs `pip install skia-python numpy` for the peer; RASTER_BENCH_PNG=dir writes our
 //! two images there.)
 
-use coif::raster::{render, to_rgba8, Frame, RasterParams, ScreenStrands};
-use coif::rng::Rng;
+use coif::base::rng::Rng;
+use coif::render::raster::{render, to_rgba8, Frame, RasterParams, ScreenStrands};
 use coif::{BackendChoice, Engine};
 use std::io::Write;
 use std::path::Path;

@@ -6,8 +6,8 @@
 //!
 //! Run: `cargo bench --bench resolve` (COIF_BENCH_REPS sets repetitions).
 
-use coif::resolve::{resolve_directions, ResolveParams};
-use coif::trace::Curve;
+use coif::analyze::resolve::{resolve_directions, ResolveParams};
+use coif::analyze::trace::Curve;
 use std::process::Command;
 use std::time::Instant;
 

@@ -1,8 +1,8 @@
 //! Shading time for 30k strands x 50 vertices (issue 5's bench size), one key light and one
 //! back light, on the CPU mirrors and on the GPU (lavapipe here). Prints times; no asserts.
 
-use coif::engine::{BackendChoice, Engine};
-use coif::shade::{shade_model_space, Light, ShadeParams};
+use coif::gpu::engine::{BackendChoice, Engine};
+use coif::render::shade::{shade_model_space, Light, ShadeParams};
 use std::time::Instant;
 
 fn main() {

@@ -2,9 +2,10 @@
 
 use anyhow::Context;
 use clap::{Args, Parser, Subcommand};
-use coif::engine::{BackendChoice, Engine};
-use coif::orient::{GrayImage, OrientParams};
-use coif::{imgio, synth, Error};
+use coif::analyze::orient::{GrayImage, OrientParams};
+use coif::gpu::engine::{BackendChoice, Engine};
+use coif::io::images as imgio;
+use coif::{synth, Error};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -119,7 +120,7 @@ struct RenderArgs {
     #[arg(long = "16bit")]
     sixteen: bool,
     /// Seed of the inpainting's random search.
-    #[arg(long, default_value_t = coif::inpaint::InpaintParams::default().seed)]
+    #[arg(long, default_value_t = coif::render::inpaint::InpaintParams::default().seed)]
     seed: u64,
     #[command(flatten)]
     backend: BackendArgs,
@@ -188,10 +189,10 @@ struct ModelArgs {
     #[arg(long, default_value_t = coif::model::ModelParams::default().roots)]
     roots: usize,
     /// Cells along the hair volume's largest axis (C13: 80).
-    #[arg(long, default_value_t = coif::volume::VolumeParams::default().cells)]
+    #[arg(long, default_value_t = coif::model::volume::VolumeParams::default().cells)]
     cells: u32,
     /// Refinement iterations (C13: 4-5); 0 keeps the grown strands only.
-    #[arg(long, default_value_t = coif::refine::RefineParams::default().max_iterations)]
+    #[arg(long, default_value_t = coif::model::refine::RefineParams::default().max_iterations)]
     refine: u32,
 }
 
@@ -374,7 +375,7 @@ fn cmd_synth(a: SynthArgs) -> anyhow::Result<()> {
         height: a.size,
     };
     let what = if a.gt3d {
-        let c = coif::synth3d::synth3d(&sp);
+        let c = coif::synth::synth3d::synth3d(&sp);
         c.write(&a.out)?;
         format!(
             "3D ground truth: {} strands, camera yaw {:.1}°",
@@ -424,7 +425,7 @@ fn load_image_and_mask(
 
 /// Everything `coif orient` writes, computed before anything is written.
 struct OrientRun {
-    map: coif::orient::OrientMap,
+    map: coif::analyze::orient::OrientMap,
     params: OrientParams,
     backend: String,
     seconds: f64,
@@ -439,7 +440,7 @@ fn orient_files(
     let (rgb, mask_px) = load_image_and_mask(image, mask, params.kernel.ksize)?;
     let gray = GrayImage::from_rgb(&rgb);
     let t = Instant::now();
-    let map = coif::orient::orient(engine, &gray, mask_px.as_deref(), params)
+    let map = coif::analyze::orient::orient(engine, &gray, mask_px.as_deref(), params)
         .with_context(|| format!("orientation of {}", image.display()))?;
     Ok(OrientRun {
         map,
@@ -453,15 +454,15 @@ fn write_orient(out: &Path, image: &Path, r: &OrientRun) -> anyhow::Result<()> {
     coif::io::ensure_dir(out)?;
     let (w, h) = (r.map.width, r.map.height);
     let shape = [h as usize, w as usize];
-    coif::npy::write_f32(&out.join("orientation.npy"), &shape, &r.map.theta)?;
-    coif::npy::write_f32(&out.join("confidence.npy"), &shape, &r.map.confidence)?;
+    coif::io::npy::write_f32(&out.join("orientation.npy"), &shape, &r.map.theta)?;
+    coif::io::npy::write_f32(&out.join("confidence.npy"), &shape, &r.map.confidence)?;
     coif::io::write_png(
         &out.join("orientation.png"),
-        &coif::vis::orientation(w, h, &r.map.theta, &r.map.confidence),
+        &coif::io::vis::orientation(w, h, &r.map.theta, &r.map.confidence),
     )?;
     coif::io::write_png(
         &out.join("confidence.png"),
-        &coif::vis::confidence(w, h, &r.map.confidence),
+        &coif::io::vis::confidence(w, h, &r.map.confidence),
     )?;
     let meta = serde_json::json!({
         "version": 1,
@@ -528,16 +529,19 @@ fn cmd_demo(a: DemoArgs) -> anyhow::Result<()> {
         &params,
     )?;
     write_orient(&synth_out, &case_dir.join("image.png"), &r)?;
-    let err = coif::metrics::orientation_error(&r.map, &case.gt_theta, &case.mask, 5);
+    let err = coif::eval::metrics::orientation_error(&r.map, &case.gt_theta, &case.mask, 5);
     bar.inc(1);
     // 3. The embedded astronaut photo.
     bar.set_message("orientation of the astronaut photo");
     let astro_dir = a.out.join("astronaut");
     coif::io::ensure_dir(&astro_dir)?;
     let astro_png = astro_dir.join("image.png");
-    coif::io::write_atomic(&astro_png, coif::assets::ASTRONAUT_PNG)?;
+    coif::io::write_atomic(&astro_png, coif::io::assets::ASTRONAUT_PNG)?;
     let astro_strokes = astro_dir.join("strokes.json");
-    coif::io::write_atomic(&astro_strokes, coif::assets::ASTRONAUT_STROKES.as_bytes())?;
+    coif::io::write_atomic(
+        &astro_strokes,
+        coif::io::assets::ASTRONAUT_STROKES.as_bytes(),
+    )?;
     let astro_out = a.out.join("orient-astronaut");
     let r2 = orient_files(&engine, &astro_png, None, &params)?;
     write_orient(&astro_out, &astro_png, &r2)?;
@@ -590,7 +594,7 @@ fn cmd_demo(a: DemoArgs) -> anyhow::Result<()> {
         let t = Instant::now();
         let (rgb, an) = run_analyze(&engine, &img, &strokes, mask.as_deref(), &mparams.analyze)?;
         let lm = match &landmarks {
-            Some(l) => Some(coif::annot::Landmarks::load(l, Some(rgb.dimensions()))?),
+            Some(l) => Some(coif::io::annot::Landmarks::load(l, Some(rgb.dimensions()))?),
             None => None,
         };
         write_analysis(&out, &img, &rgb, &an, &engine.describe())?;
@@ -677,28 +681,28 @@ struct AnalyzeArgs {
     #[command(flatten)]
     opts: OrientOpts,
     /// Neighbourhood radius of the direction vote, C13 Eq. (1) (px).
-    #[arg(long, default_value_t = coif::resolve::ResolveParams::default().radius)]
+    #[arg(long, default_value_t = coif::analyze::resolve::ResolveParams::default().radius)]
     radius: f32,
     /// Weight of a user stroke in the vote, C13's w_m.
-    #[arg(long, default_value_t = coif::resolve::ResolveParams::default().stroke_weight)]
+    #[arg(long, default_value_t = coif::analyze::resolve::ResolveParams::default().stroke_weight)]
     stroke_weight: f32,
 }
 
 /// strokes.json, or strokes drawn elsewhere: an .svg, or a labelme .json (it has "shapes").
-fn load_strokes(path: &Path, size: (u32, u32)) -> anyhow::Result<coif::annot::Strokes> {
+fn load_strokes(path: &Path, size: (u32, u32)) -> anyhow::Result<coif::io::annot::Strokes> {
     let ext = path
         .extension()
         .map(|e| e.to_string_lossy().to_lowercase())
         .unwrap_or_default();
     let imported = if ext == "svg" {
-        Some(coif::import::strokes_from_svg(path)?)
+        Some(coif::io::import::strokes_from_svg(path)?)
     } else {
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
         let labelme = serde_json::from_str::<serde_json::Value>(&text)
             .ok()
             .is_some_and(|v| v.get("shapes").is_some() && v.get("strokes").is_none());
         if labelme {
-            Some(coif::import::strokes_from_labelme(path)?)
+            Some(coif::io::import::strokes_from_labelme(path)?)
         } else {
             None
         }
@@ -709,7 +713,7 @@ fn load_strokes(path: &Path, size: (u32, u32)) -> anyhow::Result<coif::annot::St
                 .map_err(|m| Error::bad_file(path, m))?;
             Ok(s)
         }
-        None => Ok(coif::annot::Strokes::load(path, Some(size))?),
+        None => Ok(coif::io::annot::Strokes::load(path, Some(size))?),
     }
 }
 
@@ -720,7 +724,7 @@ fn write_analysis(
     an: &coif::analyze::Analysis,
     backend: &str,
 ) -> anyhow::Result<()> {
-    use coif::vis;
+    use coif::io::vis;
     coif::io::ensure_dir(out)?;
     let (w, h) = (an.width, an.height);
     let shape = [h as usize, w as usize];
@@ -732,9 +736,9 @@ fn write_analysis(
         }])
     });
     coif::io::write_png(&out.join("mask.png"), &mask_img)?;
-    coif::npy::write_f32(&out.join("orientation.npy"), &shape, &an.orient.theta)?;
-    coif::npy::write_f32(&out.join("confidence.npy"), &shape, &an.orient.confidence)?;
-    coif::npy::write_f32(
+    coif::io::npy::write_f32(&out.join("orientation.npy"), &shape, &an.orient.theta)?;
+    coif::io::npy::write_f32(&out.join("confidence.npy"), &shape, &an.orient.confidence)?;
+    coif::io::npy::write_f32(
         &out.join("direction.npy"),
         &[h as usize, w as usize, 2],
         &an.direction,
@@ -863,7 +867,7 @@ fn cmd_model(a: ModelArgs) -> anyhow::Result<()> {
     let t = Instant::now();
     let (rgb, an) = run_analyze(&engine, &a.image, &a.strokes, a.mask.as_deref(), &p.analyze)?;
     let landmarks = match &a.landmarks {
-        Some(l) => Some(coif::annot::Landmarks::load(l, Some(rgb.dimensions()))?),
+        Some(l) => Some(coif::io::annot::Landmarks::load(l, Some(rgb.dimensions()))?),
         None => None,
     };
     write_analysis(&a.out, &a.image, &rgb, &an, &engine.describe())?;
@@ -900,7 +904,7 @@ fn write_model(
     p: &coif::model::ModelParams,
     engine: &Engine,
 ) -> anyhow::Result<()> {
-    coif::strands::write(&out.join("strands.hair"), &m.strands)?;
+    coif::hair::strands::write(&out.join("strands.hair"), &m.strands)?;
     // The photo travels with the model, so `coif render` needs nothing else.
     coif::io::write_png(&out.join("photo.png"), rgb)?;
     let figures = coif::model::figures(m);
@@ -933,7 +937,7 @@ fn write_model(
     )?;
     // Preview: strands projected over the dimmed photo, coloured by their projected growth
     // direction (the hue ring of the analysis pictures); a subset keeps it legible.
-    let mut pic = coif::vis::dimmed(rgb, 0.35);
+    let mut pic = coif::io::vis::dimmed(rgb, 0.35);
     // Far strands first, so nearer ones cover them (painter's order on mean depth).
     let every = (m.strands_volume.len() / 6000).max(1);
     let mut order: Vec<(f32, usize)> = (0..m.strands_volume.len())
@@ -946,11 +950,11 @@ fn write_model(
     order.sort_by(|a, b| a.0.total_cmp(&b.0));
     for s in order.iter().map(|&(_, i)| &m.strands_volume[i]) {
         let pts: Vec<[f32; 2]> = s.iter().map(|q| [q[0], q[1]]).collect();
-        coif::vis::draw_polyline(&mut pic, &pts, 1.0, |k| {
-            coif::vis::direction_colour(pts[k + 1][0] - pts[k][0], pts[k + 1][1] - pts[k][1])
+        coif::io::vis::draw_polyline(&mut pic, &pts, 1.0, |k| {
+            coif::io::vis::direction_colour(pts[k + 1][0] - pts[k][0], pts[k + 1][1] - pts[k][1])
         });
     }
-    coif::vis::hue_ring(&mut pic);
+    coif::io::vis::hue_ring(&mut pic);
     coif::io::write_png(&out.join("preview.png"), &pic)?;
     Ok(())
 }
@@ -985,14 +989,14 @@ fn cmd_render(a: RenderArgs) -> anyhow::Result<()> {
     p.shade.value = a.value;
     p.shade.amount = a.highlight;
     p.shade.model = match a.shading {
-        ShadingArg::Marschner => coif::shade::ShadingModel::Marschner,
-        ShadingArg::KajiyaKay => coif::shade::ShadingModel::KajiyaKay,
+        ShadingArg::Marschner => coif::render::shade::ShadingModel::Marschner,
+        ShadingArg::KajiyaKay => coif::render::shade::ShadingModel::KajiyaKay,
     };
     if !a.light.is_empty() {
         p.shade.lights = a
             .light
             .iter()
-            .map(|l| l.parse::<coif::shade::Light>())
+            .map(|l| l.parse::<coif::render::shade::Light>())
             .collect::<Result<_, _>>()
             .map_err(|e| anyhow::anyhow!("--light: {e}"))?;
     }
@@ -1026,10 +1030,10 @@ fn cmd_render(a: RenderArgs) -> anyhow::Result<()> {
 }
 
 fn cmd_export(a: ExportArgs) -> anyhow::Result<()> {
-    coif::strands::Format::from_path(&a.to)?;
+    coif::hair::strands::Format::from_path(&a.to)?;
     let src = a.model.join("strands.hair");
-    let s = coif::strands::read(&src)?;
-    coif::strands::write(&a.to, &s)?;
+    let s = coif::hair::strands::read(&src)?;
+    coif::hair::strands::write(&a.to, &s)?;
     println!(
         "export: {} strands, {} vertices: {} -> {}",
         s.counts.len(),
@@ -1041,9 +1045,9 @@ fn cmd_export(a: ExportArgs) -> anyhow::Result<()> {
 }
 
 fn cmd_import(a: ImportArgs) -> anyhow::Result<()> {
-    let s = coif::strands::read(&a.input)?;
+    let s = coif::hair::strands::read(&a.input)?;
     coif::io::ensure_dir(&a.out)?;
-    coif::strands::write(&a.out.join("strands.hair"), &s)?;
+    coif::hair::strands::write(&a.out.join("strands.hair"), &s)?;
     let (lo, hi) = s.bounds();
     let meta = serde_json::json!({
         "version": 1,
@@ -1069,9 +1073,9 @@ fn cmd_import(a: ImportArgs) -> anyhow::Result<()> {
 
 fn cmd_convert(a: ConvertArgs) -> anyhow::Result<()> {
     // Check the output format before reading, so a typo fails fast.
-    coif::strands::Format::from_path(&a.output)?;
-    let s = coif::strands::read(&a.input)?;
-    coif::strands::write(&a.output, &s)?;
+    coif::hair::strands::Format::from_path(&a.output)?;
+    let s = coif::hair::strands::read(&a.input)?;
+    coif::hair::strands::write(&a.output, &s)?;
     println!(
         "convert: {} strands, {} vertices: {} -> {}",
         s.counts.len(),

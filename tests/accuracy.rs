@@ -3,9 +3,9 @@
 
 mod common;
 
-use coif::engine::Engine;
-use coif::metrics::orientation_error;
-use coif::orient::{orient, GrayImage, OrientParams};
+use coif::analyze::orient::{orient, GrayImage, OrientParams};
+use coif::eval::metrics::orientation_error;
+use coif::gpu::engine::Engine;
 use coif::synth::{synth, Style, SynthParams};
 
 #[test]

@@ -8,12 +8,12 @@
 //! sides, and the parts then reach 98.1-98.6%.
 
 use coif::analyze::{analyze, AnalyzeParams};
-use coif::engine::Engine;
-use coif::metrics::erode;
+use coif::eval::metrics::erode;
+use coif::gpu::engine::Engine;
 use coif::synth::{synth, Style, SynthParams};
 
 /// Share of curve length whose segments point along the true growth direction.
-fn curve_share(curves: &[coif::trace::Curve], gt_dir: &[f32], w: u32) -> (f64, f64) {
+fn curve_share(curves: &[coif::analyze::trace::Curve], gt_dir: &[f32], w: u32) -> (f64, f64) {
     let (mut good, mut total) = (0.0f64, 0.0f64);
     for c in curves {
         for s in c.points.windows(2) {

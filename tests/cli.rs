@@ -96,7 +96,7 @@ fn orient_writes_every_output_and_no_temporary_file() {
     ] {
         assert!(c.p("out").join(f).is_file(), "{f} missing");
     }
-    let (shape, theta) = coif::npy::read_f32(&c.p("out/orientation.npy")).unwrap();
+    let (shape, theta) = coif::io::npy::read_f32(&c.p("out/orientation.npy")).unwrap();
     assert_eq!(shape, vec![48, 64]);
     // Off the mask NaN, on it [0, π).
     assert!(theta[0].is_nan());
@@ -360,7 +360,7 @@ fn synth_writes_a_case() {
     ] {
         assert!(c.p("case").join(f).is_file(), "{f} missing");
     }
-    let (shape, _) = coif::npy::read_f32(&c.p("case/gt_dir.npy")).unwrap();
+    let (shape, _) = coif::io::npy::read_f32(&c.p("case/gt_dir.npy")).unwrap();
     assert_eq!(shape, vec![128, 128, 2]);
     let bad = coif(&["synth", "--out", &c.s("case2"), "--style", "mohawk"]);
     assert_ne!(bad.status.code(), Some(0));
@@ -428,8 +428,8 @@ fn model_export_import_round_trip_and_bad_landmarks() {
     let back = c.s("back");
     let o = coif(&["import", &c.s("hair.ply"), "--out", &back]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let a = coif::strands::read(&c.p("model").join("strands.hair")).unwrap();
-    let b = coif::strands::read(&c.p("back").join("strands.hair")).unwrap();
+    let a = coif::hair::strands::read(&c.p("model").join("strands.hair")).unwrap();
+    let b = coif::hair::strands::read(&c.p("back").join("strands.hair")).unwrap();
     assert_eq!(a.counts, b.counts);
     assert_eq!(a.points, b.points);
 
@@ -484,7 +484,7 @@ fn model_export_import_round_trip_and_bad_landmarks() {
     for q in &mut moved.points {
         q[0] += 100.0;
     }
-    coif::strands::write(&far.join("strands.hair"), &moved).unwrap();
+    coif::hair::strands::write(&far.join("strands.hair"), &moved).unwrap();
     let o = coif(&[
         "render",
         "--backend",
@@ -497,7 +497,7 @@ fn model_export_import_round_trip_and_bad_landmarks() {
     fails(&o, 64, &["lands in the", "strands.hair"]);
     // NaN colours: refused, naming the file and the vertex.
     // The writer refuses NaN, so patch the file: colours are cyHair's last array.
-    coif::strands::write(&far.join("strands.hair"), &a).unwrap();
+    coif::hair::strands::write(&far.join("strands.hair"), &a).unwrap();
     let mut bytes = std::fs::read(far.join("strands.hair")).unwrap();
     let at = bytes.len() - 12 * a.points.len() + 12 * 5 + 4;
     bytes[at..at + 4].copy_from_slice(&f32::NAN.to_le_bytes());
@@ -514,7 +514,7 @@ fn model_export_import_round_trip_and_bad_landmarks() {
     fails(&o, 65, &["strands.hair", "point 5", "not finite"]);
     assert!(!c.p("nan.png").exists() && !c.p("far.png").exists());
     // Zero-length segments (repeated vertices) are skipped, not fatal; strands only.
-    let mut rep = coif::strands::StrandSet::new(
+    let mut rep = coif::hair::strands::StrandSet::new(
         vec![
             [0.0, 0.0, 0.0],
             [0.0, 0.0, 0.0],
@@ -526,7 +526,7 @@ fn model_export_import_round_trip_and_bad_landmarks() {
     rep.colors = Some(vec![[0.5, 0.3, 0.1]; 4]);
     let zl = c.p("zero");
     std::fs::create_dir_all(&zl).unwrap();
-    coif::strands::write(&c.p("zero.hair"), &rep).unwrap();
+    coif::hair::strands::write(&c.p("zero.hair"), &rep).unwrap();
     let o = coif(&["import", &c.s("zero.hair"), "--out", &c.s("zero")]);
     assert!(o.status.success(), "{}", stderr(&o));
     let o = coif(&[
@@ -599,15 +599,15 @@ fn command_line_defaults_are_the_library_defaults() {
         "cpu",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let (_, theta) = coif::npy::read_f32(&c.p("out/orientation.npy")).unwrap();
-    let rgb = coif::imgio::load_rgb(&c.p("case/image.png")).unwrap();
-    let mask =
-        coif::imgio::load_mask(&c.p("case/mask.png"), 128, 128, &c.p("case/image.png")).unwrap();
-    let lib = coif::orient::orient(
+    let (_, theta) = coif::io::npy::read_f32(&c.p("out/orientation.npy")).unwrap();
+    let rgb = coif::io::images::load_rgb(&c.p("case/image.png")).unwrap();
+    let mask = coif::io::images::load_mask(&c.p("case/mask.png"), 128, 128, &c.p("case/image.png"))
+        .unwrap();
+    let lib = coif::analyze::orient::orient(
         &coif::Engine::cpu(),
-        &coif::orient::GrayImage::from_rgb(&rgb),
+        &coif::analyze::orient::GrayImage::from_rgb(&rgb),
         Some(&mask),
-        &coif::orient::OrientParams::default(),
+        &coif::analyze::orient::OrientParams::default(),
     )
     .unwrap();
     coif::testing::compare_f32_nan_eq(
@@ -628,8 +628,8 @@ fn convert_round_trips_a_strand_file() {
     );
     let o = coif(&["convert", src, &c.s("b.hair")]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let a = coif::strands::read(Path::new(src)).unwrap();
-    let b = coif::strands::read(&c.p("b.hair")).unwrap();
+    let a = coif::hair::strands::read(Path::new(src)).unwrap();
+    let b = coif::hair::strands::read(&c.p("b.hair")).unwrap();
     assert_eq!(a.points, b.points);
     assert_eq!(a.counts, b.counts);
     let bad = coif(&["convert", src, &c.s("b.xyz")]);
@@ -680,7 +680,7 @@ fn analyze_writes_directed_hair() {
     ] {
         assert!(c.p("an").join(f).is_file(), "{f} missing");
     }
-    let (shape, _) = coif::npy::read_f32(&c.p("an/direction.npy")).unwrap();
+    let (shape, _) = coif::io::npy::read_f32(&c.p("an/direction.npy")).unwrap();
     assert_eq!(shape, vec![160, 160, 2]);
     let curves: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(c.p("an/curves.json")).unwrap()).unwrap();
@@ -773,7 +773,8 @@ fn analyze_with_strokes_off_the_hair() {
 fn analyze_takes_strokes_drawn_in_svg() {
     let c = Case::new();
     // The embedded astronaut strokes, redrawn as SVG polylines.
-    let strokes: serde_json::Value = serde_json::from_str(coif::assets::ASTRONAUT_STROKES).unwrap();
+    let strokes: serde_json::Value =
+        serde_json::from_str(coif::io::assets::ASTRONAUT_STROKES).unwrap();
     let mut svg =
         String::from(r#"<svg xmlns="http://www.w3.org/2000/svg" width="512" height="512">"#);
     for s in strokes["strokes"].as_array().unwrap() {
@@ -791,7 +792,7 @@ fn analyze_takes_strokes_drawn_in_svg() {
     }
     svg += "</svg>";
     std::fs::write(c.p("s.svg"), svg).unwrap();
-    std::fs::write(c.p("astro.png"), coif::assets::ASTRONAUT_PNG).unwrap();
+    std::fs::write(c.p("astro.png"), coif::io::assets::ASTRONAUT_PNG).unwrap();
     let o = coif(&[
         "analyze",
         "--image",

@@ -2,8 +2,8 @@
 //! orientation plus the case's own strokes must give the true growth direction almost
 //! everywhere the strokes reach (this isolates the diffusion from the 2D tracer).
 
-use coif::direction::{dense_direction, DirectionParams, Domain};
-use coif::engine::Engine;
+use coif::analyze::direction::{dense_direction, DirectionParams, Domain};
+use coif::gpu::engine::Engine;
 use coif::synth::{synth, Style, SynthParams};
 
 #[test]

@@ -3,8 +3,8 @@
 //!
 //! Run: `XDG_RUNTIME_DIR=/tmp CARGO_TARGET_DIR=/work/target-h cargo test --release -- --nocapture`
 
-use coif::engine::{BufProxy, Recording};
-use coif::field3d::*;
+use coif::gpu::engine::{BufProxy, Recording};
+use coif::model::field3d::*;
 use coif::stages::field_cfg::Config;
 use coif::stages::*;
 use coif::testing::{assert_no_sentinel, compare_f32, Tolerance, SENTINEL_BITS};

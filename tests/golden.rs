@@ -3,7 +3,7 @@
 
 mod common;
 
-use coif::orient::{orient, GrayImage, OrientParams};
+use coif::analyze::orient::{orient, GrayImage, OrientParams};
 use coif::synth::{synth, Style, SynthParams};
 use coif::testing::{check_golden_in, check_golden_rgb, golden_dir, rgb_to_rgba};
 
@@ -18,8 +18,8 @@ fn pictures() -> (image::RgbImage, image::RgbImage) {
     let mask: Vec<u8> = case.mask.pixels().map(|m| (m[0] > 127) as u8).collect();
     let map = orient(&common::gpu(), &gray, Some(&mask), &OrientParams::default()).unwrap();
     (
-        coif::vis::orientation(256, 256, &map.theta, &map.confidence),
-        coif::vis::confidence(256, 256, &map.confidence),
+        coif::io::vis::orientation(256, 256, &map.theta, &map.confidence),
+        coif::io::vis::confidence(256, 256, &map.confidence),
     )
 }
 

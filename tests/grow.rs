@@ -5,12 +5,12 @@
 //! Run with `CARGO_TARGET_DIR=/work/target-h cargo test --release -- --nocapture` to see the
 //! measured figures (parity share and deviation, streamline error, refinement iterations).
 
-use coif::engine::{BackendChoice, Engine, Recording};
-use coif::grid::Grid;
-use coif::grow::{grow, splat_density, splat_verts, GrowParams, Strands};
-use coif::orient::SENTINEL;
-use coif::refine::{refine, RefineParams};
-use coif::rng::Rng;
+use coif::analyze::orient::SENTINEL;
+use coif::base::grid::Grid;
+use coif::base::rng::Rng;
+use coif::gpu::engine::{BackendChoice, Engine, Recording};
+use coif::model::grow::{grow, splat_density, splat_verts, GrowParams, Strands};
+use coif::model::refine::{refine, RefineParams};
 use coif::stages::{density_splat, grow_rk2};
 use coif::testing::{assert_no_sentinel, compare_u32_exact, SENTINEL_BITS};
 use coif::Error;
@@ -650,7 +650,7 @@ fn bad_input_is_invalid_not_a_panic() {
 
     let rp = RefineParams::default();
     let strands = grow(&e, &sc.grid, &sc.d, &sc.h, &seeds, &[1.0], &p).unwrap();
-    let rinv = |r: Result<(Strands, coif::refine::RefineReport), Error>| {
+    let rinv = |r: Result<(Strands, coif::model::refine::RefineReport), Error>| {
         assert!(matches!(r, Err(Error::Invalid(_))), "{:?}", r.err());
     };
     rinv(refine(

@@ -2,10 +2,10 @@
 //! Run with `CARGO_TARGET_DIR=/work/target-h cargo test --release -- --nocapture` to see
 //! the figures.
 
-use coif::annot::{Landmarks, REQUIRED_LANDMARKS};
+use coif::base::rng::Rng;
 use coif::error::Error;
-use coif::head::*;
-use coif::rng::Rng;
+use coif::hair::head::*;
+use coif::io::annot::{Landmarks, REQUIRED_LANDMARKS};
 use coif::synth::{synth, Style, SynthParams};
 use glam::{Mat3, Vec2, Vec3};
 use std::collections::{BTreeMap, HashMap};

@@ -8,13 +8,13 @@
 //! the issue (mean abs diff over the hole ≤ 1/255, ≥ 99% of hole pixels within 2/255 on
 //! every channel); in practice it has come out identical.
 
-use coif::engine::{BackendChoice, BufProxy, Engine, Recording};
-use coif::head::{Head, WeakPerspective};
-use coif::head_texture::{
+use coif::analyze::orient::SENTINEL;
+use coif::gpu::engine::{BackendChoice, BufProxy, Engine, Recording};
+use coif::hair::head::texture::{
     head_texture, sphere_uv, uv_centre, TEXEL_PATCHMATCH, TEXEL_PHOTO, TEXEL_SMOOTH,
 };
-use coif::inpaint::{diffusion_fill, inpaint, jump_steps, InpaintParams, Level};
-use coif::orient::SENTINEL;
+use coif::hair::head::{Head, WeakPerspective};
+use coif::render::inpaint::{diffusion_fill, inpaint, jump_steps, InpaintParams, Level};
 use coif::stages::pm_common::{Config, NONE, QMAX};
 use coif::stages::{pm_common, pm_cost, pm_init, pm_search, pm_vote};
 use coif::testing::{compare_f32, compare_u32_exact, Tolerance, SENTINEL_BITS};

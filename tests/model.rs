@@ -4,7 +4,7 @@
 //! count. Figures are printed for the issue note.
 
 use coif::analyze::analyze;
-use coif::annot::Strokes;
+use coif::io::annot::Strokes;
 use coif::model::{figures, model_from_analysis, ModelFigures, ModelParams};
 use coif::synth::{synth, Style, SynthParams};
 use coif::Engine;
@@ -71,11 +71,11 @@ fn synthetic_portraits_give_rooted_covering_directed_strands() {
 fn astronaut_photo_gives_rooted_smooth_strands() {
     let engine = Engine::cpu();
     let p = ModelParams::default();
-    let img = image::load_from_memory(coif::assets::ASTRONAUT_PNG)
+    let img = image::load_from_memory(coif::io::assets::ASTRONAUT_PNG)
         .unwrap()
         .to_rgb8();
     let strokes = Strokes::parse(
-        coif::assets::ASTRONAUT_STROKES,
+        coif::io::assets::ASTRONAUT_STROKES,
         std::path::Path::new("astronaut_strokes.json"),
         Some(img.dimensions()),
     )

@@ -10,8 +10,8 @@
 
 mod common;
 
-use coif::engine::{BufProxy, Engine, Recording};
-use coif::orient::{orient, OrientParams, SENTINEL};
+use coif::analyze::orient::{orient, OrientParams, SENTINEL};
+use coif::gpu::engine::{BufProxy, Engine, Recording};
 use coif::stages::{gabor, orient_resolve, sep_blur};
 use coif::testing::{
     assert_no_sentinel, compare_angles_mod_pi, compare_f32, compare_f32_fraction,

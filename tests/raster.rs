@@ -2,10 +2,10 @@
 //! anti-aliasing rules checked pixel by pixel on both paths, bad input, determinism, limits.
 //! Run with `--release` (shaders on lavapipe).
 
+use coif::base::rng::Rng;
 use coif::gpu::GpuContext;
-use coif::head::{Head, WeakPerspective};
-use coif::raster::*;
-use coif::rng::Rng;
+use coif::hair::head::{Head, WeakPerspective};
+use coif::render::raster::*;
 use glam::{Vec2, Vec3};
 use std::sync::OnceLock;
 

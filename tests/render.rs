@@ -5,7 +5,7 @@
 mod common;
 
 use coif::analyze::analyze;
-use coif::annot::Strokes;
+use coif::io::annot::Strokes;
 use coif::model::{model_from_analysis, ModelParams};
 use coif::render::{psnr_region, render, to_rgb8, ColourSource, RenderModel, RenderParams};
 use coif::synth::{synth, Style, SynthParams};
@@ -91,11 +91,11 @@ fn original_view_reproduces_the_hair_region() {
 fn astronaut_rerender_is_reported() {
     let engine = Engine::cpu();
     let p = ModelParams::default();
-    let img = image::load_from_memory(coif::assets::ASTRONAUT_PNG)
+    let img = image::load_from_memory(coif::io::assets::ASTRONAUT_PNG)
         .unwrap()
         .to_rgb8();
     let strokes = Strokes::parse(
-        coif::assets::ASTRONAUT_STROKES,
+        coif::io::assets::ASTRONAUT_STROKES,
         Path::new("astronaut_strokes.json"),
         Some(img.dimensions()),
     )
@@ -158,7 +158,7 @@ fn golden_renders() -> Vec<(&'static str, image::RgbImage)> {
     dyed.shade.value = 0.9;
     dyed.shade.amount = 0.6;
     let dyed = to_rgb8(&render(&gpu, &m, &dyed).unwrap());
-    let curly = coif::strands::read(
+    let curly = coif::hair::strands::read(
         &Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/strands/Curly_100.ply"),
     )
     .unwrap();

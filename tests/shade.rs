@@ -5,10 +5,10 @@
 //! run the same formulas in f32; they differ only in the rounding of exp/exp2/log2/pow and
 //! fused multiply-adds on the GPU.
 
-use coif::engine::{BackendChoice, Engine, Recording};
-use coif::head::WeakPerspective;
-use coif::rng::Rng;
-use coif::shade::{
+use coif::base::rng::Rng;
+use coif::gpu::engine::{BackendChoice, Engine, Recording};
+use coif::hair::head::WeakPerspective;
+use coif::render::shade::{
     self, hsv_adjust, kajiya_kay, marschner_lobes, neighbour_flags, shade, shade_model_space,
     view_dir, Light, ShadeParams, ShadingModel,
 };
@@ -217,7 +217,7 @@ fn strand_shade_2d_dispatch_matches_cpu() {
             rec.upload("lights", &light),
         ];
         // One vertex more than dispatched: it must keep its sentinel.
-        let o = rec.alloc("out", 16 * (n as u64 + 1), coif::orient::SENTINEL);
+        let o = rec.alloc("out", 16 * (n as u64 + 1), coif::analyze::orient::SENTINEL);
         rec.dispatch(
             &strand_shade::STAGE,
             wg,
@@ -230,7 +230,9 @@ fn strand_shade_2d_dispatch_matches_cpu() {
     let (a, b) = (run(&gpu()), run(&Engine::cpu()));
     let m = 4 * n as usize;
     assert_no_sentinel("strand_shade 2d", &a[..m]).unwrap();
-    assert!(a[m..].iter().all(|x| x.to_bits() == coif::orient::SENTINEL));
+    assert!(a[m..]
+        .iter()
+        .all(|x| x.to_bits() == coif::analyze::orient::SENTINEL));
     let stats = compare_f32("strand_shade 2d", &a[..m], &b[..m], TOL).unwrap();
     println!("2d dispatch: {stats}");
 }

@@ -95,9 +95,11 @@ fn every_stage_declares_the_bindings_its_shader_has() {
         assert_eq!(bindings.len(), s.bindings.len(), "stage {}", s.name);
         for ((i, space), decl) in bindings.iter().zip(s.bindings) {
             let want = match decl {
-                coif::engine::Bind::Uniform => "Uniform",
-                coif::engine::Bind::Read => "Storage { access: StorageAccess(LOAD) }",
-                coif::engine::Bind::ReadWrite => "Storage { access: StorageAccess(LOAD | STORE) }",
+                coif::gpu::engine::Bind::Uniform => "Uniform",
+                coif::gpu::engine::Bind::Read => "Storage { access: StorageAccess(LOAD) }",
+                coif::gpu::engine::Bind::ReadWrite => {
+                    "Storage { access: StorageAccess(LOAD | STORE) }"
+                }
             };
             assert_eq!(space, want, "stage {} binding {i}", s.name);
         }

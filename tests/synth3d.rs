@@ -3,10 +3,10 @@
 //! the 3D comparison itself, and the modelling pipeline judged against the GT.
 //! Run with `--release --nocapture` to see the figures.
 
-use coif::head::Head;
-use coif::strands::StrandSet;
+use coif::hair::head::Head;
+use coif::hair::strands::StrandSet;
+use coif::synth::synth3d::{compare_to_gt, synth3d_with, Synth3dCase, Synth3dOptions};
 use coif::synth::{mask_interior, Style, SynthParams};
-use coif::synth3d::{compare_to_gt, synth3d_with, Synth3dCase, Synth3dOptions};
 use glam::Vec3;
 
 fn case(style: Style, seed: u64, size: u32, strands: usize) -> Synth3dCase {
@@ -223,7 +223,7 @@ fn image_ground_truth_matches_the_projection() {
                 .landmarks
                 .validate(Some((c.case.width, c.case.height)))
                 .unwrap();
-            for n in coif::annot::REQUIRED_LANDMARKS {
+            for n in coif::io::annot::REQUIRED_LANDMARKS {
                 let p = c.case.landmarks.get(n).unwrap();
                 assert!(
                     !c.case.is_hair(p[0] as u32, p[1] as u32),
@@ -295,12 +295,13 @@ fn write_round_trips() {
     }
     let img = image::open(out.join("image.png")).unwrap().to_rgb8();
     assert_eq!(img.as_raw(), c.case.image.as_raw());
-    let gt = coif::strands::read(&out.join("gt_strands.hair")).unwrap();
+    let gt = coif::hair::strands::read(&out.join("gt_strands.hair")).unwrap();
     assert_eq!(gt.counts, c.gt.counts);
     assert_eq!(point_bits(&gt), point_bits(&c.gt));
     let cam: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("camera.json")).unwrap()).unwrap();
-    let back: coif::head::WeakPerspective = serde_json::from_value(cam["camera"].clone()).unwrap();
+    let back: coif::hair::head::WeakPerspective =
+        serde_json::from_value(cam["camera"].clone()).unwrap();
     assert!((back.s - c.camera.s).abs() < 1e-3);
     assert!((back.t - c.camera.t).length() < 1e-3);
     assert!((back.r - c.camera.r).abs_diff_eq(glam::Mat3::ZERO, 1e-6));

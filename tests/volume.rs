@@ -7,14 +7,14 @@
 //! pass's "empty" words, which act as the sentinels: a pixel the pass should have written but
 //! did not shows up as a coverage mismatch or as a hole in the analytic sphere test.
 
-use coif::engine::{BackendChoice, Engine, Recording};
-use coif::rng::Rng;
-use coif::stages::depth_raster::{decode_depth, BACK_EMPTY, FRONT_EMPTY};
-use coif::synth::{synth, Style, SynthCase, SynthParams};
-use coif::volume::{
+use coif::base::rng::Rng;
+use coif::gpu::engine::{BackendChoice, Engine, Recording};
+use coif::model::volume::{
     hair_shape_mesh, hair_volume, lift_curves, pack_meshes, rasterize_depth, record_depth_raster,
     DepthMaps, HairShapeParams, HairVolume, HeadInput, Mesh, VolumeParams,
 };
+use coif::stages::depth_raster::{decode_depth, BACK_EMPTY, FRONT_EMPTY};
+use coif::synth::{synth, Style, SynthCase, SynthParams};
 
 fn gpu() -> Engine {
     Engine::new(BackendChoice::Gpu).unwrap_or_else(|e| {

@@ -1,7 +1,7 @@
 //! Vertex density splat with integer atomics (C13 §2.2, ρ of Eq. 5). Pairs with
 //! `wgsl/density_splat.wgsl`; integer sums do not depend on order, so parity is exact.
 
-use crate::engine::{Bind, CpuBinding, StageDef};
+use crate::gpu::engine::{Bind, CpuBinding, StageDef};
 
 pub const STAGE: StageDef = StageDef {
     name: "density_splat",
@@ -27,7 +27,7 @@ pub struct Config {
 
 /// A config for `n_verts` vertices and its 2D dispatch size.
 pub fn config(dims: [u32; 3], n_verts: u32) -> (Config, [u32; 3]) {
-    let total = crate::engine::groups(n_verts, WORKGROUP);
+    let total = crate::gpu::engine::groups(n_verts, WORKGROUP);
     let x = total.min(MAX_GROUPS);
     let y = total.div_ceil(x);
     let cfg = Config {

@@ -3,7 +3,7 @@
 //! per triangle; the CPU mirror below does the same integer coverage test and the same f32
 //! interpolation, so coverage is identical and depths differ only by fused multiply-adds.
 
-use crate::engine::{Bind, CpuBinding, StageDef};
+use crate::gpu::engine::{Bind, CpuBinding, StageDef};
 use rayon::prelude::*;
 
 pub const STAGE: StageDef = StageDef {
@@ -66,7 +66,7 @@ pub fn decode_depth(e: u32) -> f32 {
 /// Dispatch size for `n_tris` triangles: a 2D grid once one dimension would exceed the
 /// 65535-workgroup limit. Returns the workgroups and the `groups_x` to put in [`Config`].
 pub fn workgroups(n_tris: u32) -> [u32; 3] {
-    let g = crate::engine::groups(n_tris, WORKGROUP);
+    let g = crate::gpu::engine::groups(n_tris, WORKGROUP);
     let gx = g.min(65535);
     [gx, g.div_ceil(gx), 1]
 }

@@ -1,7 +1,7 @@
 //! One Jacobi sweep of constrained vector-field diffusion (C13 §2.1 dense direction; the
 //! same sweep fills vector fields for CZ06 Eq. 16-17).
 
-use crate::engine::{Bind, CpuBinding, StageDef};
+use crate::gpu::engine::{Bind, CpuBinding, StageDef};
 use rayon::prelude::*;
 
 pub const STAGE: StageDef = StageDef {
@@ -29,8 +29,8 @@ pub struct Config {
 
 pub fn workgroups(cfg: &Config) -> [u32; 3] {
     [
-        crate::engine::groups(cfg.width, 8),
-        crate::engine::groups(cfg.height, 8),
+        crate::gpu::engine::groups(cfg.width, 8),
+        crate::gpu::engine::groups(cfg.height, 8),
         1,
     ]
 }

@@ -39,9 +39,9 @@ impl Config {
 /// Workgroups covering an `nx·ny·nz` grid with 4³ groups.
 pub fn groups3(nx: u32, ny: u32, nz: u32) -> [u32; 3] {
     [
-        crate::engine::groups(nx, WG),
-        crate::engine::groups(ny, WG),
-        crate::engine::groups(nz, WG),
+        crate::gpu::engine::groups(nx, WG),
+        crate::gpu::engine::groups(ny, WG),
+        crate::gpu::engine::groups(nz, WG),
     ]
 }
 

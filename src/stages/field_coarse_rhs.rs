@@ -2,7 +2,7 @@
 //! `wgsl/field_coarse_rhs.wgsl`).
 
 use super::field_cfg::{for_links, Config};
-use crate::engine::{Bind, CpuBinding, StageDef};
+use crate::gpu::engine::{Bind, CpuBinding, StageDef};
 use rayon::prelude::*;
 
 pub const STAGE: StageDef = StageDef {
@@ -20,7 +20,7 @@ pub const STAGE: StageDef = StageDef {
 
 /// One invocation per entry of the compact cell list.
 pub fn workgroups(cfg: &Config) -> [u32; 3] {
-    [crate::engine::groups(cfg.count, 64), 1, 1]
+    [crate::gpu::engine::groups(cfg.count, 64), 1, 1]
 }
 
 fn field_coarse_rhs_cpu(_wg: [u32; 3], b: &[CpuBinding]) {

@@ -2,7 +2,7 @@
 //! `wgsl/field_dense.wgsl`).
 
 use super::field_cfg::Config;
-use crate::engine::{Bind, CpuBinding, StageDef};
+use crate::gpu::engine::{Bind, CpuBinding, StageDef};
 
 pub const STAGE: StageDef = StageDef {
     name: "field_dense",
@@ -19,7 +19,7 @@ pub const STAGE: StageDef = StageDef {
 
 /// One invocation per row.
 pub fn workgroups(cfg: &Config) -> [u32; 3] {
-    [crate::engine::groups(cfg.count, 64), 1, 1]
+    [crate::gpu::engine::groups(cfg.count, 64), 1, 1]
 }
 
 fn field_dense_cpu(_wg: [u32; 3], b: &[CpuBinding]) {

@@ -2,7 +2,7 @@
 //! unknowns (see `wgsl/field_prolong.wgsl`).
 
 use super::field_cfg::{groups3, Config};
-use crate::engine::{Bind, CpuBinding, StageDef};
+use crate::gpu::engine::{Bind, CpuBinding, StageDef};
 use rayon::prelude::*;
 
 pub const STAGE: StageDef = StageDef {

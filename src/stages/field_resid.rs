@@ -1,7 +1,7 @@
 //! Residual of the mixed form of C13 Eq. (3) on one level (see `wgsl/field_resid.wgsl`).
 
 use super::field_cfg::{for_links, groups3, Config};
-use crate::engine::{Bind, CpuBinding, StageDef};
+use crate::gpu::engine::{Bind, CpuBinding, StageDef};
 use rayon::prelude::*;
 
 pub const STAGE: StageDef = StageDef {

@@ -2,7 +2,7 @@
 //! (see `wgsl/field_smooth.wgsl`).
 
 use super::field_cfg::{for_links, groups3, Config};
-use crate::engine::{Bind, CpuBinding, StageDef};
+use crate::gpu::engine::{Bind, CpuBinding, StageDef};
 use rayon::prelude::*;
 
 pub const STAGE: StageDef = StageDef {

@@ -5,7 +5,7 @@
 //! the 17x17x32 direct bank. The per-pixel reduction is shared code in both: see
 //! [`orient_from_responses`], which reads like the end of `wgsl/gabor.wgsl`.
 
-use crate::engine::{Bind, CpuBinding, StageDef};
+use crate::gpu::engine::{Bind, CpuBinding, StageDef};
 use rayon::prelude::*;
 use rustfft::num_complex::Complex32;
 use rustfft::{Fft, FftPlanner};
@@ -131,8 +131,8 @@ pub const PX: u32 = 2;
 
 pub fn workgroups(cfg: &Config) -> [u32; 3] {
     [
-        crate::engine::groups(cfg.width.div_ceil(PX), 8),
-        crate::engine::groups(cfg.height, 8),
+        crate::gpu::engine::groups(cfg.width.div_ceil(PX), 8),
+        crate::gpu::engine::groups(cfg.height, 8),
         1,
     ]
 }

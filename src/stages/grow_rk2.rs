@@ -2,7 +2,7 @@
 //! Pairs with `wgsl/grow_rk2.wgsl`; the mirror below does the same f32 arithmetic in the
 //! same order so that GPU and CPU strands agree to rounding.
 
-use crate::engine::{Bind, CpuBinding, StageDef};
+use crate::gpu::engine::{Bind, CpuBinding, StageDef};
 use rayon::prelude::*;
 
 pub const STAGE: StageDef = StageDef {
@@ -38,7 +38,7 @@ pub struct Config {
 }
 
 pub fn workgroups(cfg: &Config) -> [u32; 3] {
-    [crate::engine::groups(cfg.n_strands, WORKGROUP), 1, 1]
+    [crate::gpu::engine::groups(cfg.n_strands, WORKGROUP), 1, 1]
 }
 
 /// Vertex slots a strand needs for `max_steps` steps stored every `record_every`: the root,

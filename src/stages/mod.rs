@@ -22,7 +22,7 @@ pub mod pm_vote;
 pub mod sep_blur;
 pub mod strand_shade;
 
-use crate::engine::StageDef;
+use crate::gpu::engine::StageDef;
 
 /// Every registered stage, for shader validation and layout tests.
 pub const ALL: &[&StageDef] = &[

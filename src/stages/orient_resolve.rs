@@ -1,6 +1,6 @@
 //! Orientation θ = ½ atan2 of the double-angle field, NaN off the mask.
 
-use crate::engine::{Bind, CpuBinding, StageDef};
+use crate::gpu::engine::{Bind, CpuBinding, StageDef};
 use rayon::prelude::*;
 use std::f32::consts::PI;
 
@@ -29,8 +29,8 @@ pub struct Config {
 
 pub fn workgroups(cfg: &Config) -> [u32; 3] {
     [
-        crate::engine::groups(cfg.width, 8),
-        crate::engine::groups(cfg.height, 8),
+        crate::gpu::engine::groups(cfg.width, 8),
+        crate::gpu::engine::groups(cfg.height, 8),
         1,
     ]
 }

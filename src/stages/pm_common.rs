@@ -9,7 +9,7 @@
 //! 3 x 1023² stays below 2³²). Float sums would round differently with and without fused
 //! multiply-adds and flip near-ties between the backends.
 
-use crate::engine::groups;
+use crate::gpu::engine::groups;
 
 /// Pixel is to be filled.
 pub const HOLE: u32 = 1;

@@ -1,7 +1,7 @@
 //! Patch distance of each target's current match; see `wgsl/pm_cost.wgsl`.
 
 use super::pm_common::{unpack_xy, Config, Geom, TARGET};
-use crate::engine::{Bind, CpuBinding, StageDef};
+use crate::gpu::engine::{Bind, CpuBinding, StageDef};
 use rayon::prelude::*;
 
 pub const STAGE: StageDef = StageDef {

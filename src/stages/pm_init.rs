@@ -2,7 +2,7 @@
 //! `wgsl/pm_init.wgsl`.
 
 use super::pm_common::{hash, pack_xy, rand, unpack_xy, Config, Geom, NONE, SOURCE, TARGET};
-use crate::engine::{Bind, CpuBinding, StageDef};
+use crate::gpu::engine::{Bind, CpuBinding, StageDef};
 use rayon::prelude::*;
 
 pub const STAGE: StageDef = StageDef {

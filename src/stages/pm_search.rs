@@ -4,7 +4,7 @@
 use super::pm_common::{
     hash, pack_xy, rand, unpack_xy, Config, Geom, TargetPatch, NONE, SOURCE, TARGET,
 };
-use crate::engine::{Bind, CpuBinding, StageDef};
+use crate::gpu::engine::{Bind, CpuBinding, StageDef};
 use rayon::prelude::*;
 
 pub const STAGE: StageDef = StageDef {

@@ -2,7 +2,7 @@
 //! coarsest level; see `wgsl/pm_vote.wgsl`.
 
 use super::pm_common::{pack_rgb, unpack_xy, Config, Geom, HOLE, LAYER_SHIFT, NONE};
-use crate::engine::{Bind, CpuBinding, StageDef};
+use crate::gpu::engine::{Bind, CpuBinding, StageDef};
 use rayon::prelude::*;
 
 pub const STAGE: StageDef = StageDef {

@@ -1,6 +1,6 @@
 //! Separable convolution along one axis, clamp-to-edge, optional subtraction (DoG).
 
-use crate::engine::{Bind, CpuBinding, StageDef};
+use crate::gpu::engine::{Bind, CpuBinding, StageDef};
 use rayon::prelude::*;
 
 pub const STAGE: StageDef = StageDef {
@@ -54,8 +54,8 @@ pub fn workgroups(cfg: &Config) -> [u32; 3] {
         (cfg.height, cfg.width)
     };
     [
-        crate::engine::groups(along.div_ceil(OUT_PER_INV), 8),
-        crate::engine::groups(across, 8),
+        crate::gpu::engine::groups(along.div_ceil(OUT_PER_INV), 8),
+        crate::gpu::engine::groups(across, 8),
         1,
     ]
 }

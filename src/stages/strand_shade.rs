@@ -1,13 +1,13 @@
 //! Per-vertex strand shading (C13 §4: highlights after Marschner et al. 2003, HSV recolour):
 //! one invocation per vertex computes the strand tangent by central differences, recolours
 //! the base colour in HSV and adds the highlight of every light. The CPU mirror below reads
-//! like `wgsl/strand_shade.wgsl`, function for function; `crate::shade` is the host.
+//! like `wgsl/strand_shade.wgsl`, function for function; `crate::render::shade` is the host.
 //!
 //! Only `+ - * /`, `sqrt`, `exp`, `exp2`/`log2` (through [`pow_pos`]) and `floor` are used:
 //! Mesa lowers `asin`/`acos` to short polynomials (errors near 1e-4), so both sides use the
 //! same Abramowitz-Stegun arcsine ([`asin_as`]) and trigonometric identities instead.
 
-use crate::engine::{Bind, CpuBinding, StageDef};
+use crate::gpu::engine::{Bind, CpuBinding, StageDef};
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -84,7 +84,7 @@ pub struct Config {
 /// Workgroups covering `n` vertices, at most `max_x` per row (65535 on every backend), and
 /// the row stride to put in [`Config::row_stride`].
 pub fn workgroups(n: u32, max_x: u32) -> ([u32; 3], u32) {
-    let groups = crate::engine::groups(n, WORKGROUP);
+    let groups = crate::gpu::engine::groups(n, WORKGROUP);
     let gx = groups.min(max_x.max(1));
     ([gx, groups.div_ceil(gx), 1], gx * WORKGROUP)
 }

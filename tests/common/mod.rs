@@ -1,8 +1,8 @@
 //! Shared test fixtures.
 #![allow(dead_code)] // each test binary uses a different subset
 
-use coif::engine::{BackendChoice, Engine};
-use coif::orient::GrayImage;
+use coif::analyze::orient::GrayImage;
+use coif::gpu::engine::{BackendChoice, Engine};
 
 /// The lavapipe (or any) GPU engine. Parity and golden tests need it: without an adapter they
 /// fail and say how to get one, rather than pass without checking anything.

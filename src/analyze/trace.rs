@@ -11,7 +11,7 @@
 //! strand images, where the pixels between strands carry little information.
 //!
 //! The curves are undirected: their vertex order is whatever tracing produced; see
-//! [`crate::resolve`] for the growth direction. Everything here is sequential and
+//! [`crate::analyze::resolve`] for the growth direction. Everything here is sequential and
 //! deterministic (seed order is by confidence, ties by pixel index).
 //!
 //! Coordinates: pixel (i, j) has its centre at (i + 0.5, j + 0.5), x right, y down; angles

@@ -36,7 +36,7 @@
 //! are checked vertex by vertex (in a branch-free, vectorisable loop). Coarse cells won in
 //! measurements: fewer, larger groups and longer vectorised loops beat tighter rims.
 
-use crate::trace::Curve;
+use crate::analyze::trace::Curve;
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 
@@ -93,7 +93,7 @@ pub fn resolve_directions(
     // length as one curve's vertices.
     let (mut seg_len, mut segs) = (0.0f64, 0usize);
     for c in curves {
-        seg_len += crate::trace::polyline_len(&c.points) as f64;
+        seg_len += crate::analyze::trace::polyline_len(&c.points) as f64;
         segs += c.points.len().saturating_sub(1);
     }
     let spacing = if segs > 0 && seg_len > 0.0 {
@@ -117,7 +117,7 @@ pub fn resolve_directions(
     };
 
     for s in strokes {
-        let pts = crate::trace::resample(s, spacing);
+        let pts = crate::analyze::trace::resample(s, spacing);
         let t = intrinsic(&pts);
         let t: Vec<[f32; 2]> = t
             .iter()
@@ -566,7 +566,7 @@ impl State {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::rng::Rng;
+    use crate::base::rng::Rng;
 
     fn line(x0: f32, y0: f32, dx: f32, dy: f32, n: usize) -> Curve {
         Curve {
@@ -583,7 +583,7 @@ mod tests {
         let tangents: Vec<Vec<[f32; 2]>> = curves.iter().map(|c| intrinsic(&c.points)).collect();
         let mut resolved: Vec<([f32; 2], [f32; 2])> = Vec::new();
         for s in strokes {
-            let pts = crate::trace::resample(s, 2.0);
+            let pts = crate::analyze::trace::resample(s, 2.0);
             for (q, d) in pts.iter().zip(intrinsic(&pts)) {
                 resolved.push((*q, [d[0] * p.stroke_weight, d[1] * p.stroke_weight]));
             }

@@ -30,12 +30,12 @@
 //! saturation and value scaled and clamped to [0, 1]) → RGB → linear, identically on the CPU
 //! ([`hsv_adjust`]) and in the shader.
 
-use crate::engine::{Engine, Recording};
+use crate::analyze::orient::SENTINEL;
 use crate::error::{Error, Result};
-use crate::head::WeakPerspective;
-use crate::orient::SENTINEL;
+use crate::gpu::engine::{Engine, Recording};
+use crate::hair::head::WeakPerspective;
+use crate::hair::strands::StrandSet;
 use crate::stages::strand_shade::{self, Config, HAS_NEXT, HAS_PREV};
-use crate::strands::StrandSet;
 use glam::Vec3;
 
 pub use crate::stages::strand_shade::{kajiya_kay, marschner_lobes, unit_or_zero, Lobes};

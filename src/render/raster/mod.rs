@@ -126,7 +126,7 @@ pub struct StrandPhoto {
     /// Half the strand width in photo px.
     pub half_width: f32,
     /// HSV adjustment of the photo colour: hue shift (degrees), saturation and value scales,
-    /// as [`crate::shade::hsv_adjust`]; None = unchanged.
+    /// as [`crate::render::shade::hsv_adjust`]; None = unchanged.
     pub hsv: Option<[f32; 3]>,
 }
 
@@ -935,8 +935,8 @@ mod gpu {
     use super::*;
     use wgpu::util::DeviceExt;
 
-    pub const STRAND_WGSL: &str = include_str!("../wgsl/render/strand_raster.wgsl");
-    pub const MESH_WGSL: &str = include_str!("../wgsl/render/mesh_raster.wgsl");
+    pub const STRAND_WGSL: &str = include_str!("../../../wgsl/render/strand_raster.wgsl");
+    pub const MESH_WGSL: &str = include_str!("../../../wgsl/render/mesh_raster.wgsl");
     const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
     const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
@@ -1997,7 +1997,7 @@ mod cpu {
                 let p = bilinear_at(ph.tex, o[0] - 0.5, o[1] - 0.5);
                 let p = [p[0], p[1], p[2]].map(|v| v.clamp(0.0, 1.0));
                 let p = match ph.hsv {
-                    Some([hue, sat, val]) => crate::shade::hsv_adjust(p, hue, sat, val),
+                    Some([hue, sat, val]) => crate::render::shade::hsv_adjust(p, hue, sat, val),
                     None => p,
                 };
                 for k in 0..3 {

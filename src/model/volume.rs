@@ -18,8 +18,8 @@
 //! 4. [`lift_curves`]: directed 2D curves projected onto the front boundary of H, their
 //!    tangents stored per cell as the constraints c_i of C13 Eq. 3.
 
-use crate::engine::{BufProxy, Engine, Recording};
 use crate::error::{Error, Result};
+use crate::gpu::engine::{BufProxy, Engine, Recording};
 use crate::stages::depth_raster::{self, Config, BACK_EMPTY, FRONT_EMPTY, MAX_SPAN_PX};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -29,7 +29,7 @@ use std::collections::BTreeMap;
 // Grid and meshes
 // ---------------------------------------------------------------------------------------------
 
-pub use crate::grid::Grid;
+pub use crate::base::grid::Grid;
 
 /// A triangle mesh in volume space.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]

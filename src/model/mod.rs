@@ -4,17 +4,22 @@
 //! field D (Eq. 3) → RK2 growth from scalp roots → cut-and-connect refinement (Eq. 4-5) →
 //! per-vertex colour from the photo.
 
+pub mod field3d;
+pub mod grow;
+pub mod refine;
+pub mod volume;
+
 use crate::analyze::{analyze, Analysis, AnalyzeParams};
-use crate::annot::{Landmarks, Strokes};
-use crate::engine::Engine;
+use crate::base::grid::Grid;
 use crate::error::{Error, Result};
-use crate::field3d::{self, FieldParams, SolveReport};
-use crate::grid::Grid;
-use crate::grow::{grow, GrowParams, Strands};
-use crate::head::{fit_default, fit_landmarks, FitReport, Head, HeadParams, WeakPerspective};
-use crate::refine::{refine, walk_projected, Coverage, RefineParams, RefineReport};
-use crate::strands::StrandSet;
-use crate::volume::{hair_volume, lift_curves, HairVolume, HeadInput, Mesh, VolumeParams};
+use crate::gpu::engine::Engine;
+use crate::hair::head::{fit_default, fit_landmarks, FitReport, Head, HeadParams, WeakPerspective};
+use crate::hair::strands::StrandSet;
+use crate::io::annot::{Landmarks, Strokes};
+use crate::model::field3d::{FieldParams, SolveReport};
+use crate::model::grow::{grow, GrowParams, Strands};
+use crate::model::refine::{refine, walk_projected, Coverage, RefineParams, RefineReport};
+use crate::model::volume::{hair_volume, lift_curves, HairVolume, HeadInput, Mesh, VolumeParams};
 use glam::Vec3;
 use std::time::Instant;
 
@@ -425,7 +430,11 @@ pub(crate) fn sample_rgb(img: &image::RgbImage, x: f32, y: f32) -> [f32; 3] {
     let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
     let (ax, ay) = (fx - x0 as f32, fy - y0 as f32);
     // Linear light, as `StrandSet::colors` holds (and bilinear mixing is meant in).
-    let px = |x, y| img.get_pixel(x, y).0.map(crate::raster::srgb_to_linear);
+    let px = |x, y| {
+        img.get_pixel(x, y)
+            .0
+            .map(crate::render::raster::srgb_to_linear)
+    };
     let (a, b, c, d) = (px(x0, y0), px(x1, y0), px(x0, y1), px(x1, y1));
     std::array::from_fn(|k| {
         let top = a[k] + ax * (b[k] - a[k]);

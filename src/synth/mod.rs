@@ -9,9 +9,11 @@
 //! Coordinates follow `annot`: pixel (i, j) has its centre at (i + 0.5, j + 0.5), x right,
 //! y down. Orientation angles are measured from +x towards +y (clockwise on screen).
 
-use crate::annot::{Landmarks, Stroke, StrokeKind, Strokes};
+pub mod synth3d;
+
+use crate::base::rng::Rng;
 use crate::error::{Error, Result};
-use crate::rng::Rng;
+use crate::io::annot::{Landmarks, Stroke, StrokeKind, Strokes};
 use image::{GrayImage, RgbImage};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
@@ -125,8 +127,8 @@ impl SynthCase {
         crate::io::write_png(&dir.join("mask.png"), &self.mask)?;
         self.strokes.save(&dir.join("strokes.json"))?;
         self.landmarks.save(&dir.join("landmarks.json"))?;
-        crate::npy::write_f32(&dir.join("gt_theta.npy"), &[h, w], &self.gt_theta)?;
-        crate::npy::write_f32(&dir.join("gt_dir.npy"), &[h, w, 2], &self.gt_dir)?;
+        crate::io::npy::write_f32(&dir.join("gt_theta.npy"), &[h, w], &self.gt_theta)?;
+        crate::io::npy::write_f32(&dir.join("gt_dir.npy"), &[h, w, 2], &self.gt_dir)?;
         Ok(())
     }
 
@@ -163,7 +165,7 @@ pub fn mask_interior(mask: &GrayImage, min_dist: f32) -> Vec<bool> {
 
 /// Smallest angle between two orientations (mod pi), in degrees.
 pub fn orientation_error_deg(a: f32, b: f32) -> f32 {
-    crate::metrics::orient_diff(a, b).to_degrees()
+    crate::eval::metrics::orient_diff(a, b).to_degrees()
 }
 
 /// Generates the portrait. Panics if a side is below [`SynthParams::MIN_SIZE`].
@@ -1483,7 +1485,7 @@ mod tests {
                 assert!((lo..=hi).contains(&f), "{style} seed {seed}: {f}");
                 assert_eq!(components(&c), 1, "{style} seed {seed}: mask not connected");
                 // The face is never hair.
-                for name in crate::annot::REQUIRED_LANDMARKS {
+                for name in crate::io::annot::REQUIRED_LANDMARKS {
                     let p = c.landmarks.get(name).unwrap();
                     assert!(
                         !c.is_hair(p[0] as u32, p[1] as u32),
@@ -1831,13 +1833,13 @@ mod tests {
         assert_eq!(img.as_raw(), c.image.as_raw());
         let mask = image::open(out.join("mask.png")).unwrap().to_luma8();
         assert_eq!(mask.as_raw(), c.mask.as_raw());
-        let (shape, t) = crate::npy::read_f32(&out.join("gt_theta.npy")).unwrap();
+        let (shape, t) = crate::io::npy::read_f32(&out.join("gt_theta.npy")).unwrap();
         assert_eq!(shape, vec![160, 200]);
         assert_eq!(
             t.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
             c.gt_theta.iter().map(|x| x.to_bits()).collect::<Vec<_>>()
         );
-        let (shape, d) = crate::npy::read_f32(&out.join("gt_dir.npy")).unwrap();
+        let (shape, d) = crate::io::npy::read_f32(&out.join("gt_dir.npy")).unwrap();
         assert_eq!(shape, vec![160, 200, 2]);
         assert_eq!(d.len(), c.gt_dir.len());
         let s = Strokes::load(&out.join("strokes.json"), Some((200, 160))).unwrap();

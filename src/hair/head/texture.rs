@@ -26,11 +26,11 @@
 //!   eyes or lips there, and a smooth skin tone is the safer guess for a part that is
 //!   normally under the hair anyway; the far fill is also cheaper.
 
-use crate::engine::Engine;
 use crate::error::{Error, Result};
-use crate::head::{Head, WeakPerspective};
-use crate::inpaint::{inpaint, push_pull, InpaintParams, InpaintReport};
-use crate::volume::{rasterize_depth, Mesh};
+use crate::gpu::engine::Engine;
+use crate::hair::head::{Head, WeakPerspective};
+use crate::model::volume::{rasterize_depth, Mesh};
+use crate::render::inpaint::{inpaint, push_pull, InpaintParams, InpaintReport};
 use glam::{DVec3, Vec3};
 use std::collections::HashMap;
 

@@ -2,9 +2,9 @@
 //! user strokes are splatted as known directions, then Jacobi sweeps of `dir_diffuse` spread
 //! them over the hair mask while keeping every pixel's direction on ± its image orientation.
 
-use crate::engine::{Engine, Recording};
+use crate::analyze::orient::SENTINEL;
 use crate::error::{Error, Result};
-use crate::orient::SENTINEL;
+use crate::gpu::engine::{Engine, Recording};
 use crate::stages::dir_diffuse;
 
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]

@@ -50,15 +50,15 @@
 //! [`solve_cg_f64`] (plain CG in f64) and [`jacobi_sweeps_to`] (damped Jacobi) solve the same
 //! normal equations on the host, as references for tests and benchmarks.
 
-use crate::engine::{BufProxy, Recording};
 use crate::error::{Error, Result};
+use crate::gpu::engine::{BufProxy, Recording};
 use crate::stages::field_cfg::Config;
 use crate::stages::{
     field_coarse_rhs, field_dense, field_prolong, field_resid, field_restrict, field_smooth,
 };
 use rayon::prelude::*;
 
-pub use crate::grid::Grid;
+pub use crate::base::grid::Grid;
 
 /// Multigrid cycle shape.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]

@@ -2,28 +2,32 @@
 //!
 //! Layers, back to front:
 //! 1. the background: the photo with the hair (and, for a novel view, the head) removed and
-//!    filled by PatchMatch inpainting ([`crate::inpaint`]);
+//!    filled by PatchMatch inpainting ([`crate::render::inpaint`]);
 //! 2. the head mesh, depth-tested: at the original view it carries the inpainted photo itself
 //!    (screen-space uvs, texel centres on pixel centres, so it reproduces the photo exactly
 //!    and only hides strands behind the head); at a novel view it carries the face texture
-//!    projected from the photo with its unseen parts filled ([`crate::head_texture`]);
+//!    projected from the photo with its unseen parts filled ([`crate::hair::head::texture`]);
 //! 3. the strands, one screen-aligned quad per segment with per-vertex colour and alpha
 //!    (the colours sampled from the photo by `coif model`, recoloured in HSV and given
-//!    highlights by [`crate::shade`]), MSAA with alpha-to-coverage, no depth sorting
-//!    ([`crate::raster`]).
+//!    highlights by [`crate::render::shade`]), MSAA with alpha-to-coverage, no depth sorting
+//!    ([`crate::render::raster`]).
 //!
 //! Views: the model's weak-perspective camera turned about the head centre (the model
 //! origin) by yaw, pitch and roll; optionally a pinhole camera at a distance, whose focal
 //! length keeps the head's scale (`distance`), so the view can also be put inside the head,
 //! which is refused.
 
+pub mod inpaint;
+pub mod raster;
+pub mod shade;
+
 use crate::error::{Error, Result};
-use crate::head::{Head, HeadParams, WeakPerspective};
-use crate::head_texture::{head_texture_with, HeadTextureParams};
-use crate::inpaint::{dilate, inpaint, InpaintParams};
-use crate::raster::{self, Frame, RasterParams, ScreenMesh, ScreenStrands, StrandPhoto, Texture};
-use crate::shade::{self, ShadeParams};
-use crate::strands::StrandSet;
+use crate::hair::head::texture::{head_texture_with, HeadTextureParams};
+use crate::hair::head::{Head, HeadParams, WeakPerspective};
+use crate::hair::strands::StrandSet;
+use crate::render::inpaint::{dilate, inpaint, InpaintParams};
+use crate::render::raster::{Frame, RasterParams, ScreenMesh, ScreenStrands, StrandPhoto, Texture};
+use crate::render::shade::ShadeParams;
 use crate::Engine;
 use glam::{Mat3, Vec2, Vec3};
 use serde::Serialize;
@@ -67,7 +71,7 @@ impl RenderModel {
         let meta: serde_json::Value = serde_json::from_str(&text)
             .map_err(|e| bad(&meta_path, format!("not valid JSON: {e}")))?;
         let strands_path = dir.join("strands.hair");
-        let strands = crate::strands::read(&strands_path)?;
+        let strands = crate::hair::strands::read(&strands_path)?;
         check_strands(&strands, &strands_path)?;
         let camera = match meta.get("camera") {
             None | Some(serde_json::Value::Null) => None,
@@ -97,7 +101,7 @@ impl RenderModel {
         .find(|p| p.is_file());
         let photo = match (&camera, photo_path) {
             (Some(_), Some(p)) => {
-                let img = crate::imgio::load_rgb(&p)?;
+                let img = crate::io::images::load_rgb(&p)?;
                 if (width, height) != (0, 0) && img.dimensions() != (width, height) {
                     return Err(bad(
                         &p,
@@ -115,7 +119,7 @@ impl RenderModel {
         };
         let mask_path = dir.join("mask.png");
         let mask = match (&photo, mask_path.is_file()) {
-            (Some(ph), true) => Some(crate::imgio::load_mask(
+            (Some(ph), true) => Some(crate::io::images::load_mask(
                 &mask_path,
                 ph.width(),
                 ph.height(),
@@ -207,7 +211,7 @@ fn check_strands(s: &StrandSet, path: &Path) -> Result<()> {
 #[serde(rename_all = "kebab-case")]
 pub enum ColourSource {
     /// The photo at every fragment, at the point where the photo's camera saw that part of
-    /// the strand ([`crate::raster::StrandPhoto`]); shading and recolouring apply on top. The
+    /// the strand ([`crate::render::raster::StrandPhoto`]); shading and recolouring apply on top. The
     /// limit of C13 §4's per-vertex sampling as the vertex spacing goes to zero: at the
     /// original view the covered hair reproduces the photo (synthetic re-renders 27-29 dB
     /// where the strands cover the hair, against 20-24 dB from vertex colours; issue 5 note).
@@ -725,15 +729,15 @@ fn layers(
     // The head mesh once, in model space and as the photo's camera sees it.
     let head_mesh = head.map(|hd| {
         let (verts, tris) = hd.mesh(p.head_texture.mesh_res);
-        let seen = crate::volume::Mesh {
+        let seen = crate::model::volume::Mesh {
             verts: verts.iter().map(|&v| cam0.project(v).to_array()).collect(),
             tris: tris.clone(),
         };
         (verts, tris, seen)
     });
     // Pixels of the photo the head mesh covers.
-    let covered = |mesh: &crate::volume::Mesh| -> Result<Vec<bool>> {
-        let dm = crate::volume::rasterize_depth(engine, pw, ph, &[mesh])?;
+    let covered = |mesh: &crate::model::volume::Mesh| -> Result<Vec<bool>> {
+        let dm = crate::model::volume::rasterize_depth(engine, pw, ph, &[mesh])?;
         Ok((0..pwu * phu).map(|i| dm.covered(i)).collect())
     };
     let head_px: Vec<u8> = match (head, &head_mesh) {

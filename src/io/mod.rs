@@ -1,6 +1,13 @@
 //! File output that never leaves a half-written file behind: write a temporary file in the
 //! destination folder, then rename it over the target.
 
+pub mod annot;
+pub mod assets;
+pub mod images;
+pub mod import;
+pub mod npy;
+pub mod vis;
+
 use crate::error::{Error, Result};
 use std::io::Write;
 use std::path::Path;

@@ -9,10 +9,10 @@
 //! field at the start or midpoint of a step has length ≤ `min_speed`, or after `max_steps`
 //! steps. The root is always the given seed, unchanged (roots on the scalp stay put).
 
-use crate::engine::{Engine, Recording};
+use crate::analyze::orient::SENTINEL;
+use crate::base::grid::Grid;
 use crate::error::{Error, Result};
-use crate::grid::Grid;
-use crate::orient::SENTINEL;
+use crate::gpu::engine::{Engine, Recording};
 use crate::stages::{density_splat, grow_rk2};
 use serde::{Deserialize, Serialize};
 

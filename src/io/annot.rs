@@ -333,8 +333,8 @@ fn check_point(p: &[f32; 2], image_size: Option<(u32, u32)>) -> std::result::Res
 mod tests {
     use super::*;
 
-    const STROKES_SCHEMA: &str = include_str!("../schemas/strokes.v1.schema.json");
-    const LANDMARKS_SCHEMA: &str = include_str!("../schemas/landmarks.v1.schema.json");
+    const STROKES_SCHEMA: &str = include_str!("../../schemas/strokes.v1.schema.json");
+    const LANDMARKS_SCHEMA: &str = include_str!("../../schemas/landmarks.v1.schema.json");
 
     fn strokes_err(text: &str, size: Option<(u32, u32)>) -> String {
         let e = Strokes::parse(text, Path::new("dir/strokes.json"), size).unwrap_err();

@@ -11,9 +11,9 @@
 //! Everything is deterministic: sampling uses a fixed-seed [`Rng`], parallel work is
 //! per-pixel and reductions run sequentially.
 
-use crate::annot::{StrokeKind, Strokes};
+use crate::base::rng::Rng;
 use crate::error::{Error, Result};
-use crate::rng::Rng;
+use crate::io::annot::{StrokeKind, Strokes};
 use image::{GrayImage, RgbImage};
 use rayon::prelude::*;
 use std::collections::VecDeque;
@@ -1006,7 +1006,7 @@ fn clean(label: &mut [bool], seed: &[u8], w: usize, h: usize, min_island: u32, m
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::annot::Stroke;
+    use crate::io::annot::Stroke;
     use crate::synth::{synth, Style, SynthParams};
 
     fn iou(a: &GrayImage, b: &GrayImage) -> f64 {

@@ -15,9 +15,11 @@
 //! Everything is computed in f64 internally (finite-difference gradients and root finding
 //! need the headroom) and exposed as f32.
 
-use crate::annot::{Landmarks, REQUIRED_LANDMARKS};
+pub mod texture;
+
+use crate::base::rng::Rng;
 use crate::error::{Error, Result};
-use crate::rng::Rng;
+use crate::io::annot::{Landmarks, REQUIRED_LANDMARKS};
 use glam::{DMat3, DVec2, DVec3, Mat3, Vec2, Vec3};
 use serde::{Deserialize, Serialize};
 use std::collections::HashMap;

@@ -1,6 +1,6 @@
 //! Accuracy figures against ground truth.
 
-use crate::orient::OrientMap;
+use crate::analyze::orient::OrientMap;
 
 /// Mean orientation error in degrees over hair pixels at least `inset` px inside the mask.
 #[derive(Clone, Copy, Debug)]

@@ -27,9 +27,9 @@
 //! it one pixel per pass. Random search runs once per iteration, in the step-1 pass, as Barnes
 //! does once per pixel per iteration.
 
-use crate::engine::{BufProxy, Engine, Recording};
+use crate::analyze::orient::SENTINEL;
 use crate::error::{Error, Result};
-use crate::orient::SENTINEL;
+use crate::gpu::engine::{BufProxy, Engine, Recording};
 use crate::stages::pm_common::{
     pack_rgb, pack_xy, Config, HOLE, LAYER_SHIFT, MAX_PATCH, NONE, QMAX, SOURCE, TARGET, UNKNOWN,
 };

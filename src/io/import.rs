@@ -13,8 +13,8 @@
 //! Coordinates are taken as image pixels (top-left origin, x right, y down), which is what
 //! both tools use when the drawing is made over the image at its natural size.
 
-use crate::annot::{Stroke, StrokeKind, Strokes};
 use crate::error::{Error, Result};
+use crate::io::annot::{Stroke, StrokeKind, Strokes};
 use std::path::Path;
 
 /// Imports a labelme (`.json`) or SVG (`.svg`) file, chosen by extension.
@@ -630,7 +630,7 @@ mod tests {
     fn labelme_file() {
         let s = import_strokes(&data("labelme_strokes.json")).unwrap();
         // polygon and point shapes are skipped; linestrips and a line stay, in file order.
-        assert_eq!(s.version, crate::annot::FORMAT_VERSION);
+        assert_eq!(s.version, crate::io::annot::FORMAT_VERSION);
         let kinds: Vec<StrokeKind> = s.strokes.iter().map(|s| s.kind).collect();
         assert_eq!(
             kinds,

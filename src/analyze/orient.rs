@@ -5,8 +5,8 @@
 //! whose buffers would exceed the largest binding are processed in tiles with a halo wide
 //! enough that every kept pixel sees the same neighbourhood as in one piece.
 
-use crate::engine::{BufProxy, Engine, Recording};
 use crate::error::{Error, Result};
+use crate::gpu::engine::{BufProxy, Engine, Recording};
 use crate::stages::{gabor, orient_resolve, sep_blur};
 
 /// Word every output buffer is filled with before a pass runs: a quiet NaN with a payload

@@ -30,11 +30,11 @@
 //! and the face centre (0.3 b below the model origin) placed like `crate::synth` places its
 //! face ellipse: about the image centre, a little below it.
 
-use crate::annot::{Landmarks, Stroke, StrokeKind, Strokes};
+use crate::base::rng::Rng;
 use crate::error::{Error, Result};
-use crate::head::{Head, ScalpPoint, WeakPerspective};
-use crate::rng::Rng;
-use crate::strands::StrandSet;
+use crate::hair::head::{Head, ScalpPoint, WeakPerspective};
+use crate::hair::strands::StrandSet;
+use crate::io::annot::{Landmarks, Stroke, StrokeKind, Strokes};
 use crate::synth::{mask_interior, Style, SynthCase, SynthParams};
 use glam::{DVec3, Mat3, Vec2, Vec3};
 use image::{GrayImage, RgbImage};
@@ -90,7 +90,7 @@ impl Synth3dCase {
     /// `image_from_model`, plus the head parameters); every file atomically.
     pub fn write(&self, dir: &Path) -> Result<()> {
         self.case.write(dir)?;
-        crate::strands::write(&dir.join("gt_strands.hair"), &self.gt)?;
+        crate::hair::strands::write(&dir.join("gt_strands.hair"), &self.gt)?;
         let meta = serde_json::json!({
             "version": 1,
             "width": self.case.width,
@@ -321,7 +321,7 @@ impl Look {
 // ---------------------------------------------------------------------------------------------
 // The body: head ∪ shoulders.
 
-/// Ellipsoid distance estimate (as in `crate::head`, private there): (k0 − 1)·k0/k1 outside,
+/// Ellipsoid distance estimate (as in `crate::hair::head`, private there): (k0 − 1)·k0/k1 outside,
 /// blended towards the smallest radius inside so the centre is continuous.
 fn sd_ellipsoid(p: DVec3, r: DVec3) -> f64 {
     let k0 = (p / r).length();

@@ -33,11 +33,11 @@
 //! Radius: C13 gives none; 3 cells (six vertex spacings) by default: near enough that the
 //! average vertex of Eq. (4) makes a gentle kink, far enough that most candidates meet S.
 
-use crate::engine::Engine;
+use crate::base::grid::Grid;
+use crate::base::rng::Rng;
 use crate::error::{Error, Result};
-use crate::grid::Grid;
-use crate::grow::{grow, splat_density, validate_field, GrowParams, Strands};
-use crate::rng::Rng;
+use crate::gpu::engine::Engine;
+use crate::model::grow::{grow, splat_density, validate_field, GrowParams, Strands};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 

@@ -2,14 +2,20 @@
 //! is given), orientation, 2D tracing, growth-direction resolution (Eq. 1-2) and the dense
 //! direction field.
 
-use crate::annot::{StrokeKind, Strokes};
-use crate::direction::{dense_direction, DirectionParams, Domain};
-use crate::engine::Engine;
+pub mod direction;
+pub mod orient;
+pub mod resolve;
+pub mod segment;
+pub mod trace;
+
+use crate::analyze::direction::{dense_direction, DirectionParams, Domain};
+use crate::analyze::orient::{orient, GrayImage, OrientMap, OrientParams};
+use crate::analyze::resolve::{resolve_directions, ResolveParams, Resolved};
+use crate::analyze::segment::{segment, SegmentParams};
+use crate::analyze::trace::{split_curves, trace_curves, Curve, TraceParams};
 use crate::error::{Error, Result};
-use crate::orient::{orient, GrayImage, OrientMap, OrientParams};
-use crate::resolve::{resolve_directions, ResolveParams, Resolved};
-use crate::segment::{segment, SegmentParams};
-use crate::trace::{split_curves, trace_curves, Curve, TraceParams};
+use crate::gpu::engine::Engine;
+use crate::io::annot::{StrokeKind, Strokes};
 use std::time::Instant;
 
 #[derive(Clone, Debug, Default, serde::Serialize)]

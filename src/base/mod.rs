@@ -1,0 +1,4 @@
+//! Small shared building blocks with no knowledge of hair: grids, random numbers.
+
+pub mod grid;
+pub mod rng;

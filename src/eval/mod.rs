@@ -1,0 +1,3 @@
+//! Accuracy figures against ground truth.
+
+pub mod metrics;

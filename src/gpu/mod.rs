@@ -1,0 +1,7 @@
+//! The GPU side: the adapter and device ([`context`]) and the engine that runs a recording of
+//! passes on it or on their CPU mirrors ([`engine`]).
+
+pub mod context;
+pub mod engine;
+
+pub use context::{describe, hardware_gpu_present, list_adapters, GpuContext};

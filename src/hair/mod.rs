@@ -1,0 +1,4 @@
+//! The hair itself: strands and the head they grow on.
+
+pub mod head;
+pub mod strands;
