@@ -904,7 +904,7 @@ fn write_model(
     p: &coif::model::ModelParams,
     engine: &Engine,
 ) -> anyhow::Result<()> {
-    coif::hair::strands::write(&out.join("strands.hair"), &m.strands)?;
+    coif::io::strands::write(&out.join("strands.hair"), &m.strands)?;
     // The photo travels with the model, so `coif render` needs nothing else.
     coif::io::write_png(&out.join("photo.png"), rgb)?;
     let figures = coif::model::figures(m);
@@ -1030,10 +1030,10 @@ fn cmd_render(a: RenderArgs) -> anyhow::Result<()> {
 }
 
 fn cmd_export(a: ExportArgs) -> anyhow::Result<()> {
-    coif::hair::strands::Format::from_path(&a.to)?;
+    coif::io::strands::Format::from_path(&a.to)?;
     let src = a.model.join("strands.hair");
-    let s = coif::hair::strands::read(&src)?;
-    coif::hair::strands::write(&a.to, &s)?;
+    let s = coif::io::strands::read(&src)?;
+    coif::io::strands::write(&a.to, &s)?;
     println!(
         "export: {} strands, {} vertices: {} -> {}",
         s.counts.len(),
@@ -1045,9 +1045,9 @@ fn cmd_export(a: ExportArgs) -> anyhow::Result<()> {
 }
 
 fn cmd_import(a: ImportArgs) -> anyhow::Result<()> {
-    let s = coif::hair::strands::read(&a.input)?;
+    let s = coif::io::strands::read(&a.input)?;
     coif::io::ensure_dir(&a.out)?;
-    coif::hair::strands::write(&a.out.join("strands.hair"), &s)?;
+    coif::io::strands::write(&a.out.join("strands.hair"), &s)?;
     let (lo, hi) = s.bounds();
     let meta = serde_json::json!({
         "version": 1,
@@ -1073,9 +1073,9 @@ fn cmd_import(a: ImportArgs) -> anyhow::Result<()> {
 
 fn cmd_convert(a: ConvertArgs) -> anyhow::Result<()> {
     // Check the output format before reading, so a typo fails fast.
-    coif::hair::strands::Format::from_path(&a.output)?;
-    let s = coif::hair::strands::read(&a.input)?;
-    coif::hair::strands::write(&a.output, &s)?;
+    coif::io::strands::Format::from_path(&a.output)?;
+    let s = coif::io::strands::read(&a.input)?;
+    coif::io::strands::write(&a.output, &s)?;
     println!(
         "convert: {} strands, {} vertices: {} -> {}",
         s.counts.len(),

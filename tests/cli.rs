@@ -428,8 +428,8 @@ fn model_export_import_round_trip_and_bad_landmarks() {
     let back = c.s("back");
     let o = coif(&["import", &c.s("hair.ply"), "--out", &back]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let a = coif::hair::strands::read(&c.p("model").join("strands.hair")).unwrap();
-    let b = coif::hair::strands::read(&c.p("back").join("strands.hair")).unwrap();
+    let a = coif::io::strands::read(&c.p("model").join("strands.hair")).unwrap();
+    let b = coif::io::strands::read(&c.p("back").join("strands.hair")).unwrap();
     assert_eq!(a.counts, b.counts);
     assert_eq!(a.points, b.points);
 
@@ -484,7 +484,7 @@ fn model_export_import_round_trip_and_bad_landmarks() {
     for q in &mut moved.points {
         q[0] += 100.0;
     }
-    coif::hair::strands::write(&far.join("strands.hair"), &moved).unwrap();
+    coif::io::strands::write(&far.join("strands.hair"), &moved).unwrap();
     let o = coif(&[
         "render",
         "--backend",
@@ -497,7 +497,7 @@ fn model_export_import_round_trip_and_bad_landmarks() {
     fails(&o, 64, &["lands in the", "strands.hair"]);
     // NaN colours: refused, naming the file and the vertex.
     // The writer refuses NaN, so patch the file: colours are cyHair's last array.
-    coif::hair::strands::write(&far.join("strands.hair"), &a).unwrap();
+    coif::io::strands::write(&far.join("strands.hair"), &a).unwrap();
     let mut bytes = std::fs::read(far.join("strands.hair")).unwrap();
     let at = bytes.len() - 12 * a.points.len() + 12 * 5 + 4;
     bytes[at..at + 4].copy_from_slice(&f32::NAN.to_le_bytes());
@@ -526,7 +526,7 @@ fn model_export_import_round_trip_and_bad_landmarks() {
     rep.colors = Some(vec![[0.5, 0.3, 0.1]; 4]);
     let zl = c.p("zero");
     std::fs::create_dir_all(&zl).unwrap();
-    coif::hair::strands::write(&c.p("zero.hair"), &rep).unwrap();
+    coif::io::strands::write(&c.p("zero.hair"), &rep).unwrap();
     let o = coif(&["import", &c.s("zero.hair"), "--out", &c.s("zero")]);
     assert!(o.status.success(), "{}", stderr(&o));
     let o = coif(&[
@@ -628,8 +628,8 @@ fn convert_round_trips_a_strand_file() {
     );
     let o = coif(&["convert", src, &c.s("b.hair")]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let a = coif::hair::strands::read(Path::new(src)).unwrap();
-    let b = coif::hair::strands::read(&c.p("b.hair")).unwrap();
+    let a = coif::io::strands::read(Path::new(src)).unwrap();
+    let b = coif::io::strands::read(&c.p("b.hair")).unwrap();
     assert_eq!(a.points, b.points);
     assert_eq!(a.counts, b.counts);
     let bad = coif(&["convert", src, &c.s("b.xyz")]);

@@ -158,7 +158,7 @@ fn golden_renders() -> Vec<(&'static str, image::RgbImage)> {
     dyed.shade.value = 0.9;
     dyed.shade.amount = 0.6;
     let dyed = to_rgb8(&render(&gpu, &m, &dyed).unwrap());
-    let curly = coif::hair::strands::read(
+    let curly = coif::io::strands::read(
         &Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/strands/Curly_100.ply"),
     )
     .unwrap();

@@ -1,7 +1,8 @@
 //! Strand file formats against the real hairutil/CT2Hair files in tests/data/strands/.
 
 use coif::error::Error;
-use coif::hair::strands::{self, Format, StrandSet, UpAxis, UsdOptions};
+use coif::hair::strands::StrandSet;
+use coif::io::strands::{self, Format, UpAxis, UsdOptions};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 

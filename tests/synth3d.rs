@@ -295,7 +295,7 @@ fn write_round_trips() {
     }
     let img = image::open(out.join("image.png")).unwrap().to_rgb8();
     assert_eq!(img.as_raw(), c.case.image.as_raw());
-    let gt = coif::hair::strands::read(&out.join("gt_strands.hair")).unwrap();
+    let gt = coif::io::strands::read(&out.join("gt_strands.hair")).unwrap();
     assert_eq!(gt.counts, c.gt.counts);
     assert_eq!(point_bits(&gt), point_bits(&c.gt));
     let cam: serde_json::Value =

@@ -71,7 +71,7 @@ impl RenderModel {
         let meta: serde_json::Value = serde_json::from_str(&text)
             .map_err(|e| bad(&meta_path, format!("not valid JSON: {e}")))?;
         let strands_path = dir.join("strands.hair");
-        let strands = crate::hair::strands::read(&strands_path)?;
+        let strands = crate::io::strands::read(&strands_path)?;
         check_strands(&strands, &strands_path)?;
         let camera = match meta.get("camera") {
             None | Some(serde_json::Value::Null) => None,

@@ -90,7 +90,7 @@ impl Synth3dCase {
     /// `image_from_model`, plus the head parameters); every file atomically.
     pub fn write(&self, dir: &Path) -> Result<()> {
         self.case.write(dir)?;
-        crate::hair::strands::write(&dir.join("gt_strands.hair"), &self.gt)?;
+        crate::io::strands::write(&dir.join("gt_strands.hair"), &self.gt)?;
         let meta = serde_json::json!({
             "version": 1,
             "width": self.case.width,
