@@ -939,16 +939,19 @@ fn write_model(
     // direction (the hue ring of the analysis pictures); a subset keeps it legible.
     let mut pic = coif::io::vis::dimmed(rgb, 0.35);
     // Far strands first, so nearer ones cover them (painter's order on mean depth).
-    let every = (m.strands_volume.len() / 6000).max(1);
-    let mut order: Vec<(f32, usize)> = (0..m.strands_volume.len())
+    let view = &m.strands_image;
+    let off = view.offsets();
+    let strand = |i: usize| &view.points[off[i]..off[i + 1]];
+    let every = (view.len() / 6000).max(1);
+    let mut order: Vec<(f32, usize)> = (0..view.len())
         .step_by(every)
         .map(|i| {
-            let s = &m.strands_volume[i];
+            let s = strand(i);
             (s.iter().map(|q| q[2]).sum::<f32>() / s.len() as f32, i)
         })
         .collect();
     order.sort_by(|a, b| a.0.total_cmp(&b.0));
-    for s in order.iter().map(|&(_, i)| &m.strands_volume[i]) {
+    for s in order.iter().map(|&(_, i)| strand(i)) {
         let pts: Vec<[f32; 2]> = s.iter().map(|q| [q[0], q[1]]).collect();
         coif::io::vis::draw_polyline(&mut pic, &pts, 1.0, |k| {
             coif::io::vis::direction_colour(pts[k + 1][0] - pts[k][0], pts[k + 1][1] - pts[k][1])

@@ -9,7 +9,8 @@ use coif::analyze::orient::SENTINEL;
 use coif::base::grid::Grid;
 use coif::base::rng::Rng;
 use coif::gpu::engine::{BackendChoice, Engine, Recording};
-use coif::model::grow::{grow, splat_density, splat_verts, GrowParams, Strands};
+use coif::hair::strands::StrandSet;
+use coif::model::grow::{grow, splat_density, splat_verts, GrowParams};
 use coif::model::refine::{refine, RefineParams};
 use coif::stages::{density_splat, grow_rk2};
 use coif::testing::{assert_no_sentinel, compare_u32_exact, SENTINEL_BITS};
@@ -272,7 +273,7 @@ fn density_splat_matches_cpu() {
         &GrowParams::default(),
     )
     .unwrap();
-    let mut verts = strands.verts.clone();
+    let mut verts = strands.points.clone();
     // Vertices outside the grid or NaN add nothing; several vertices share cells.
     verts.extend_from_slice(&[
         [-0.1, 3.0, 3.0],
@@ -363,7 +364,7 @@ fn growth_follows_analytic_streamlines_and_stops() {
     assert_eq!(st.len(), seeds.len());
     let mut max_err = 0.0f64;
     let mut ended_on_boundary = 0;
-    for (s, v) in st.iter().enumerate() {
+    for (s, v) in st.strands().enumerate() {
         assert_eq!(v[0], seeds[s], "the root is the seed");
         for (k, &q) in v.iter().enumerate() {
             // Vertices are one cell (two half-cell steps) apart along the curve; the last
@@ -405,7 +406,7 @@ fn growth_follows_analytic_streamlines_and_stops() {
     };
     let st_fine = grow(&e, &sc.grid, &sc.d, &sc.h, &seeds, &signs, &fine).unwrap();
     let mut max_fine = 0.0f64;
-    for (s, v) in st_fine.iter().enumerate() {
+    for (s, v) in st_fine.strands().enumerate() {
         // Whole records only (the tip may follow a partial record).
         for (k, &q) in v.iter().enumerate().take(v.len() - 1) {
             let r = helix_at(seeds[s], cx as f64, a as f64, k as f64);
@@ -418,7 +419,7 @@ fn growth_follows_analytic_streamlines_and_stops() {
 
     // Backward (sign -1) traces the same helix down from the same roots.
     let back = grow(&e, &sc.grid, &sc.d, &sc.h, &seeds[..20], &[-1.0; 20], &p).unwrap();
-    for (s, v) in back.iter().enumerate() {
+    for (s, v) in back.strands().enumerate() {
         for (k, &q) in v.iter().enumerate().take(v.len() - 1) {
             let r = helix_at(seeds[s], cx as f64, a as f64, -(k as f64));
             assert!(dist(q, [r[0] as f32, r[1] as f32, r[2] as f32]) < 0.05);
@@ -432,7 +433,7 @@ fn growth_follows_analytic_streamlines_and_stops() {
         ..Default::default()
     };
     let st = grow(&e, &tall.grid, &tall.d, &tall.h, &seeds, &signs, &short).unwrap();
-    for v in st.iter() {
+    for v in st.strands() {
         assert_eq!(v.len(), short.max_verts() as usize);
         assert_eq!(v.len(), 22, "root + 20 records + the odd last step");
         let length: f32 = v.windows(2).map(|w| dist(w[0], w[1])).sum();
@@ -449,7 +450,7 @@ fn growth_follows_analytic_streamlines_and_stops() {
     }
     let st = grow(&e, &dead.grid, &dead.d, &dead.h, &seeds, &signs, &p).unwrap();
     let mut stopped = 0;
-    for (s, v) in st.iter().enumerate() {
+    for (s, v) in st.strands().enumerate() {
         if seeds[s][0] >= cx + 7.0 {
             // Every interpolation corner is zero: the strand is its root alone.
             assert_eq!(v.len(), 1);
@@ -470,9 +471,9 @@ fn growth_follows_analytic_streamlines_and_stops() {
     assert!(stopped > 0);
 }
 
-fn turning_angles(st: &Strands) -> Vec<f32> {
+fn turning_angles(st: &StrandSet) -> Vec<f32> {
     let mut out = Vec::new();
-    for v in st.iter() {
+    for v in st.strands() {
         for w in v.windows(3) {
             let a = [w[1][0] - w[0][0], w[1][1] - w[0][1], w[1][2] - w[0][2]];
             let b = [w[2][0] - w[1][0], w[2][1] - w[1][1], w[2][2] - w[1][2]];
@@ -517,7 +518,7 @@ fn refinement_fills_the_volume() {
          {t_refine:.2?}",
         roots.len(),
         initial.len(),
-        initial.verts.len()
+        initial.points.len()
     );
     for (k, it) in rep.iterations.iter().enumerate() {
         println!(
@@ -543,12 +544,13 @@ fn refinement_fills_the_volume() {
         "{rep:?}"
     );
     // The initial strands stay as they were; every strand starts on an original root.
-    for s in 0..initial.len() {
-        assert_eq!(st.strand(s), initial.strand(s));
+    assert!(st.len() >= initial.len());
+    for (a, b) in st.strands().zip(initial.strands()) {
+        assert_eq!(a, b);
     }
     let root_bits: std::collections::HashSet<[u32; 3]> =
         roots.iter().map(|r| r.map(f32::to_bits)).collect();
-    for v in st.iter() {
+    for v in st.strands() {
         assert!(
             root_bits.contains(&v[0].map(f32::to_bits)),
             "root {:?}",
@@ -566,7 +568,7 @@ fn refinement_fills_the_volume() {
     );
     assert!(q99 <= 30.0, "99% quantile {q99}");
     // Every vertex of the result is inside the grid and finite.
-    assert!(st.verts.iter().all(|v| sc.grid.cell_of(*v).is_some()));
+    assert!(st.points.iter().all(|v| sc.grid.cell_of(*v).is_some()));
     // Density of the result agrees with the report.
     let dens = splat_density(&e, &sc.grid, &st).unwrap();
     let inside = sc.h.iter().filter(|&&v| v != 0).count();
@@ -618,7 +620,7 @@ fn bad_input_is_invalid_not_a_panic() {
     let e = Engine::cpu();
     let p = GrowParams::default();
     let seeds = vec![[8.0, 3.0, 8.0]];
-    let inv = |r: Result<Strands, Error>| {
+    let inv = |r: Result<StrandSet, Error>| {
         assert!(matches!(r, Err(Error::Invalid(_))), "{r:?}");
     };
     inv(grow(&e, &sc.grid, &sc.d[1..], &sc.h, &seeds, &[1.0], &p));
@@ -650,7 +652,7 @@ fn bad_input_is_invalid_not_a_panic() {
 
     let rp = RefineParams::default();
     let strands = grow(&e, &sc.grid, &sc.d, &sc.h, &seeds, &[1.0], &p).unwrap();
-    let rinv = |r: Result<(Strands, coif::model::refine::RefineReport), Error>| {
+    let rinv = |r: Result<(StrandSet, coif::model::refine::RefineReport), Error>| {
         assert!(matches!(r, Err(Error::Invalid(_))), "{:?}", r.err());
     };
     rinv(refine(
@@ -674,10 +676,10 @@ fn bad_input_is_invalid_not_a_panic() {
         None,
     ));
     let mut outside = strands.clone();
-    outside.verts[0] = [100.0, 0.0, 0.0];
+    outside.points[0] = [100.0, 0.0, 0.0];
     rinv(refine(&e, &sc.grid, &sc.d, &sc.h, outside, &rp, 1, None));
     let mut broken = strands.clone();
-    broken.offsets.push(broken.verts.len() + 5);
+    broken.counts.push(5);
     rinv(refine(&e, &sc.grid, &sc.d, &sc.h, broken, &rp, 1, None));
     rinv(refine(
         &e,
@@ -696,7 +698,17 @@ fn bad_input_is_invalid_not_a_panic() {
     assert!(grow(&e, &sc.grid, &sc.d, &sc.h, &[], &[], &p)
         .unwrap()
         .is_empty());
-    let (st, rep) = refine(&e, &sc.grid, &sc.d, &sc.h, Strands::new(), &rp, 1, None).unwrap();
+    let (st, rep) = refine(
+        &e,
+        &sc.grid,
+        &sc.d,
+        &sc.h,
+        StrandSet::default(),
+        &rp,
+        1,
+        None,
+    )
+    .unwrap();
     // Without strands nothing can be connected: one iteration, nothing added.
     assert!(st.is_empty());
     assert_eq!(rep.iterations.len(), 1);

@@ -58,6 +58,36 @@ impl StrandSet {
         })
     }
 
+    /// Where each strand starts in `points`, plus the end: strand `i` is
+    /// `points[o[i]..o[i + 1]]`. Built once by stages that visit strands out of order.
+    pub fn offsets(&self) -> Vec<usize> {
+        let mut o = Vec::with_capacity(self.counts.len() + 1);
+        o.push(0);
+        for &c in &self.counts {
+            o.push(o[o.len() - 1] + c as usize);
+        }
+        o
+    }
+
+    /// Appends a strand without attributes (sets that carry attributes are built whole).
+    pub fn push(&mut self, verts: &[[f32; 3]]) {
+        self.points.extend_from_slice(verts);
+        self.counts.push(verts.len() as u32);
+    }
+
+    /// Checks only that the counts add up to the points: the invariant the modelling stages
+    /// keep while a set is being grown (it may be empty, and a strand may have no vertex).
+    pub fn check_packing(&self) -> Result<()> {
+        let total: u64 = self.counts.iter().map(|&c| u64::from(c)).sum();
+        if total != self.points.len() as u64 {
+            return Err(Error::Invalid(format!(
+                "strand vertex counts sum to {total} but there are {} points",
+                self.points.len()
+            )));
+        }
+        Ok(())
+    }
+
     /// Checks that the set is usable: at least one strand, every count >= 1, counts summing
     /// to the number of points, per-vertex attributes of that length, all values finite.
     pub fn validate(&self) -> Result<()> {

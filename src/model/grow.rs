@@ -2,7 +2,7 @@
 //! density used by refinement, both as GPU passes with CPU mirrors
 //! ([`crate::stages::grow_rk2`], [`crate::stages::density_splat`]).
 //!
-//! Strands live in grid coordinates (cell centre = index + 0.5), root → tip.
+//! Strands ([`StrandSet`]) live in grid coordinates (cell centre = index + 0.5), root → tip.
 //!
 //! Stop rule: a strand stops before a step whose end point lies in a cell (the cell holding
 //! it, i.e. its nearest cell centre) outside the grid or outside H, where the interpolated
@@ -13,74 +13,9 @@ use crate::analyze::orient::SENTINEL;
 use crate::base::grid::Grid;
 use crate::error::{Error, Result};
 use crate::gpu::engine::{Engine, Recording};
+use crate::hair::strands::StrandSet;
 use crate::stages::{density_splat, grow_rk2};
 use serde::{Deserialize, Serialize};
-
-/// Polylines, root → tip, packed: strand `s` is `verts[offsets[s]..offsets[s + 1]]`.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Strands {
-    pub verts: Vec<[f32; 3]>,
-    /// `len() + 1` entries, starting at 0, non-decreasing.
-    pub offsets: Vec<usize>,
-}
-
-impl Default for Strands {
-    fn default() -> Self {
-        Strands::new()
-    }
-}
-
-impl Strands {
-    pub fn new() -> Self {
-        Strands {
-            verts: Vec::new(),
-            offsets: vec![0],
-        }
-    }
-
-    /// Number of strands.
-    pub fn len(&self) -> usize {
-        self.offsets.len().saturating_sub(1)
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-
-    /// Vertices of strand `s`.
-    pub fn strand(&self, s: usize) -> &[[f32; 3]] {
-        &self.verts[self.offsets[s]..self.offsets[s + 1]]
-    }
-
-    /// Appends a strand.
-    pub fn push(&mut self, verts: &[[f32; 3]]) {
-        self.verts.extend_from_slice(verts);
-        self.offsets.push(self.verts.len());
-    }
-
-    /// Vertices per strand.
-    pub fn counts(&self) -> Vec<usize> {
-        self.offsets.windows(2).map(|w| w[1] - w[0]).collect()
-    }
-
-    pub fn iter(&self) -> impl Iterator<Item = &[[f32; 3]]> + '_ {
-        self.offsets.windows(2).map(|w| &self.verts[w[0]..w[1]])
-    }
-
-    /// Checks the packing invariants (for strands that come from outside this module).
-    pub fn validate(&self) -> Result<()> {
-        if self.offsets.first() != Some(&0)
-            || self.offsets.last() != Some(&self.verts.len())
-            || self.offsets.windows(2).any(|w| w[1] < w[0])
-        {
-            return Err(Error::Invalid(format!(
-                "strand offsets must start at 0, not decrease and end at the vertex count {}",
-                self.verts.len()
-            )));
-        }
-        Ok(())
-    }
-}
 
 /// Growth parameters (C13 §2.2: RK2, step half a cell, stop at a maximum length or on
 /// leaving H).
@@ -203,7 +138,7 @@ pub fn grow(
     seeds: &[[f32; 3]],
     signs: &[f32],
     p: &GrowParams,
-) -> Result<Strands> {
+) -> Result<StrandSet> {
     validate_field(grid, d, h)?;
     p.validate()?;
     if signs.len() != seeds.len() {
@@ -228,7 +163,7 @@ pub fn grow(
         }
     }
     if seeds.is_empty() {
-        return Ok(Strands::new());
+        return Ok(StrandSet::default());
     }
     let max_verts = p.max_verts() as usize;
     let per_strand = 12 * max_verts as u64;
@@ -277,7 +212,7 @@ pub fn grow(
         outs.push((chunk.len(), vb, cb));
     }
     let dl = engine.run(rec)?;
-    let mut strands = Strands::new();
+    let mut strands = StrandSet::default();
     for (n, vb, cb) in outs {
         let verts = dl.get::<[f32; 3]>(vb);
         let counts = dl.get::<u32>(cb);
@@ -296,8 +231,8 @@ pub fn grow(
 
 /// Vertices per grid cell (C13 Eq. 5's ρ): each vertex of `strands` adds 1 to the cell
 /// holding it; vertices outside the grid add nothing.
-pub fn splat_density(engine: &Engine, grid: &Grid, strands: &Strands) -> Result<Vec<u32>> {
-    splat_verts(engine, grid, &strands.verts)
+pub fn splat_density(engine: &Engine, grid: &Grid, strands: &StrandSet) -> Result<Vec<u32>> {
+    splat_verts(engine, grid, &strands.points)
 }
 
 /// As [`splat_density`], for loose vertices (grid coordinates).

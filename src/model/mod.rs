@@ -17,7 +17,7 @@ use crate::hair::head::{fit_default, fit_landmarks, FitReport, Head, HeadParams,
 use crate::hair::strands::StrandSet;
 use crate::io::annot::{Landmarks, Strokes};
 use crate::model::field3d::{FieldParams, SolveReport};
-use crate::model::grow::{grow, GrowParams, Strands};
+use crate::model::grow::{grow, GrowParams};
 use crate::model::refine::{refine, walk_projected, Coverage, RefineParams, RefineReport};
 use crate::model::volume::{hair_volume, lift_curves, HairVolume, HeadInput, Mesh, VolumeParams};
 use glam::Vec3;
@@ -96,8 +96,8 @@ pub struct Model {
     pub refine: RefineReport,
     /// Strands in model space (metres), root first, with per-vertex colour and transparency.
     pub strands: StrandSet,
-    /// The same strands in volume space (image px, depth px).
-    pub strands_volume: Vec<Vec<[f32; 3]>>,
+    /// The same strands in volume space (image px, depth px): another view, same container.
+    pub strands_image: StrandSet,
     /// The head's front depth map (volume space, -inf off the head): what hides strands.
     pub head_front: Vec<f32>,
     /// Seconds per stage, analysis stages included.
@@ -273,7 +273,7 @@ pub fn model_from_analysis(
         refine(engine, &grid, &d, &hg, grown, &rp, p.seed, Some(&cover))?;
     lap("refinement", &mut timings);
 
-    let (set, vol_strands) = to_model_space(&strands, &grid, &camera, image, &an.mask);
+    let (set, image_view) = to_model_space(&strands, &grid, &camera, image, &an.mask);
     lap("colour", &mut timings);
 
     Ok(Model {
@@ -290,7 +290,7 @@ pub fn model_from_analysis(
         grown_strands,
         refine: refine_report,
         strands: set,
-        strands_volume: vol_strands,
+        strands_image: image_view,
         head_front: vol.head.front.clone(),
         timings,
         analysis: an,
@@ -385,24 +385,23 @@ fn tilt_normal(n: [f32; 3], flow: &[f32], deg: f32) -> [f32; 3] {
 /// Strands from grid coordinates to model space, with colour and transparency sampled
 /// where each vertex projects: the photo's colour, and transparent off the hair mask.
 fn to_model_space(
-    strands: &Strands,
+    strands: &StrandSet,
     grid: &Grid,
     camera: &WeakPerspective,
     image: &image::RgbImage,
     mask: &[u8],
-) -> (StrandSet, Vec<Vec<[f32; 3]>>) {
+) -> (StrandSet, StrandSet) {
     let (w, h) = image.dimensions();
-    let mut points = Vec::with_capacity(strands.verts.len());
-    let mut colors = Vec::with_capacity(strands.verts.len());
-    let mut transparency = Vec::with_capacity(strands.verts.len());
+    let mut points = Vec::with_capacity(strands.points.len());
+    let mut colors = Vec::with_capacity(strands.points.len());
+    let mut transparency = Vec::with_capacity(strands.points.len());
     let mut counts = Vec::with_capacity(strands.len());
-    let mut vol_strands = Vec::with_capacity(strands.len());
-    for s in strands.iter() {
+    let mut image_points = Vec::with_capacity(strands.points.len());
+    for s in strands.strands() {
         counts.push(s.len() as u32);
-        let mut vs = Vec::with_capacity(s.len());
         for &g in s {
             let q = grid.to_volume(g);
-            vs.push(q);
+            image_points.push(q);
             points.push(camera.unproject(Vec3::from_array(q)).to_array());
             colors.push(sample_rgb(image, q[0], q[1]));
             let (x, y) = (q[0].floor(), q[1].floor());
@@ -413,12 +412,12 @@ fn to_model_space(
                 && mask[y as usize * w as usize + x as usize] != 0;
             transparency.push(if on { 0.0 } else { 1.0 });
         }
-        vol_strands.push(vs);
     }
+    let image_view = StrandSet::new(image_points, counts.clone());
     let mut set = StrandSet::new(points, counts);
     set.colors = Some(colors);
     set.transparency = Some(transparency);
-    (set, vol_strands)
+    (set, image_view)
 }
 
 /// Bilinear sample of the photo at pixel coordinates (pixel centres at +0.5), linear 0..1.
@@ -485,7 +484,7 @@ pub fn figures(m: &Model) -> ModelFigures {
         mask: &m.analysis.mask,
         head_front: &m.head_front,
     };
-    for s in &m.strands_volume {
+    for s in m.strands_image.strands() {
         for seg in s.windows(2) {
             // Behind the head the strand is hidden, as in a render.
             walk_projected(seg[0], seg[1], &cover, |i, z, t| {

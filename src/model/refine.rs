@@ -37,7 +37,8 @@ use crate::base::grid::Grid;
 use crate::base::rng::Rng;
 use crate::error::{Error, Result};
 use crate::gpu::engine::Engine;
-use crate::model::grow::{grow, splat_density, validate_field, GrowParams, Strands};
+use crate::hair::strands::StrandSet;
+use crate::model::grow::{grow, splat_density, validate_field, GrowParams};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -97,11 +98,12 @@ fn mark_hits(grid: &Grid, s: &[V3], cov: &Coverage, hit: &mut [bool]) {
 fn coverage_seeds(
     grid: &Grid,
     h: &[u32],
-    strands: &Strands,
+    strands: &StrandSet,
     cov: &Coverage,
     rng: &mut Rng,
 ) -> (Vec<(V3, usize)>, Vec<bool>) {
     let (w, ht) = (cov.width as usize, cov.height as usize);
+    let off = strands.offsets();
     // One map per chunk of strands, OR-ed: the walk is most of the cost.
     let ids: Vec<usize> = (0..strands.len()).collect();
     let hit = ids
@@ -114,7 +116,7 @@ fn coverage_seeds(
         .map(|chunk| {
             let mut hit = vec![false; w * ht];
             for &s in chunk {
-                mark_hits(grid, strands.strand(s), cov, &mut hit);
+                mark_hits(grid, &strands.points[off[s]..off[s + 1]], cov, &mut hit);
             }
             hit
         })
@@ -292,8 +294,8 @@ struct VertexIndex {
 }
 
 impl VertexIndex {
-    fn new(grid: &Grid, strands: &Strands, density: &[u32]) -> Result<Self> {
-        let nv = strands.verts.len();
+    fn new(grid: &Grid, strands: &StrandSet, off: &[usize], density: &[u32]) -> Result<Self> {
+        let nv = strands.points.len();
         if nv >= u32::MAX as usize || strands.len() >= u32::MAX as usize {
             return Err(Error::Invalid(format!(
                 "{nv} vertices are too many for the 32-bit neighbour index"
@@ -302,12 +304,12 @@ impl VertexIndex {
         let mut strand_of = vec![0u32; nv];
         let mut rho_prefix = vec![0u64; nv];
         let cells: Vec<u32> = strands
-            .verts
+            .points
             .iter()
             .map(|&v| grid.cell_of(v).map_or(u32::MAX, |c| c as u32))
             .collect();
         let mut counts = vec![0u32; grid.len() + 1];
-        for (s, w) in strands.offsets.windows(2).enumerate() {
+        for (s, w) in off.windows(2).enumerate() {
             let mut acc = 0u64;
             for g in w[0]..w[1] {
                 strand_of[g] = s as u32;
@@ -326,7 +328,7 @@ impl VertexIndex {
         }
         let mut fill = counts.clone();
         let mut ids = vec![0u32; counts[grid.len()] as usize];
-        for w in strands.offsets.windows(2) {
+        for w in off.windows(2) {
             for (g, &c) in cells.iter().enumerate().take(w[1]).skip(w[0] + 1) {
                 if c != u32::MAX {
                     let c = c as usize;
@@ -387,7 +389,9 @@ fn joint_vertex(xi: &[V3], i: usize, avg: V3, cand: &[V3], j: usize, k: usize) -
 struct Scorer<'a> {
     grid: &'a Grid,
     density: &'a [u32],
-    strands: &'a Strands,
+    strands: &'a StrandSet,
+    /// Where each strand of `strands` starts ([`StrandSet::offsets`]).
+    offsets: &'a [usize],
     index: &'a VertexIndex,
     radius: f32,
     w_rho: f32,
@@ -436,13 +440,13 @@ impl Scorer<'_> {
                             if best.is_some_and(|(_, e)| self.w_rho * bound as f32 >= e) {
                                 break;
                             }
-                            let p = self.strands.verts[g];
+                            let p = self.strands.points[g];
                             let dv = sub(p, q);
                             if dv[0] * dv[0] + dv[1] * dv[1] + dv[2] * dv[2] > r2 {
                                 continue;
                             }
                             let s = self.index.strand_of[g] as usize;
-                            let start = self.strands.offsets[s];
+                            let start = self.offsets[s];
                             let i = g - start;
                             let avg = mid(p, q);
                             // Density term first: it is O(1) with the prefix sums and bounds E_c
@@ -452,7 +456,7 @@ impl Scorer<'_> {
                             if best.is_some_and(|(_, e)| e_rho >= e) {
                                 continue;
                             }
-                            let xi = self.strands.strand(s);
+                            let xi = &self.strands.points[start..self.offsets[s + 1]];
                             let len = i + (n - j);
                             let mut e_s = 0.0f32;
                             for d in -win..=win {
@@ -606,25 +610,25 @@ pub fn refine(
     grid: &Grid,
     d: &[f32],
     h: &[u32],
-    strands: Strands,
+    strands: StrandSet,
     p: &RefineParams,
     seed: u64,
     coverage: Option<&Coverage>,
-) -> Result<(Strands, RefineReport)> {
+) -> Result<(StrandSet, RefineReport)> {
     validate_field(grid, d, h)?;
     p.validate()?;
-    strands.validate()?;
-    if let Some(s) = strands.offsets.windows(2).position(|w| w[1] == w[0]) {
+    strands.check_packing()?;
+    if let Some(s) = strands.counts.iter().position(|&c| c == 0) {
         return Err(Error::Invalid(format!("strand {s} has no vertex")));
     }
     if let Some(g) = strands
-        .verts
+        .points
         .iter()
         .position(|v| grid.cell_of(*v).is_none())
     {
         return Err(Error::Invalid(format!(
             "strand vertex {g} at {:?} is outside the {:?} grid",
-            strands.verts[g], grid.dims
+            strands.points[g], grid.dims
         )));
     }
     if let Some(c) = coverage {
@@ -676,11 +680,12 @@ pub fn refine(
             .collect();
         let traced = grow(engine, grid, d, h, &both, &signs, &p.grow)?;
         let ns = seeds.len();
+        let toff = traced.offsets();
         // (seed number, candidate, index of the seed in the candidate)
         let candidates: Vec<(usize, Vec<V3>, usize)> = (0..ns)
             .filter_map(|c| {
-                let fwd = traced.strand(c);
-                let back = traced.strand(ns + c);
+                let fwd = &traced.points[toff[c]..toff[c + 1]];
+                let back = &traced.points[toff[ns + c]..toff[ns + c + 1]];
                 let mut cand: Vec<V3> = back[1..].iter().rev().copied().collect();
                 cand.extend_from_slice(fwd);
                 (cand.len() >= p.min_candidate_len.max(2) as usize).then_some((
@@ -691,11 +696,13 @@ pub fn refine(
             })
             .collect();
         ir.candidates = candidates.len();
-        let index = VertexIndex::new(grid, &strands, &density)?;
+        let off = strands.offsets();
+        let index = VertexIndex::new(grid, &strands, &off, &density)?;
         let scorer = Scorer {
             grid,
             density: &density,
             strands: &strands,
+            offsets: &off,
             index: &index,
             radius: p.radius,
             w_rho: p.w_rho,
@@ -723,7 +730,8 @@ pub fn refine(
             } else if hit[seed_px[*c - n_empty]] {
                 continue;
             }
-            let xi = strands.strand(jt.s as usize);
+            let s = jt.s as usize;
+            let xi = &strands.points[off[s]..off[s + 1]];
             let joined = cut_and_connect(xi, cand, jt, p.smooth_variance, p.smooth_reach as usize);
             for v in &joined {
                 if let Some(cell) = grid.cell_of(*v) {
@@ -772,21 +780,23 @@ mod tests {
             let n = ((x1 - x0) / 0.5) as usize;
             (0..=n).map(|k| [x0 + 0.5 * k as f32, y, 6.5]).collect()
         };
-        let mut strands = Strands::new();
+        let mut strands = StrandSet::default();
         // One strand along y = 6, and ten along y = 8 up to x = 14 (the dense stretch).
         strands.push(&line(6.5, 0.5, 24.5));
         for _ in 0..10 {
             strands.push(&line(8.5, 0.5, 14.5));
         }
         let mut density = vec![0u32; grid.len()];
-        for v in &strands.verts {
+        for v in &strands.points {
             density[grid.cell_of(*v).unwrap()] += 1;
         }
-        let index = VertexIndex::new(&grid, &strands, &density).unwrap();
+        let off = strands.offsets();
+        let index = VertexIndex::new(&grid, &strands, &off, &density).unwrap();
         let scorer = Scorer {
             grid: &grid,
             density: &density,
             strands: &strands,
+            offsets: &off,
             index: &index,
             radius: 3.0,
             w_rho: 0.01,
