@@ -9,6 +9,7 @@ pub mod eval;
 pub mod gpu;
 pub mod hair;
 pub mod io;
+pub mod jobs;
 pub mod model;
 pub mod render;
 pub mod stages;

@@ -5,15 +5,16 @@
 mod common;
 
 use coif::analyze::analyze;
+use coif::hair::scene::Scene;
 use coif::io::annot::Strokes;
 use coif::model::{model_from_analysis, ModelParams};
-use coif::render::{psnr_region, render, to_rgb8, ColourSource, RenderModel, RenderParams};
+use coif::render::{psnr_region, render, to_rgb8, ColourSource, RenderParams};
 use coif::synth::{synth, Style, SynthParams};
 use coif::testing::check_golden_rgb;
 use coif::Engine;
 use std::path::Path;
 
-fn synth_model(style: Style, seed: u64, size: u32) -> (RenderModel, image::RgbImage, Vec<bool>) {
+fn synth_model(style: Style, seed: u64, size: u32) -> (Scene, image::RgbImage, Vec<bool>) {
     let engine = Engine::cpu();
     let c = synth(&SynthParams {
         style,
@@ -26,11 +27,7 @@ fn synth_model(style: Style, seed: u64, size: u32) -> (RenderModel, image::RgbIm
     let region: Vec<bool> = mask.iter().map(|&m| m != 0).collect();
     let an = analyze(&engine, &c.image, &c.strokes, Some(mask), &p.analyze).unwrap();
     let m = model_from_analysis(&engine, &c.image, an, Some(&c.landmarks), &p).unwrap();
-    (
-        RenderModel::from_model(&m, &c.image, Path::new("synth")),
-        c.image,
-        region,
-    )
+    (m.scene(&c.image, Path::new("synth")), c.image, region)
 }
 
 fn out_dir() -> std::path::PathBuf {
@@ -103,7 +100,7 @@ fn astronaut_rerender_is_reported() {
     let an = analyze(&engine, &img, &strokes, None, &p.analyze).unwrap();
     let region: Vec<bool> = an.mask.iter().map(|&m| m != 0).collect();
     let m = model_from_analysis(&engine, &img, an, None, &p).unwrap();
-    let rm = RenderModel::from_model(&m, &img, Path::new("astronaut"));
+    let rm = m.scene(&img, Path::new("astronaut"));
     let r = render(&engine, &rm, &RenderParams::default()).unwrap();
     let out = to_rgb8(&r);
     let psnr = psnr_region(&out, &img, &region);
@@ -162,7 +159,7 @@ fn golden_renders() -> Vec<(&'static str, image::RgbImage)> {
         &Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/strands/Curly_100.ply"),
     )
     .unwrap();
-    let cm = RenderModel::from_strands(curly, Path::new("curly")).unwrap();
+    let cm = Scene::from_strands(curly, Path::new("curly")).unwrap();
     let strands = to_rgb8(
         &render(
             &gpu,

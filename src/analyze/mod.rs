@@ -7,6 +7,9 @@ pub mod orient;
 pub mod resolve;
 pub mod segment;
 pub mod trace;
+mod write;
+
+pub use write::{load_photo, run, run_orient, write, write_orient, OrientRun};
 
 use crate::analyze::direction::{dense_direction, DirectionParams, Domain};
 use crate::analyze::orient::{orient, GrayImage, OrientMap, OrientParams};

@@ -6,7 +6,7 @@ use std::path::Path;
 /// Largest image accepted, in pixels: beyond it one f32 plane alone passes 1 GiB.
 pub const MAX_PIXELS: u64 = 1 << 28;
 
-fn open(path: &Path) -> Result<image::DynamicImage> {
+pub fn open(path: &Path) -> Result<image::DynamicImage> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     let reader = image::ImageReader::new(std::io::Cursor::new(bytes))
         .with_guessed_format()

@@ -33,6 +33,36 @@ pub fn import_strokes(path: &Path) -> Result<Strokes> {
     }
 }
 
+/// Strokes for an image of `size`: a `strokes.json` (version 1), or strokes drawn elsewhere,
+/// an `.svg` or a labelme `.json` (told apart from `strokes.json` by its "shapes").
+pub fn load_strokes(path: &Path, size: (u32, u32)) -> Result<Strokes> {
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_lowercase())
+        .unwrap_or_default();
+    let imported = if ext == "svg" {
+        Some(strokes_from_svg(path)?)
+    } else {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let labelme = serde_json::from_str::<serde_json::Value>(&text)
+            .ok()
+            .is_some_and(|v| v.get("shapes").is_some() && v.get("strokes").is_none());
+        if labelme {
+            Some(strokes_from_labelme(path)?)
+        } else {
+            None
+        }
+    };
+    match imported {
+        Some(s) => {
+            s.validate(Some(size))
+                .map_err(|m| Error::bad_file(path, m))?;
+            Ok(s)
+        }
+        None => Strokes::load(path, Some(size)),
+    }
+}
+
 fn read_text(path: &Path) -> Result<String> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     String::from_utf8(bytes).map_err(|e| {

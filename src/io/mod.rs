@@ -10,6 +10,7 @@ pub mod strands;
 pub mod vis;
 
 use crate::error::{Error, Result};
+use serde_json::json;
 use std::io::Write;
 use std::path::Path;
 
@@ -54,4 +55,18 @@ where
     img.write_to(&mut buf, image::ImageFormat::Png)
         .map_err(|e| Error::bad_file(path, format!("cannot encode PNG: {e}")))?;
     write_atomic(path, buf.get_ref())
+}
+
+/// Stage timings as a JSON object.
+pub fn seconds(t: &[(&'static str, f64)]) -> serde_json::Value {
+    t.iter()
+        .map(|(k, v)| (k.to_string(), json!(v)))
+        .collect::<serde_json::Map<_, _>>()
+        .into()
+}
+
+/// Pretty JSON, written atomically.
+pub fn write_json(path: &Path, v: &serde_json::Value) -> Result<()> {
+    let text = serde_json::to_string_pretty(v).map_err(|e| Error::bad_file(path, e.to_string()))?;
+    write_atomic(path, text.as_bytes())
 }

@@ -8,12 +8,16 @@ pub mod field3d;
 pub mod grow;
 pub mod refine;
 pub mod volume;
+mod write;
+
+pub use write::{preview, run, write};
 
 use crate::analyze::{analyze, Analysis, AnalyzeParams};
 use crate::base::grid::Grid;
 use crate::error::{Error, Result};
 use crate::gpu::engine::Engine;
 use crate::hair::head::{fit_default, fit_landmarks, FitReport, Head, HeadParams, WeakPerspective};
+use crate::hair::scene::Scene;
 use crate::hair::strands::StrandSet;
 use crate::io::annot::{Landmarks, Strokes};
 use crate::model::field3d::{FieldParams, SolveReport};
@@ -21,6 +25,7 @@ use crate::model::grow::{grow, GrowParams};
 use crate::model::refine::{refine, walk_projected, Coverage, RefineParams, RefineReport};
 use crate::model::volume::{hair_volume, lift_curves, HairVolume, HeadInput, Mesh, VolumeParams};
 use glam::Vec3;
+use std::path::Path;
 use std::time::Instant;
 
 /// Every parameter of a modelling run (written to `model.json`).
@@ -105,6 +110,23 @@ pub struct Model {
 }
 
 /// The head placed in the image: landmarks when given, else the default fit to the mask.
+impl Model {
+    /// The scene this model is, with its photo: what `coif model` saves to `dir` and what
+    /// the renderer draws.
+    pub fn scene(&self, photo: &image::RgbImage, dir: &Path) -> Scene {
+        Scene {
+            dir: dir.to_path_buf(),
+            strands: self.strands.clone(),
+            camera: Some(self.camera),
+            head: Some(self.head.clone()),
+            photo: Some(photo.clone()),
+            mask: Some(self.analysis.mask.clone()),
+            width: photo.width(),
+            height: photo.height(),
+        }
+    }
+}
+
 pub fn place_head(
     head: &Head,
     landmarks: Option<&Landmarks>,

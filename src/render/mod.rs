@@ -23,7 +23,8 @@ pub mod shade;
 
 use crate::error::{Error, Result};
 use crate::hair::head::texture::{head_texture_with, HeadTextureParams};
-use crate::hair::head::{Head, HeadParams, WeakPerspective};
+use crate::hair::head::WeakPerspective;
+use crate::hair::scene::Scene;
 use crate::hair::strands::StrandSet;
 use crate::render::inpaint::{dilate, inpaint, InpaintParams};
 use crate::render::raster::{Frame, RasterParams, ScreenMesh, ScreenStrands, StrandPhoto, Texture};
@@ -39,172 +40,6 @@ pub const DEFAULT_HAIR_LINEAR: [f32; 3] = [0.12, 0.06, 0.03];
 
 /// Largest output side: the frame and its 4x MSAA targets must fit a GPU buffer.
 pub const MAX_SIDE: u32 = 8192;
-
-/// What a render needs from a model directory (`coif model` or `coif import` output).
-#[derive(Clone, Debug)]
-pub struct RenderModel {
-    pub dir: PathBuf,
-    pub strands: StrandSet,
-    /// The camera of the photo; None for imported strands (a framing camera is made).
-    pub camera: Option<WeakPerspective>,
-    pub head: Option<Head>,
-    /// The photo (sRGB 8-bit) and the hair mask (nonzero = hair), same size.
-    pub photo: Option<image::RgbImage>,
-    pub mask: Option<Vec<u8>>,
-    pub width: u32,
-    pub height: u32,
-}
-
-fn bad(path: &Path, msg: impl Into<String>) -> Error {
-    Error::bad_file(path, msg)
-}
-
-impl RenderModel {
-    /// Reads `model.json`, `strands.hair` and, when present, the photo (`photo.png`, else the
-    /// `image` path in `model.json`) and the hair mask (`mask.png`).
-    pub fn load(dir: &Path) -> Result<RenderModel> {
-        let meta_path = dir.join("model.json");
-        let text = std::fs::read_to_string(&meta_path).map_err(|e| Error::Io {
-            path: meta_path.clone(),
-            err: e,
-        })?;
-        let meta: serde_json::Value = serde_json::from_str(&text)
-            .map_err(|e| bad(&meta_path, format!("not valid JSON: {e}")))?;
-        let strands_path = dir.join("strands.hair");
-        let strands = crate::io::strands::read(&strands_path)?;
-        check_strands(&strands, &strands_path)?;
-        let camera = match meta.get("camera") {
-            None | Some(serde_json::Value::Null) => None,
-            Some(c) => Some(
-                serde_json::from_value::<WeakPerspective>(c.clone())
-                    .map_err(|e| bad(&meta_path, format!("camera: {e}")))?,
-            ),
-        };
-        let head = match meta.pointer("/head/params") {
-            None | Some(serde_json::Value::Null) => None,
-            Some(h) => {
-                let hp: HeadParams = serde_json::from_value(h.clone())
-                    .map_err(|e| bad(&meta_path, format!("head parameters: {e}")))?;
-                Some(Head::try_new(&hp).map_err(|e| bad(&meta_path, e.to_string()))?)
-            }
-        };
-        let dim = |k: &str| meta.get(k).and_then(|v| v.as_u64()).map(|v| v as u32);
-        let (mut width, mut height) = (dim("width").unwrap_or(0), dim("height").unwrap_or(0));
-        let photo_path = [
-            Some(dir.join("photo.png")),
-            meta.get("image")
-                .and_then(|v| v.as_str())
-                .map(PathBuf::from),
-        ]
-        .into_iter()
-        .flatten()
-        .find(|p| p.is_file());
-        let photo = match (&camera, photo_path) {
-            (Some(_), Some(p)) => {
-                let img = crate::io::images::load_rgb(&p)?;
-                if (width, height) != (0, 0) && img.dimensions() != (width, height) {
-                    return Err(bad(
-                        &p,
-                        format!(
-                            "the photo is {}x{} but the model was made on {width}x{height}",
-                            img.width(),
-                            img.height()
-                        ),
-                    ));
-                }
-                (width, height) = img.dimensions();
-                Some(img)
-            }
-            _ => None,
-        };
-        let mask_path = dir.join("mask.png");
-        let mask = match (&photo, mask_path.is_file()) {
-            (Some(ph), true) => Some(crate::io::images::load_mask(
-                &mask_path,
-                ph.width(),
-                ph.height(),
-                &mask_path,
-            )?),
-            _ => None,
-        };
-        Ok(RenderModel {
-            dir: dir.to_path_buf(),
-            strands,
-            camera,
-            head,
-            photo,
-            mask,
-            width,
-            height,
-        })
-    }
-}
-
-impl RenderModel {
-    /// A model still in memory (`coif::model` output) with its photo, as `coif model`
-    /// would have written it to `dir`.
-    pub fn from_model(m: &crate::model::Model, photo: &image::RgbImage, dir: &Path) -> RenderModel {
-        RenderModel {
-            dir: dir.to_path_buf(),
-            strands: m.strands.clone(),
-            camera: Some(m.camera),
-            head: Some(m.head.clone()),
-            photo: Some(photo.clone()),
-            mask: Some(m.analysis.mask.clone()),
-            width: photo.width(),
-            height: photo.height(),
-        }
-    }
-
-    /// Strands alone (imported files): rendered with a framing camera, strands only.
-    pub fn from_strands(strands: StrandSet, dir: &Path) -> Result<RenderModel> {
-        check_strands(&strands, &dir.join("strands.hair"))?;
-        Ok(RenderModel {
-            dir: dir.to_path_buf(),
-            strands,
-            camera: None,
-            head: None,
-            photo: None,
-            mask: None,
-            width: 0,
-            height: 0,
-        })
-    }
-}
-
-/// Non-finite points or colours make a file nothing sensible can be drawn from.
-fn check_strands(s: &StrandSet, path: &Path) -> Result<()> {
-    if s.points.is_empty() {
-        return Err(bad(path, "the model has no strand vertex to draw"));
-    }
-    if let Some(i) = s
-        .points
-        .iter()
-        .position(|p| !p.iter().all(|v| v.is_finite()))
-    {
-        return Err(bad(
-            path,
-            format!("vertex {i} is not finite: {:?}", s.points[i]),
-        ));
-    }
-    if let Some(c) = &s.colors {
-        if let Some(i) = c.iter().position(|p| !p.iter().all(|v| v.is_finite())) {
-            return Err(bad(
-                path,
-                format!("vertex {i} has a colour that is not finite: {:?}", c[i]),
-            ));
-        }
-    }
-    if let Some(t) = &s.transparency {
-        if let Some(i) = t.iter().position(|v| !v.is_finite()) {
-            return Err(bad(
-                path,
-                format!("vertex {i} has a transparency that is not finite"),
-            ));
-        }
-    }
-    Ok(())
-}
 
 /// Where a composite render's strand colour comes from.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, Serialize)]
@@ -391,7 +226,7 @@ pub fn framing_camera(s: &StrandSet, size: (u32, u32)) -> WeakPerspective {
 }
 
 /// The view camera of a render of `m` with `p`.
-pub fn view_camera(m: &RenderModel, p: &RenderParams) -> Result<ViewCamera> {
+pub fn view_camera(m: &Scene, p: &RenderParams) -> Result<ViewCamera> {
     p.validate()?;
     let (base, w, h) = match (&m.camera, m.width > 0 && m.height > 0) {
         (Some(c), true) => (*c, m.width, m.height),
@@ -461,7 +296,7 @@ fn linear_photo(img: &image::RgbImage) -> Vec<[f32; 3]> {
 }
 
 /// Renders `m` with `p` on `engine`.
-pub fn render(engine: &Engine, m: &RenderModel, p: &RenderParams) -> Result<Rendered> {
+pub fn render(engine: &Engine, m: &Scene, p: &RenderParams) -> Result<Rendered> {
     let vc = view_camera(m, p)?;
     let (w, h) = (vc.width, vc.height);
     let mut report = RenderReport {
@@ -653,7 +488,7 @@ fn strand_photo(
 /// vertices (C13 §4). The model's vertices sit half a grid cell apart (~3 px at 512²), while
 /// the photo's hair varies at the scale of a pixel across strands: sampling only at the
 /// vertices smears it along the strand. None without a photo, or when `spacing` is 0.
-fn resample_colours(m: &RenderModel, spacing: f32) -> Option<StrandSet> {
+fn resample_colours(m: &Scene, spacing: f32) -> Option<StrandSet> {
     let (photo, cam) = (m.photo.as_ref()?, m.camera?);
     if spacing.is_nan() || spacing <= 0.0 || m.strands.colors.is_none() {
         return None;
@@ -709,7 +544,7 @@ fn resample_colours(m: &RenderModel, spacing: f32) -> Option<StrandSet> {
 /// The background layer and the head mesh of a composite render.
 fn layers(
     engine: &Engine,
-    m: &RenderModel,
+    m: &Scene,
     lin: &[[f32; 3]],
     vc: &ViewCamera,
     p: &RenderParams,
@@ -912,7 +747,7 @@ pub fn write(path: &Path, r: &Rendered, p: &RenderParams, sixteen: bool) -> Resu
             enc.write_image(&rgb, r.width, r.height, image::ExtendedColorType::Rgb8)
         }
     };
-    res.map_err(|e| bad(path, format!("PNG encoding failed: {e}")))?;
+    res.map_err(|e| Error::bad_file(path, format!("PNG encoding failed: {e}")))?;
     crate::io::write_atomic(path, &bytes)?;
     let side = sidecar_path(path);
     let meta = serde_json::json!({

@@ -1,0 +1,527 @@
+//! The command line's arguments, and the jobs they ask for. Defaults come from the library's
+//! parameter types, so the help text and a job built in code agree.
+
+use clap::{Args, Parser, Subcommand};
+use coif::analyze::orient::OrientParams;
+use coif::analyze::AnalyzeParams;
+use coif::gpu::engine::BackendChoice;
+use coif::jobs::{
+    AnalyzeJob, ConvertJob, ExportJob, ImportJob, Job, ModelJob, OrientJob, RenderJob, SynthJob,
+};
+use coif::render::shade::{Light, ShadingModel};
+use coif::synth;
+use std::path::PathBuf;
+
+#[derive(Parser)]
+#[command(
+    name = "coif",
+    version,
+    about = "Single-view 3D strand hair from a portrait and a few strokes (Chai et al. 2013)"
+)]
+pub struct Cli {
+    /// More log output (-v info, -vv debug); RUST_LOG overrides.
+    #[arg(short, long, action = clap::ArgAction::Count, global = true)]
+    pub verbose: u8,
+    #[command(subcommand)]
+    pub cmd: Command,
+}
+
+#[derive(Subcommand)]
+pub enum Command {
+    /// Synthetic portrait with exact ground truth (orientation, growth direction, mask, strokes).
+    Synth(SynthArgs),
+    /// Orientation and confidence maps of the hair (C13 §2.1).
+    Orient(OrientArgs),
+    /// The main job on the embedded default inputs: a synthetic case and the embedded
+    /// astronaut photo through orientation, directed hair, 3D strands and renders.
+    Demo(DemoArgs),
+    /// Directed hair from a photo, its hair mask and direction strokes (C13 §2.1): traced
+    /// curves, their growth direction (Eq. 1-2) and a dense direction field.
+    Analyze(AnalyzeArgs),
+    /// Adapters, the backend `auto` would choose, and limits.
+    Info,
+    /// Converts a strand file: .hair .data .ply .obj in; .hair .data .ply .obj .usda out.
+    Convert(ConvertArgs),
+    /// Single-view 3D strand hair (C13 §2): analyze, head fit, hair volume, direction field
+    /// (Eq. 3), RK2 growth from the scalp, cut-and-connect refinement (Eq. 4-5), colours.
+    Model(ModelArgs),
+    /// Writes a model's strands (`<model>/strands.hair`) as .hair .data .ply .obj or .usda.
+    Export(ExportArgs),
+    /// Reads a strand file (.hair .data .ply .obj) into a model folder (`strands.hair`,
+    /// `model.json`).
+    Import(ImportArgs),
+    /// Renders a model back into its photo (C13 §4): inpainted background and head layers,
+    /// anti-aliased strands, novel views, highlights and HSV recolouring.
+    Render(RenderArgs),
+}
+
+#[derive(Args)]
+pub struct RenderArgs {
+    /// Model folder written by `coif model` (or `coif import`, with --strands-only).
+    #[arg(long)]
+    model: PathBuf,
+    /// Output PNG (8-bit sRGB; 16-bit with --16bit); a sidecar `<out>.json` records the
+    /// camera, the settings, the adapter and timings.
+    #[arg(long)]
+    out: PathBuf,
+    /// Turns the head about its vertical axis, degrees (positive: face toward image right).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    yaw: f32,
+    /// Tilts the head, degrees (positive: face up).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pitch: f32,
+    /// Rolls the head in the image plane, degrees (positive: counter-clockwise).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    roll: f32,
+    /// A pinhole camera this far from the head centre (model units, metres) instead of the
+    /// photo's weak-perspective camera.
+    #[arg(long)]
+    distance: Option<f32>,
+    /// Output size relative to the photo.
+    #[arg(long, default_value_t = 1.0)]
+    scale: f32,
+    /// Output size for models without a photo, WIDTHxHEIGHT.
+    #[arg(long, default_value = "512x512", value_parser = parse_size)]
+    size: (u32, u32),
+    /// Hue shift of the hair colour, degrees.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    hue: f32,
+    /// Saturation scale of the hair colour.
+    #[arg(long, default_value_t = 1.0)]
+    saturation: f32,
+    /// Value (brightness) scale of the hair colour.
+    #[arg(long, default_value_t = 1.0)]
+    value: f32,
+    /// Amount of synthetic highlight (0 keeps the photo's own shading).
+    #[arg(long, default_value_t = 0.0)]
+    highlight: f32,
+    /// Shading model of the highlights.
+    #[arg(long, value_enum, default_value_t = ShadingArg::Marschner)]
+    shading: ShadingArg,
+    /// Light in view space "x,y,z[,intensity[,r,g,b]]" (x right, y up, z toward the
+    /// camera); repeat for several lights.
+    #[arg(long, allow_hyphen_values = true)]
+    light: Vec<String>,
+    /// Strand width in pixels at scale 1.
+    #[arg(long, default_value_t = 1.0)]
+    width: f32,
+    /// Only the strands (no photo, no head), over --background or transparent.
+    #[arg(long)]
+    strands_only: bool,
+    /// Background colour for --strands-only, "r,g,b" in 0..255.
+    #[arg(long, value_parser = parse_rgb)]
+    background: Option<[f32; 3]>,
+    /// Extra strand vertices every this many photo pixels, coloured from the photo (0: the
+    /// model's vertex colours only).
+    #[arg(long, default_value_t = 0.0)]
+    colour_spacing: f32,
+    /// Strand colour of a composite render: the photo under every fragment, or C13's
+    /// per-vertex samples.
+    #[arg(long, value_enum, default_value_t = coif::render::ColourSource::Photo)]
+    colour: coif::render::ColourSource,
+    /// 16-bit PNG output.
+    #[arg(long = "16bit")]
+    sixteen: bool,
+    /// Seed of the inpainting's random search.
+    #[arg(long, default_value_t = coif::render::inpaint::InpaintParams::default().seed)]
+    seed: u64,
+    #[command(flatten)]
+    backend: BackendArgs,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum ShadingArg {
+    /// Marschner et al. 2003 (R, TT, TRT lobes).
+    Marschner,
+    /// Kajiya-Kay (cheaper: diffuse + shifted specular).
+    KajiyaKay,
+}
+
+fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (a, b) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("expected WIDTHxHEIGHT, got {s:?}"))?;
+    let p = |v: &str| {
+        v.trim()
+            .parse::<u32>()
+            .ok()
+            .filter(|&n| n > 0)
+            .ok_or_else(|| format!("expected a positive width and height, got {s:?}"))
+    };
+    Ok((p(a)?, p(b)?))
+}
+
+fn parse_rgb(s: &str) -> Result<[f32; 3], String> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f32>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("expected r,g,b in 0..255, got {s:?}"))?;
+    match v.as_slice() {
+        [r, g, b] if v.iter().all(|c| (0.0..=255.0).contains(c)) => {
+            Ok([r / 255.0, g / 255.0, b / 255.0])
+        }
+        _ => Err(format!("expected r,g,b in 0..255, got {s:?}")),
+    }
+}
+
+#[derive(Args)]
+pub struct ModelArgs {
+    /// Portrait (PNG).
+    #[arg(long)]
+    image: PathBuf,
+    /// strokes.json (version 1), a labelme .json or an .svg; direction strokes root to tip.
+    #[arg(long)]
+    strokes: PathBuf,
+    /// Hair mask, same size, > 127 on hair; without it the hair is segmented from the strokes.
+    #[arg(long)]
+    mask: Option<PathBuf>,
+    /// landmarks.json (version 1: eyes, nose tip, mouth corners, chin); without it the head
+    /// is placed by the default fit to the mask (frontal, sized by the mask's upper width).
+    #[arg(long)]
+    landmarks: Option<PathBuf>,
+    /// Output folder (created).
+    #[arg(long)]
+    out: PathBuf,
+    #[command(flatten)]
+    backend: BackendArgs,
+    /// Seed of the random choices (roots, refinement seeds).
+    #[arg(long, default_value_t = coif::model::ModelParams::default().seed)]
+    seed: u64,
+    /// Scalp roots drawn before the mask excludes the face (n_s).
+    #[arg(long, default_value_t = coif::model::ModelParams::default().roots)]
+    roots: usize,
+    /// Cells along the hair volume's largest axis (C13: 80).
+    #[arg(long, default_value_t = coif::model::volume::VolumeParams::default().cells)]
+    cells: u32,
+    /// Refinement iterations (C13: 4-5); 0 keeps the grown strands only.
+    #[arg(long, default_value_t = coif::model::refine::RefineParams::default().max_iterations)]
+    refine: u32,
+}
+
+#[derive(Args)]
+pub struct ExportArgs {
+    /// Model folder written by `coif model` or `coif import`.
+    #[arg(long)]
+    model: PathBuf,
+    /// Strand file to write; the format follows the extension.
+    #[arg(long)]
+    to: PathBuf,
+}
+
+#[derive(Args)]
+pub struct ImportArgs {
+    /// Strand file to read (.hair .data .ply .obj).
+    input: PathBuf,
+    /// Model folder to write (created).
+    #[arg(long)]
+    out: PathBuf,
+}
+
+#[derive(Args)]
+pub struct ConvertArgs {
+    /// Strand file to read.
+    input: PathBuf,
+    /// Strand file to write; the format follows the extension.
+    output: PathBuf,
+}
+
+#[derive(Args)]
+pub struct SynthArgs {
+    /// Output folder (created).
+    #[arg(long)]
+    out: PathBuf,
+    #[arg(long, default_value = "long")]
+    style: synth::Style,
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Image width and height in pixels.
+    #[arg(long, default_value_t = 512)]
+    size: u32,
+    /// 3D ground truth: a strand model grown on the parametric head and rendered through a
+    /// known camera (writes gt_strands.hair and camera.json too).
+    #[arg(long)]
+    gt3d: bool,
+}
+
+#[derive(Args, Clone)]
+pub struct BackendArgs {
+    /// auto: a hardware GPU if present, else cpu. gpu: wgpu on any adapter (lavapipe too).
+    #[arg(long, value_enum, default_value = "auto")]
+    backend: BackendChoice,
+}
+
+#[derive(Args, Clone)]
+pub struct OrientOpts {
+    /// Gabor orientations (multiple of 4, up to 64).
+    #[arg(long, default_value_t = OrientParams::default().kernel.n_orient)]
+    orientations: u32,
+    /// Gabor sigma across the strand (px).
+    #[arg(long, default_value_t = OrientParams::default().kernel.sigma_x)]
+    sigma_x: f32,
+    /// Gabor sigma along the strand (px).
+    #[arg(long, default_value_t = OrientParams::default().kernel.sigma_y)]
+    sigma_y: f32,
+    /// Gabor wavelength (px).
+    #[arg(long, default_value_t = OrientParams::default().kernel.lambda)]
+    lambda: f32,
+    /// Gabor kernel size (odd).
+    #[arg(long, default_value_t = OrientParams::default().kernel.ksize)]
+    ksize: u32,
+    /// DoG prefilter: fine sigma (px).
+    #[arg(long, default_value_t = OrientParams::default().dog_sigma_fine)]
+    dog_fine: f32,
+    /// DoG prefilter: coarse sigma (px); 0 disables the prefilter.
+    #[arg(long, default_value_t = OrientParams::default().dog_sigma_coarse)]
+    dog_coarse: f32,
+    /// Refinement passes (Gabor bank re-applied to the confidence map).
+    #[arg(long, default_value_t = OrientParams::default().refine_iters)]
+    refine: u32,
+    /// Sigma of the confidence-weighted double-angle smoothing (px); 0 disables it.
+    #[arg(long, default_value_t = OrientParams::default().smooth_sigma)]
+    smooth: f32,
+}
+
+impl OrientOpts {
+    fn params(&self) -> OrientParams {
+        let mut p = OrientParams::default();
+        p.kernel.n_orient = self.orientations;
+        p.kernel.sigma_x = self.sigma_x;
+        p.kernel.sigma_y = self.sigma_y;
+        p.kernel.lambda = self.lambda;
+        p.kernel.ksize = self.ksize;
+        p.dog_sigma_fine = self.dog_fine;
+        p.dog_sigma_coarse = self.dog_coarse;
+        p.refine_iters = self.refine;
+        p.smooth_sigma = self.smooth;
+        p
+    }
+}
+
+#[derive(Args)]
+pub struct OrientArgs {
+    /// Portrait (PNG or any format the `image` crate reads as 8-bit).
+    #[arg(long)]
+    image: PathBuf,
+    /// Hair mask, same size, nonzero (> 127) on hair. Without it every pixel is hair.
+    #[arg(long)]
+    mask: Option<PathBuf>,
+    /// Output folder (created).
+    #[arg(long)]
+    out: PathBuf,
+    #[command(flatten)]
+    backend: BackendArgs,
+    #[command(flatten)]
+    opts: OrientOpts,
+    /// Largest buffer binding to use, in bytes (tiles the image below the device limit).
+    #[arg(long)]
+    max_binding_bytes: Option<u64>,
+    /// A `coif synth` folder: score the orientation against its `gt_theta.npy` and
+    /// `mask.png` (mean error in degrees, printed).
+    #[arg(long)]
+    truth: Option<PathBuf>,
+}
+
+#[derive(Args)]
+pub struct DemoArgs {
+    /// Output folder.
+    #[arg(long, default_value = "out/demo")]
+    out: PathBuf,
+    #[command(flatten)]
+    backend: BackendArgs,
+}
+
+#[derive(Args)]
+pub struct AnalyzeArgs {
+    /// Portrait (PNG).
+    #[arg(long)]
+    image: PathBuf,
+    /// strokes.json (version 1), or strokes drawn elsewhere: a labelme .json (linestrip
+    /// shapes) or an .svg (polylines, line-segment paths); direction strokes root to tip.
+    #[arg(long)]
+    strokes: PathBuf,
+    /// Hair mask, same size, > 127 on hair; without it the hair is segmented from the
+    /// strokes (direction strokes are hair; background strokes, else the image border, are not).
+    #[arg(long)]
+    mask: Option<PathBuf>,
+    /// Output folder (created).
+    #[arg(long)]
+    out: PathBuf,
+    #[command(flatten)]
+    backend: BackendArgs,
+    #[command(flatten)]
+    opts: OrientOpts,
+    /// Neighbourhood radius of the direction vote, C13 Eq. (1) (px).
+    #[arg(long, default_value_t = coif::analyze::resolve::ResolveParams::default().radius)]
+    radius: f32,
+    /// Weight of a user stroke in the vote, C13's w_m.
+    #[arg(long, default_value_t = coif::analyze::resolve::ResolveParams::default().stroke_weight)]
+    stroke_weight: f32,
+}
+
+/// What the command line asks for.
+pub enum Request {
+    /// Jobs run in order on one engine.
+    Jobs {
+        jobs: Vec<Job>,
+        backend: BackendChoice,
+        max_binding_bytes: Option<u64>,
+        /// A line printed before the jobs run (with the engine's description).
+        banner: Option<&'static str>,
+    },
+    Info,
+}
+
+impl Request {
+    fn one(job: Job, backend: BackendChoice) -> Request {
+        Request::Jobs {
+            jobs: vec![job],
+            backend,
+            max_binding_bytes: None,
+            banner: None,
+        }
+    }
+}
+
+impl Command {
+    pub fn request(self) -> anyhow::Result<Request> {
+        // Jobs that run no pass open the CPU backend, which cannot fail.
+        let cpu = BackendChoice::Cpu;
+        Ok(match self {
+            Command::Synth(a) => Request::one(
+                Job::Synth(SynthJob {
+                    out: a.out,
+                    params: synth::SynthParams {
+                        style: a.style,
+                        seed: a.seed,
+                        width: a.size,
+                        height: a.size,
+                    },
+                    gt3d: a.gt3d,
+                }),
+                cpu,
+            ),
+            Command::Orient(a) => Request::Jobs {
+                jobs: vec![Job::Orient(OrientJob {
+                    image: a.image,
+                    mask: a.mask,
+                    out: a.out,
+                    params: a.opts.params(),
+                    truth: a.truth,
+                })],
+                backend: a.backend.backend,
+                max_binding_bytes: a.max_binding_bytes,
+                banner: None,
+            },
+            Command::Demo(a) => Request::Jobs {
+                jobs: coif::jobs::demo(&a.out),
+                backend: a.backend.backend,
+                max_binding_bytes: None,
+                banner: Some("coif demo"),
+            },
+            Command::Analyze(a) => {
+                let mut params = AnalyzeParams {
+                    orient: a.opts.params(),
+                    ..Default::default()
+                };
+                params.resolve.radius = a.radius;
+                params.resolve.stroke_weight = a.stroke_weight;
+                let job = AnalyzeJob {
+                    image: a.image,
+                    strokes: a.strokes,
+                    mask: a.mask,
+                    out: a.out,
+                    params,
+                };
+                Request::one(Job::Analyze(job), a.backend.backend)
+            }
+            Command::Info => Request::Info,
+            Command::Convert(a) => Request::one(
+                Job::Convert(ConvertJob {
+                    input: a.input,
+                    output: a.output,
+                }),
+                cpu,
+            ),
+            Command::Model(a) => {
+                let mut params = coif::model::ModelParams {
+                    seed: a.seed,
+                    roots: a.roots,
+                    ..Default::default()
+                };
+                params.volume.cells = a.cells;
+                params.refine.max_iterations = a.refine;
+                let job = ModelJob {
+                    image: a.image,
+                    strokes: a.strokes,
+                    mask: a.mask,
+                    landmarks: a.landmarks,
+                    out: a.out,
+                    params,
+                };
+                Request::one(Job::Model(job), a.backend.backend)
+            }
+            Command::Export(a) => Request::one(
+                Job::Export(ExportJob {
+                    model: a.model,
+                    to: a.to,
+                }),
+                cpu,
+            ),
+            Command::Import(a) => Request::one(
+                Job::Import(ImportJob {
+                    input: a.input,
+                    out: a.out,
+                }),
+                cpu,
+            ),
+            Command::Render(a) => {
+                let backend = a.backend.backend;
+                Request::one(Job::Render(a.job()?), backend)
+            }
+        })
+    }
+}
+
+impl RenderArgs {
+    fn job(self) -> anyhow::Result<RenderJob> {
+        let mut p = coif::render::RenderParams {
+            yaw_deg: self.yaw,
+            pitch_deg: self.pitch,
+            roll_deg: self.roll,
+            distance: self.distance,
+            scale: self.scale,
+            size: self.size,
+            strands_only: self.strands_only,
+            background: self.background,
+            colour_spacing_px: self.colour_spacing,
+            colour: self.colour,
+            ..Default::default()
+        };
+        p.raster.strand_width = self.width;
+        p.shade.hue = self.hue;
+        p.shade.saturation = self.saturation;
+        p.shade.value = self.value;
+        p.shade.amount = self.highlight;
+        p.shade.model = match self.shading {
+            ShadingArg::Marschner => ShadingModel::Marschner,
+            ShadingArg::KajiyaKay => ShadingModel::KajiyaKay,
+        };
+        if !self.light.is_empty() {
+            p.shade.lights = self
+                .light
+                .iter()
+                .map(|l| l.parse::<Light>())
+                .collect::<Result<_, _>>()
+                .map_err(|e| anyhow::anyhow!("--light: {e}"))?;
+        }
+        p.inpaint.seed = self.seed;
+        p.head_texture.inpaint.seed = self.seed;
+        Ok(RenderJob {
+            model: self.model,
+            out: self.out,
+            params: p,
+            sixteen: self.sixteen,
+        })
+    }
+}

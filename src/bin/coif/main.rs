@@ -1,0 +1,106 @@
+//! The `coif` command line: arguments in, jobs run, reports and errors out.
+
+mod args;
+
+use args::{Cli, Request};
+use clap::Parser;
+use coif::gpu::engine::Engine;
+use coif::Error;
+use std::path::Path;
+
+fn main() {
+    // Headless Vulkan loaders print "XDG_RUNTIME_DIR is invalid" to stderr for every
+    // instance; pointing it at the temp folder keeps batch logs clean. Single-threaded here.
+    if std::env::var_os("XDG_RUNTIME_DIR").is_none_or(|d| !Path::new(&d).is_dir()) {
+        std::env::set_var("XDG_RUNTIME_DIR", std::env::temp_dir());
+    }
+    let cli = Cli::parse();
+    let level = match cli.verbose {
+        0 => "warn",
+        1 => "info",
+        _ => "debug",
+    };
+    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or(level))
+        .format_timestamp(None)
+        .init();
+    if let Err(e) = cli.cmd.request().and_then(run) {
+        eprintln!("coif: error: {e:#}");
+        let code = e
+            .chain()
+            .find_map(|c| c.downcast_ref::<Error>())
+            .map_or(1, Error::exit_code);
+        std::process::exit(code);
+    }
+}
+
+fn run(req: Request) -> anyhow::Result<()> {
+    let Request::Jobs {
+        jobs,
+        backend,
+        max_binding_bytes,
+        banner,
+    } = req
+    else {
+        return info();
+    };
+    let mut engine = Engine::new(backend)?;
+    if let Some(b) = max_binding_bytes {
+        engine.set_max_binding_bytes(b);
+    }
+    if let Some(b) = banner {
+        println!("{b} on {}", engine.describe());
+    }
+    // One job reports as it ends; several get a progress bar and report at the end.
+    let reports = if jobs.len() == 1 {
+        vec![coif::jobs::run(&engine, &jobs[0])?]
+    } else {
+        coif::jobs::run_all(&engine, &jobs)?
+    };
+    for r in reports {
+        for w in &r.warnings {
+            eprintln!("coif: warning: {w}");
+        }
+        println!("{}", r.summary);
+        for d in &r.details {
+            println!("  {d}");
+        }
+    }
+    Ok(())
+}
+
+fn info() -> anyhow::Result<()> {
+    let adapters = coif::gpu::list_adapters();
+    println!("coif {}", env!("CARGO_PKG_VERSION"));
+    println!("CPU threads: {}", rayon::current_num_threads());
+    if adapters.is_empty() {
+        println!(
+            "GPU adapters: none (install mesa-vulkan-drivers for lavapipe, or use --backend cpu)"
+        );
+    } else {
+        println!("GPU adapters:");
+        for i in &adapters {
+            println!("  {}", coif::gpu::describe(i));
+        }
+    }
+    let auto = if coif::gpu::hardware_gpu_present() {
+        "gpu (a hardware adapter is present)"
+    } else {
+        "cpu (no hardware adapter; lavapipe is used only with --backend gpu)"
+    };
+    println!("--backend auto chooses: {auto}");
+    if !adapters.is_empty() {
+        match coif::gpu::GpuContext::new() {
+            Ok(g) => {
+                println!("--backend gpu opens: {}", coif::gpu::describe(&g.info));
+                println!(
+                    "  max storage binding {} B, max buffer {} B, max workgroups per dimension {}",
+                    g.limits.max_storage_buffer_binding_size,
+                    g.limits.max_buffer_size,
+                    g.limits.max_compute_workgroups_per_dimension
+                );
+            }
+            Err(e) => println!("--backend gpu fails: {e}"),
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,251 @@
+//! The hair scene: strands with per-vertex attributes, the head they grow on, the photo's
+//! camera, the photo and its hair mask. One type and one folder layout for every pipeline:
+//! modelling produces it, rendering reads it, simulation and editing change it.
+//!
+//! Folder layout: `strands.hair` (model space), `model.json` (camera, head parameters, size
+//! and whatever the producing pipeline records), `photo.png`, `mask.png`.
+
+use crate::error::{Error, Result};
+use crate::hair::head::{Head, HeadParams, WeakPerspective};
+use crate::hair::strands::StrandSet;
+use serde_json::{json, Value};
+use std::path::{Path, PathBuf};
+
+/// A hair scene: what a model folder holds (`coif model`, `coif import`, and the edits and
+/// simulations that change them) and what the renderer draws.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    /// The folder it was loaded from or will be saved to; names files in messages.
+    pub dir: PathBuf,
+    /// Model space: metres, y up, the face toward +z (or the file's units when imported).
+    pub strands: StrandSet,
+    /// The camera of the photo; None for imported strands (a framing camera is made).
+    pub camera: Option<WeakPerspective>,
+    pub head: Option<Head>,
+    /// The photo (sRGB 8-bit) and the hair mask (nonzero = hair), same size.
+    pub photo: Option<image::RgbImage>,
+    pub mask: Option<Vec<u8>>,
+    pub width: u32,
+    pub height: u32,
+}
+
+fn bad(path: &Path, msg: impl Into<String>) -> Error {
+    Error::bad_file(path, msg)
+}
+
+impl Scene {
+    /// Reads `model.json`, `strands.hair` and, when present, the photo (`photo.png`, else the
+    /// `image` path in `model.json`) and the hair mask (`mask.png`).
+    pub fn load(dir: &Path) -> Result<Scene> {
+        let meta_path = dir.join("model.json");
+        let text = std::fs::read_to_string(&meta_path).map_err(|e| Error::Io {
+            path: meta_path.clone(),
+            err: e,
+        })?;
+        let meta: serde_json::Value = serde_json::from_str(&text)
+            .map_err(|e| bad(&meta_path, format!("not valid JSON: {e}")))?;
+        let strands_path = dir.join("strands.hair");
+        let strands = crate::io::strands::read(&strands_path)?;
+        check_strands(&strands, &strands_path)?;
+        let camera = match meta.get("camera") {
+            None | Some(serde_json::Value::Null) => None,
+            Some(c) => Some(
+                serde_json::from_value::<WeakPerspective>(c.clone())
+                    .map_err(|e| bad(&meta_path, format!("camera: {e}")))?,
+            ),
+        };
+        let head = match meta.pointer("/head/params") {
+            None | Some(serde_json::Value::Null) => None,
+            Some(h) => {
+                let hp: HeadParams = serde_json::from_value(h.clone())
+                    .map_err(|e| bad(&meta_path, format!("head parameters: {e}")))?;
+                Some(Head::try_new(&hp).map_err(|e| bad(&meta_path, e.to_string()))?)
+            }
+        };
+        let dim = |k: &str| meta.get(k).and_then(|v| v.as_u64()).map(|v| v as u32);
+        let (mut width, mut height) = (dim("width").unwrap_or(0), dim("height").unwrap_or(0));
+        let photo_path = [
+            Some(dir.join("photo.png")),
+            meta.get("image")
+                .and_then(|v| v.as_str())
+                .map(PathBuf::from),
+        ]
+        .into_iter()
+        .flatten()
+        .find(|p| p.is_file());
+        let photo = match (&camera, photo_path) {
+            (Some(_), Some(p)) => {
+                let img = crate::io::images::load_rgb(&p)?;
+                if (width, height) != (0, 0) && img.dimensions() != (width, height) {
+                    return Err(bad(
+                        &p,
+                        format!(
+                            "the photo is {}x{} but the model was made on {width}x{height}",
+                            img.width(),
+                            img.height()
+                        ),
+                    ));
+                }
+                (width, height) = img.dimensions();
+                Some(img)
+            }
+            _ => None,
+        };
+        let mask_path = dir.join("mask.png");
+        let mask = match (&photo, mask_path.is_file()) {
+            (Some(ph), true) => Some(crate::io::images::load_mask(
+                &mask_path,
+                ph.width(),
+                ph.height(),
+                &mask_path,
+            )?),
+            _ => None,
+        };
+        Ok(Scene {
+            dir: dir.to_path_buf(),
+            strands,
+            camera,
+            head,
+            photo,
+            mask,
+            width,
+            height,
+        })
+    }
+}
+
+impl Scene {
+    /// Strands alone (imported files): rendered with a framing camera, strands only.
+    pub fn from_strands(strands: StrandSet, dir: &Path) -> Result<Scene> {
+        check_strands(&strands, &dir.join("strands.hair"))?;
+        Ok(Scene {
+            dir: dir.to_path_buf(),
+            strands,
+            camera: None,
+            head: None,
+            photo: None,
+            mask: None,
+            width: 0,
+            height: 0,
+        })
+    }
+}
+
+/// Non-finite points or colours make a file nothing sensible can be drawn from.
+fn check_strands(s: &StrandSet, path: &Path) -> Result<()> {
+    if s.points.is_empty() {
+        return Err(bad(path, "the model has no strand vertex to draw"));
+    }
+    if let Some(i) = s
+        .points
+        .iter()
+        .position(|p| !p.iter().all(|v| v.is_finite()))
+    {
+        return Err(bad(
+            path,
+            format!("vertex {i} is not finite: {:?}", s.points[i]),
+        ));
+    }
+    if let Some(c) = &s.colors {
+        if let Some(i) = c.iter().position(|p| !p.iter().all(|v| v.is_finite())) {
+            return Err(bad(
+                path,
+                format!("vertex {i} has a colour that is not finite: {:?}", c[i]),
+            ));
+        }
+    }
+    if let Some(t) = &s.transparency {
+        if let Some(i) = t.iter().position(|v| !v.is_finite()) {
+            return Err(bad(
+                path,
+                format!("vertex {i} has a transparency that is not finite"),
+            ));
+        }
+    }
+    Ok(())
+}
+
+impl Scene {
+    /// Writes the scene to `dir` (created): `strands.hair`, `photo.png` and `mask.png` when
+    /// present, and `model.json` with the scene's keys deep-merged with `extra` (what the
+    /// producing pipeline records: parameters, figures, timings). Every file is written to a
+    /// temporary name and renamed, so a failure leaves earlier files whole.
+    pub fn save(&self, dir: &Path, extra: Value) -> Result<()> {
+        crate::io::ensure_dir(dir)?;
+        crate::io::strands::write(&dir.join("strands.hair"), &self.strands)?;
+        // The photo travels with the model, so `coif render` needs nothing else.
+        if let Some(photo) = &self.photo {
+            crate::io::write_png(&dir.join("photo.png"), photo)?;
+        }
+        if let Some(mask) = &self.mask {
+            let img = image::GrayImage::from_fn(self.width, self.height, |x, y| {
+                let on = mask[(y * self.width + x) as usize] != 0;
+                image::Luma([if on { 255 } else { 0 }])
+            });
+            crate::io::write_png(&dir.join("mask.png"), &img)?;
+        }
+        let mut meta = json!({
+            "version": 1,
+            "coif": env!("CARGO_PKG_VERSION"),
+            "strands": { "final": self.strands.len(), "vertices": self.strands.points.len() },
+        });
+        if let Some(cam) = &self.camera {
+            merge(
+                &mut meta,
+                json!({
+                    "width": self.width,
+                    "height": self.height,
+                    "units": "model space in metres, y up, the face looks toward +z",
+                    "image_from_model": cam.image_from_model(),
+                    "image_from_model_doc": "rows map homogeneous model points (x, y, z, 1) to image x (px, right), image y (px, down) and depth (px, toward the camera)",
+                    "camera": cam,
+                }),
+            );
+        } else {
+            let (lo, hi) = self.strands.bounds();
+            merge(
+                &mut meta,
+                json!({ "bounds": [lo, hi], "image_from_model": Value::Null }),
+            );
+        }
+        if let Some(head) = &self.head {
+            merge(&mut meta, json!({ "head": { "params": head.params() } }));
+        }
+        merge(&mut meta, extra);
+        let text = serde_json::to_string_pretty(&meta)
+            .map_err(|e| Error::Invalid(format!("model.json: {e}")))?;
+        crate::io::write_atomic(&dir.join("model.json"), text.as_bytes())
+    }
+}
+
+/// Merges `b` into `a`: objects key by key, recursively; anything else replaces.
+fn merge(a: &mut Value, b: Value) {
+    match (a, b) {
+        (Value::Object(a), Value::Object(b)) => {
+            for (k, v) in b {
+                match a.get_mut(&k) {
+                    Some(slot) => merge(slot, v),
+                    None => {
+                        a.insert(k, v);
+                    }
+                }
+            }
+        }
+        (a, b) => *a = b,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn merge_is_deep_and_b_wins() {
+        let mut a = json!({"head": {"params": 1}, "x": 1, "keep": true});
+        merge(&mut a, json!({"head": {"fit": 2}, "x": {"y": 3}}));
+        assert_eq!(
+            a,
+            json!({"head": {"params": 1, "fit": 2}, "x": {"y": 3}, "keep": true})
+        );
+    }
+}

@@ -1,0 +1,509 @@
+//! Every command as a job: the inputs and settings of one run of a pipeline, and one
+//! [`run`] that reads the inputs, runs the pipeline and writes its files. The command line
+//! only turns arguments into jobs; a batch run or the demo is a list of them.
+
+use crate::analyze::orient::OrientParams;
+use crate::analyze::{self, AnalyzeParams};
+use crate::error::Error;
+use crate::eval::metrics::orientation_error;
+use crate::gpu::engine::Engine;
+use crate::hair::scene::Scene;
+use crate::io::{assets, ensure_dir, images, npy, strands, write_atomic};
+use crate::model::{self, ModelParams};
+use crate::render::{self, RenderParams};
+use crate::synth::{self, synth3d, SynthParams};
+use anyhow::Context;
+use serde_json::json;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// One run of a pipeline.
+#[derive(Clone, Debug)]
+pub enum Job {
+    Synth(SynthJob),
+    Unpack(UnpackJob),
+    Orient(OrientJob),
+    Analyze(AnalyzeJob),
+    Model(ModelJob),
+    Render(RenderJob),
+    Export(ExportJob),
+    Import(ImportJob),
+    Convert(ConvertJob),
+}
+
+/// A synthetic portrait with its ground truth (`coif synth`).
+#[derive(Clone, Debug)]
+pub struct SynthJob {
+    pub out: PathBuf,
+    pub params: SynthParams,
+    /// 3D ground truth: strands grown on the parametric head, drawn through a known camera.
+    pub gt3d: bool,
+}
+
+/// The embedded astronaut photo and its strokes, written to a folder.
+#[derive(Clone, Debug)]
+pub struct UnpackJob {
+    pub out: PathBuf,
+}
+
+/// Orientation and confidence maps (`coif orient`).
+#[derive(Clone, Debug)]
+pub struct OrientJob {
+    pub image: PathBuf,
+    pub mask: Option<PathBuf>,
+    pub out: PathBuf,
+    pub params: OrientParams,
+    /// A `coif synth` folder whose `gt_theta.npy` and `mask.png` score the result.
+    pub truth: Option<PathBuf>,
+}
+
+/// Directed hair (`coif analyze`).
+#[derive(Clone, Debug)]
+pub struct AnalyzeJob {
+    pub image: PathBuf,
+    pub strokes: PathBuf,
+    pub mask: Option<PathBuf>,
+    pub out: PathBuf,
+    pub params: AnalyzeParams,
+}
+
+/// Single-view 3D strands (`coif model`).
+#[derive(Clone, Debug)]
+pub struct ModelJob {
+    pub image: PathBuf,
+    pub strokes: PathBuf,
+    pub mask: Option<PathBuf>,
+    pub landmarks: Option<PathBuf>,
+    pub out: PathBuf,
+    pub params: ModelParams,
+}
+
+/// A render of a model folder (`coif render`).
+#[derive(Clone, Debug)]
+pub struct RenderJob {
+    pub model: PathBuf,
+    pub out: PathBuf,
+    pub params: RenderParams,
+    /// 16-bit PNG.
+    pub sixteen: bool,
+}
+
+/// A model folder's strands as a strand file (`coif export`).
+#[derive(Clone, Debug)]
+pub struct ExportJob {
+    pub model: PathBuf,
+    pub to: PathBuf,
+}
+
+/// A strand file into a model folder (`coif import`).
+#[derive(Clone, Debug)]
+pub struct ImportJob {
+    pub input: PathBuf,
+    pub out: PathBuf,
+}
+
+/// A strand file into another format (`coif convert`).
+#[derive(Clone, Debug)]
+pub struct ConvertJob {
+    pub input: PathBuf,
+    pub output: PathBuf,
+}
+
+/// What a job did: one summary line, indented detail lines, and warnings that did not stop
+/// it.
+#[derive(Clone, Debug, Default)]
+pub struct Report {
+    pub summary: String,
+    pub details: Vec<String>,
+    pub warnings: Vec<String>,
+}
+
+impl Job {
+    /// Whether the job runs passes (and so wants the engine the user chose).
+    pub fn needs_engine(&self) -> bool {
+        matches!(
+            self,
+            Job::Orient(_) | Job::Analyze(_) | Job::Model(_) | Job::Render(_)
+        )
+    }
+
+    /// A short label for progress bars.
+    pub fn label(&self) -> String {
+        let (what, path) = match self {
+            Job::Synth(j) => ("synth", &j.out),
+            Job::Unpack(j) => ("unpack", &j.out),
+            Job::Orient(j) => ("orient", &j.out),
+            Job::Analyze(j) => ("analyze", &j.out),
+            Job::Model(j) => ("model", &j.out),
+            Job::Render(j) => ("render", &j.out),
+            Job::Export(j) => ("export", &j.to),
+            Job::Import(j) => ("import", &j.out),
+            Job::Convert(j) => ("convert", &j.output),
+        };
+        format!("{what} {}", path.display())
+    }
+}
+
+/// Runs one job on `engine`.
+pub fn run(engine: &Engine, job: &Job) -> anyhow::Result<Report> {
+    match job {
+        Job::Synth(j) => run_synth(j),
+        Job::Unpack(j) => run_unpack(j),
+        Job::Orient(j) => run_orient(engine, j),
+        Job::Analyze(j) => run_analyze(engine, j),
+        Job::Model(j) => run_model(engine, j),
+        Job::Render(j) => run_render(engine, j),
+        Job::Export(j) => run_export(j),
+        Job::Import(j) => run_import(j),
+        Job::Convert(j) => run_convert(j),
+    }
+}
+
+/// Runs jobs in order with a progress bar (hidden when stderr is not a terminal); stops at
+/// the first failure, naming the job.
+pub fn run_all(engine: &Engine, jobs: &[Job]) -> anyhow::Result<Vec<Report>> {
+    let bar = indicatif::ProgressBar::new(jobs.len() as u64).with_style(
+        indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}")
+            .expect("static template"),
+    );
+    let mut reports = Vec::with_capacity(jobs.len());
+    for job in jobs {
+        bar.set_message(job.label());
+        let r = run(engine, job).with_context(|| job.label())?;
+        reports.push(r);
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    Ok(reports)
+}
+
+/// The main job on the embedded inputs: a synthetic case with ground truth and the astronaut
+/// photo, each through orientation, directed hair, 3D strands and three renders (the
+/// original view, a novel view and a recolouring).
+pub fn demo(out: &Path) -> Vec<Job> {
+    let case = out.join("synth-long");
+    let astro = out.join("astronaut");
+    let mut jobs = vec![
+        Job::Synth(SynthJob {
+            out: case.clone(),
+            params: SynthParams {
+                style: synth::Style::Long,
+                seed: 1,
+                width: 512,
+                height: 512,
+            },
+            gt3d: false,
+        }),
+        Job::Orient(OrientJob {
+            image: case.join("image.png"),
+            mask: Some(case.join("mask.png")),
+            out: out.join("orient-synth-long"),
+            params: OrientParams::default(),
+            truth: Some(case.clone()),
+        }),
+        Job::Unpack(UnpackJob { out: astro.clone() }),
+        Job::Orient(OrientJob {
+            image: astro.join("image.png"),
+            mask: None,
+            out: out.join("orient-astronaut"),
+            params: OrientParams::default(),
+            truth: None,
+        }),
+    ];
+    // Directed hair with the mask segmented from the strokes, for both.
+    for (name, dir) in [("synth-long", &case), ("astronaut", &astro)] {
+        jobs.push(Job::Analyze(AnalyzeJob {
+            image: dir.join("image.png"),
+            strokes: dir.join("strokes.json"),
+            mask: None,
+            out: out.join(format!("analyze-{name}")),
+            params: AnalyzeParams::default(),
+        }));
+    }
+    // 3D strands: the synthetic case with its mask and landmarks, the photo from its strokes
+    // alone (mask segmented, default head fit).
+    let mut dyed = RenderParams::default();
+    (dyed.shade.hue, dyed.shade.saturation, dyed.shade.value) = (30.0, 1.2, 0.9);
+    dyed.shade.amount = 0.6;
+    let views = [
+        ("render.png", RenderParams::default()),
+        (
+            "render_yaw25.png",
+            RenderParams {
+                yaw_deg: 25.0,
+                pitch_deg: -5.0,
+                ..Default::default()
+            },
+        ),
+        ("render_dyed.png", dyed),
+    ];
+    for (name, dir, truth) in [("synth-long", &case, true), ("astronaut", &astro, false)] {
+        let model = out.join(format!("model-{name}"));
+        jobs.push(Job::Model(ModelJob {
+            image: dir.join("image.png"),
+            strokes: dir.join("strokes.json"),
+            mask: truth.then(|| dir.join("mask.png")),
+            landmarks: truth.then(|| dir.join("landmarks.json")),
+            out: model.clone(),
+            params: ModelParams::default(),
+        }));
+        for (file, p) in &views {
+            jobs.push(Job::Render(RenderJob {
+                model: model.clone(),
+                out: model.join(file),
+                params: p.clone(),
+                sixteen: false,
+            }));
+        }
+    }
+    jobs
+}
+
+fn run_synth(j: &SynthJob) -> anyhow::Result<Report> {
+    let p = &j.params;
+    for side in [p.width, p.height] {
+        if !(64..=4096).contains(&side) {
+            return Err(Error::Invalid(format!("--size {side} is outside 64..=4096")).into());
+        }
+    }
+    let what = if j.gt3d {
+        let c = synth3d::synth3d(p);
+        c.write(&j.out)?;
+        format!(
+            "3D ground truth: {} strands, camera yaw {:.1}°",
+            c.gt.len(),
+            c.yaw_deg
+        )
+    } else {
+        synth::synth(p).write(&j.out)?;
+        "2D ground truth".to_string()
+    };
+    Ok(Report {
+        summary: format!(
+            "synth: {} seed {} ({}x{}, {what}) -> {}",
+            p.style,
+            p.seed,
+            p.width,
+            p.height,
+            j.out.display()
+        ),
+        ..Default::default()
+    })
+}
+
+fn run_unpack(j: &UnpackJob) -> anyhow::Result<Report> {
+    ensure_dir(&j.out)?;
+    write_atomic(&j.out.join("image.png"), assets::ASTRONAUT_PNG)?;
+    write_atomic(
+        &j.out.join("strokes.json"),
+        assets::ASTRONAUT_STROKES.as_bytes(),
+    )?;
+    Ok(Report {
+        summary: format!(
+            "unpack: the astronaut photo and its strokes -> {}",
+            j.out.display()
+        ),
+        ..Default::default()
+    })
+}
+
+fn run_orient(engine: &Engine, j: &OrientJob) -> anyhow::Result<Report> {
+    j.params.validate()?;
+    let r = analyze::run_orient(engine, &j.image, j.mask.as_deref(), &j.params)?;
+    // Score before writing, so a bad truth folder leaves nothing behind.
+    let score = match &j.truth {
+        Some(dir) => {
+            let (shape, gt) = npy::read_f32(&dir.join("gt_theta.npy"))?;
+            let mask_path = dir.join("mask.png");
+            let mask = images::open(&mask_path)?.to_luma8();
+            let (w, h) = (r.map.width, r.map.height);
+            if shape != [h as usize, w as usize] || mask.dimensions() != (w, h) {
+                return Err(Error::bad_file(
+                    dir,
+                    format!(
+                        "ground truth is {shape:?}, mask {:?}, image {w}x{h}",
+                        mask.dimensions()
+                    ),
+                )
+                .into());
+            }
+            let e = orientation_error(&r.map, &gt, &mask, 5);
+            Some(format!(
+                "; mean error {:.2} deg over {} hair px >= 5 px inside the mask",
+                e.mean_deg, e.count
+            ))
+        }
+        None => None,
+    };
+    analyze::write_orient(&j.out, &j.image, &r)?;
+    Ok(Report {
+        summary: format!(
+            "orient: {}x{} on {} in {:.2} s{} -> {}",
+            r.map.width,
+            r.map.height,
+            r.backend,
+            r.seconds,
+            score.unwrap_or_default(),
+            j.out.display()
+        ),
+        ..Default::default()
+    })
+}
+
+fn run_analyze(engine: &Engine, j: &AnalyzeJob) -> anyhow::Result<Report> {
+    let p = &j.params;
+    p.orient.validate()?;
+    let positive = |v: f32| v.is_finite() && v > 0.0;
+    if !positive(p.resolve.radius) || !positive(p.resolve.stroke_weight) {
+        return Err(Error::Invalid("--radius and --stroke-weight must be positive".into()).into());
+    }
+    let t = Instant::now();
+    let (rgb, an) = analyze::run(engine, &j.image, &j.strokes, j.mask.as_deref(), p)?;
+    analyze::write(&j.out, &j.image, &rgb, &an, &engine.describe())?;
+    Ok(Report {
+        summary: format!(
+            "analyze: mask {}, {} curve pieces ({} unreachable from strokes) -> {} ({:.2} s on {})",
+            if an.mask_computed {
+                "segmented"
+            } else {
+                "given"
+            },
+            an.traced.len(),
+            an.resolved.unreachable.len(),
+            j.out.display(),
+            t.elapsed().as_secs_f64(),
+            engine.describe()
+        ),
+        details: Vec::new(),
+        warnings: an.warnings.clone(),
+    })
+}
+
+fn run_model(engine: &Engine, j: &ModelJob) -> anyhow::Result<Report> {
+    let p = &j.params;
+    let t = Instant::now();
+    let (rgb, m) = model::run(
+        engine,
+        &j.image,
+        &j.strokes,
+        j.mask.as_deref(),
+        j.landmarks.as_deref(),
+        p,
+    )?;
+    model::write(&j.out, &j.image, &rgb, &m, p, &engine.describe())?;
+    Ok(Report {
+        summary: format!(
+            "model: {} strands ({} grown from {} roots on hair, {} added by refinement), {} H \
+             cells, field {} cycles to {:.1e} -> {} ({:.2} s on {})",
+            m.strands.len(),
+            m.grown_strands,
+            m.roots_kept,
+            m.strands.len() - m.grown_strands,
+            m.h_cells,
+            m.solve.cycles,
+            m.solve.rel_residual,
+            j.out.display(),
+            t.elapsed().as_secs_f64(),
+            engine.describe()
+        ),
+        details: timings(&m.timings),
+        warnings: m.analysis.warnings.clone(),
+    })
+}
+
+fn timings<S: std::fmt::Display>(t: &[(S, f64)]) -> Vec<String> {
+    t.iter()
+        .map(|(k, v)| format!("{k:<18} {:>8.1} ms", v * 1e3))
+        .collect()
+}
+
+fn run_render(engine: &Engine, j: &RenderJob) -> anyhow::Result<Report> {
+    // Refuse a missing output folder before any work.
+    if let Some(parent) = j.out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        if !parent.is_dir() {
+            anyhow::bail!(
+                "{}: the output folder {} does not exist",
+                j.out.display(),
+                parent.display()
+            );
+        }
+    }
+    let p = &j.params;
+    let t = Instant::now();
+    let scene = Scene::load(&j.model)?;
+    let r = render::render(engine, &scene, p)
+        .with_context(|| format!("rendering {}", j.model.display()))?;
+    let side = render::write(&j.out, &r, p, j.sixteen)?;
+    Ok(Report {
+        summary: format!(
+            "render: {} strands, {}x{} ({}) -> {} ({:.2} s on {}; settings in {})",
+            r.report.strands,
+            r.width,
+            r.height,
+            if p.is_original_view() {
+                "original view"
+            } else {
+                "novel view"
+            },
+            j.out.display(),
+            t.elapsed().as_secs_f64(),
+            engine.describe(),
+            side.display()
+        ),
+        details: timings(&r.report.seconds),
+        warnings: Vec::new(),
+    })
+}
+
+fn run_export(j: &ExportJob) -> anyhow::Result<Report> {
+    strands::Format::from_path(&j.to)?;
+    let src = j.model.join("strands.hair");
+    let s = strands::read(&src)?;
+    strands::write(&j.to, &s)?;
+    Ok(Report {
+        summary: format!(
+            "export: {} strands, {} vertices: {} -> {}",
+            s.counts.len(),
+            s.points.len(),
+            src.display(),
+            j.to.display()
+        ),
+        ..Default::default()
+    })
+}
+
+fn run_import(j: &ImportJob) -> anyhow::Result<Report> {
+    let s = strands::read(&j.input)?;
+    let scene = Scene::from_strands(s, &j.out)?;
+    scene.save(
+        &j.out,
+        json!({ "imported_from": j.input.display().to_string() }),
+    )?;
+    Ok(Report {
+        summary: format!(
+            "import: {} strands, {} vertices: {} -> {}",
+            scene.strands.len(),
+            scene.strands.points.len(),
+            j.input.display(),
+            j.out.display()
+        ),
+        ..Default::default()
+    })
+}
+
+fn run_convert(j: &ConvertJob) -> anyhow::Result<Report> {
+    // Check the output format before reading, so a typo fails fast.
+    strands::Format::from_path(&j.output)?;
+    let s = strands::read(&j.input)?;
+    strands::write(&j.output, &s)?;
+    Ok(Report {
+        summary: format!(
+            "convert: {} strands, {} vertices: {} -> {}",
+            s.counts.len(),
+            s.points.len(),
+            j.input.display(),
+            j.output.display()
+        ),
+        ..Default::default()
+    })
+}
