@@ -56,12 +56,14 @@ fn run(req: Request) -> anyhow::Result<()> {
     } else {
         coif::jobs::run_all(&engine, &jobs)?
     };
+    // Stage timings only for a single job: a list reads better as one line per job.
+    let single = reports.len() == 1;
     for r in reports {
         for w in &r.warnings {
             eprintln!("coif: warning: {w}");
         }
         println!("{}", r.summary);
-        for d in &r.details {
+        for d in r.details.iter().filter(|_| single) {
             println!("  {d}");
         }
     }
