@@ -165,17 +165,26 @@ fn parse_rgb(s: &str) -> Result<[f32; 3], String> {
     }
 }
 
+/// The inputs of `analyze` and `model`.
 #[derive(Args)]
-pub struct ModelArgs {
+pub struct PhotoArgs {
     /// Portrait (PNG).
     #[arg(long)]
     image: PathBuf,
-    /// strokes.json (version 1), a labelme .json or an .svg; direction strokes root to tip.
+    /// strokes.json (version 1), or strokes drawn elsewhere: a labelme .json (linestrip
+    /// shapes) or an .svg (polylines, line-segment paths); direction strokes root to tip.
     #[arg(long)]
     strokes: PathBuf,
-    /// Hair mask, same size, > 127 on hair; without it the hair is segmented from the strokes.
+    /// Hair mask, same size, > 127 on hair; without it the hair is segmented from the
+    /// strokes (direction strokes are hair; background strokes, else the image border, are not).
     #[arg(long)]
     mask: Option<PathBuf>,
+}
+
+#[derive(Args)]
+pub struct ModelArgs {
+    #[command(flatten)]
+    input: PhotoArgs,
     /// landmarks.json (version 1: eyes, nose tip, mouth corners, chin); without it the head
     /// is placed by the default fit to the mask (frontal, sized by the mask's upper width).
     #[arg(long)]
@@ -333,17 +342,8 @@ pub struct DemoArgs {
 
 #[derive(Args)]
 pub struct AnalyzeArgs {
-    /// Portrait (PNG).
-    #[arg(long)]
-    image: PathBuf,
-    /// strokes.json (version 1), or strokes drawn elsewhere: a labelme .json (linestrip
-    /// shapes) or an .svg (polylines, line-segment paths); direction strokes root to tip.
-    #[arg(long)]
-    strokes: PathBuf,
-    /// Hair mask, same size, > 127 on hair; without it the hair is segmented from the
-    /// strokes (direction strokes are hair; background strokes, else the image border, are not).
-    #[arg(long)]
-    mask: Option<PathBuf>,
+    #[command(flatten)]
+    input: PhotoArgs,
     /// Output folder (created).
     #[arg(long)]
     out: PathBuf,
@@ -427,9 +427,9 @@ impl Command {
                 params.resolve.radius = a.radius;
                 params.resolve.stroke_weight = a.stroke_weight;
                 let job = AnalyzeJob {
-                    image: a.image,
-                    strokes: a.strokes,
-                    mask: a.mask,
+                    image: a.input.image,
+                    strokes: a.input.strokes,
+                    mask: a.input.mask,
                     out: a.out,
                     params,
                 };
@@ -452,9 +452,9 @@ impl Command {
                 params.volume.cells = a.cells;
                 params.refine.max_iterations = a.refine;
                 let job = ModelJob {
-                    image: a.image,
-                    strokes: a.strokes,
-                    mask: a.mask,
+                    image: a.input.image,
+                    strokes: a.input.strokes,
+                    mask: a.input.mask,
                     landmarks: a.landmarks,
                     out: a.out,
                     params,
