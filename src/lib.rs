@@ -12,6 +12,7 @@ pub mod io;
 pub mod jobs;
 pub mod model;
 pub mod render;
+pub mod sim;
 pub mod stages;
 pub mod synth;
 pub mod testing;

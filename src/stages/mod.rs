@@ -20,6 +20,7 @@ pub mod pm_init;
 pub mod pm_search;
 pub mod pm_vote;
 pub mod sep_blur;
+pub mod sim_step;
 pub mod strand_shade;
 
 use crate::gpu::engine::StageDef;
@@ -44,4 +45,5 @@ pub const ALL: &[&StageDef] = &[
     &pm_cost::STAGE,
     &pm_search::STAGE,
     &pm_vote::STAGE,
+    &sim_step::STAGE,
 ];

@@ -434,6 +434,36 @@ impl Head {
         self.grad64(p.as_dvec3()).as_vec3()
     }
 
+    /// The distance primitives as f32, packed as `crate::sim::head_sdf` and
+    /// `wgsl/shared/head_sdf.wgsl` read them ([`crate::sim::head_sdf::PACKED_LEN`] values):
+    /// passes that collide with the head evaluate the same smooth union in f32.
+    pub fn sdf_packed(&self) -> Vec<f32> {
+        let mut v = Vec::with_capacity(40);
+        for a in [
+            self.skull_c,
+            self.skull_r,
+            self.face_c,
+            self.face_r,
+            self.chin_c,
+            self.chin_r,
+            self.nose_a,
+            self.nose_b,
+        ] {
+            v.extend(a.to_array().map(|x| x as f32));
+        }
+        v.push(self.nose_r as f32);
+        v.extend(self.ear_c.to_array().map(|x| x as f32));
+        v.extend([self.ear_hh as f32, self.ear_r as f32]);
+        v.extend(self.neck_c.to_array().map(|x| x as f32));
+        v.extend([
+            self.neck_hh as f32,
+            self.neck_r as f32,
+            self.blend as f32,
+            self.ear_blend as f32,
+        ]);
+        v
+    }
+
     /// Moves a point onto the zero level by Newton steps along the gradient.
     fn project64(&self, mut p: DVec3) -> DVec3 {
         for _ in 0..12 {
