@@ -2,6 +2,10 @@
 //! anti-aliasing rules checked pixel by pixel on both paths, bad input, determinism, limits.
 //! Run with `--release` (shaders on lavapipe).
 
+use coif::base::colour::{
+    f16_bits_to_f32, f32_to_f16_bits, linear_to_srgb, linear_to_srgb16, srgb_to_linear, to_rgba16,
+    to_rgba8,
+};
 use coif::base::rng::Rng;
 use coif::gpu::GpuContext;
 use coif::hair::head::{Head, WeakPerspective};
@@ -126,11 +130,12 @@ fn f16_conversion_is_exact_and_rounds_to_even() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Shaders: naga validation and host/WGSL struct layouts (the render shaders in wgsl/render/
-// are not compute stages, so `shader_validation` does not see them).
+// Shaders: host/WGSL struct layouts of the render stages (`shader_validation` checks that
+// every file validates and is registered).
 // ---------------------------------------------------------------------------------------------
 
-fn parse(src: &str) -> naga::Module {
+fn parse(name: &str, src: &str) -> naga::Module {
+    let src = &coif::gpu::wgsl::compose(name, src).unwrap();
     let m =
         naga::front::wgsl::parse_str(src).unwrap_or_else(|e| panic!("{}", e.emit_to_string(src)));
     naga::valid::Validator::new(
@@ -156,36 +161,10 @@ fn struct_layout(m: &naga::Module, name: &str) -> (Vec<u32>, u32) {
 
 #[test]
 fn shaders_validate_and_structs_match_the_host() {
+    use coif::stages::{mesh_raster, strand_raster};
     use std::mem::{offset_of, size_of};
-    // The render pipelines' shaders are exactly the files in wgsl/render/ (the GPU/CPU
-    // parity of both is tested below).
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("wgsl/render");
-    for (file, src) in [
-        ("strand_raster.wgsl", STRAND_WGSL),
-        ("mesh_raster.wgsl", MESH_WGSL),
-    ] {
-        assert_eq!(
-            std::fs::read_to_string(dir.join(file)).unwrap(),
-            src,
-            "{file} is stale"
-        );
-    }
-    let strand = parse(STRAND_WGSL);
-    let mesh = parse(MESH_WGSL);
-    for (m, eps) in [
-        (&strand, &["vs_main", "fs_main"][..]),
-        (
-            &mesh,
-            &["vs_mesh", "fs_mesh", "vs_background", "fs_background"][..],
-        ),
-    ] {
-        for e in eps {
-            assert!(
-                m.entry_points.iter().any(|p| p.name == *e),
-                "no entry point {e}"
-            );
-        }
-    }
+    let strand = parse("strand_raster", strand_raster::STAGE.wgsl);
+    let mesh = parse("mesh_raster", mesh_raster::STAGE.wgsl);
     let seg = [
         offset_of!(SegRec, p0),
         offset_of!(SegRec, p1),
