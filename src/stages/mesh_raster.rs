@@ -9,10 +9,14 @@ use crate::gpu::engine::RenderStageDef;
 use crate::render::raster::Texture;
 use crate::stages::raster_common::{bilinear_at, snap, Fb, Offsets, Plane, Poly, TileBuf};
 
+/// Entry points (vertex, fragment) of the mesh and the background pipelines.
+pub const MESH: (&str, &str) = ("vs_mesh", "fs_mesh");
+pub const BACKGROUND: (&str, &str) = ("vs_background", "fs_background");
+
 pub const STAGE: RenderStageDef = RenderStageDef {
     name: "mesh_raster",
     wgsl: include_str!("../../wgsl/render/mesh_raster.wgsl"),
-    entry_points: &[("vs_mesh", "fs_mesh"), ("vs_background", "fs_background")],
+    entry_points: &[MESH, BACKGROUND],
 };
 
 /// One mesh triangle as both paths see it (the WGSL `Tri`): corners (x, y, z, u), then v.

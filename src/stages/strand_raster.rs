@@ -10,10 +10,13 @@ use crate::stages::raster_common::{
     bilinear_at, mask32, snap, Config, Fb, Offsets, Plane, Poly, TileBuf, SUBPIXEL,
 };
 
+/// Entry points (vertex, fragment) of the strand pipeline.
+pub const STRANDS: (&str, &str) = ("vs_main", "fs_main");
+
 pub const STAGE: RenderStageDef = RenderStageDef {
     name: "strand_raster",
     wgsl: include_str!("../../wgsl/render/strand_raster.wgsl"),
-    entry_points: &[("vs_main", "fs_main")],
+    entry_points: &[STRANDS],
 };
 
 /// One strand segment as both paths see it (the WGSL `Seg`).

@@ -79,8 +79,7 @@ fn pipe(
     d: &wgpu::Device,
     label: &str,
     module: &wgpu::ShaderModule,
-    vs: &str,
-    fs: &str,
+    (vs, fs): (&str, &str),
     entries: &[wgpu::BindGroupLayoutEntry],
     cull: Option<wgpu::Face>,
     depth_write: bool,
@@ -231,6 +230,44 @@ fn chunks<T: bytemuck::Pod>(
         .collect()
 }
 
+/// One bind group per chunk of `items` (see [`chunks`]): the uniform, the chunk and `view`,
+/// at bindings 0, 1 and 2 as both render shaders declare them.
+#[allow(clippy::too_many_arguments)]
+fn bind_chunks<T: bytemuck::Pod>(
+    ctx: &GpuContext,
+    p: &Pipe,
+    label: &str,
+    uniform: &wgpu::Buffer,
+    items: &[T],
+    chunk_bytes: u64,
+    view: &wgpu::TextureView,
+) -> Vec<(wgpu::BindGroup, u32)> {
+    chunks(ctx, label, items, chunk_bytes)
+        .into_iter()
+        .map(|(buf, count)| {
+            let bg = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some(label),
+                layout: &p.layout,
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: uniform.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: buf.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 2,
+                        resource: wgpu::BindingResource::TextureView(view),
+                    },
+                ],
+            });
+            (bg, count)
+        })
+        .collect()
+}
+
 pub fn raster(ctx: &GpuContext, s: &Scene, max_chunk_bytes: u64) -> Result<Vec<[f32; 4]>> {
     let d = &ctx.device;
     let (w, h, n) = (s.cfg.width, s.cfg.height, s.cfg.samples);
@@ -298,8 +335,7 @@ pub fn raster(ctx: &GpuContext, s: &Scene, max_chunk_bytes: u64) -> Result<Vec<[
             d,
             "raster.background",
             &mesh_module,
-            "vs_background",
-            "fs_background",
+            mesh_raster::BACKGROUND,
             &[texture_entry(2)],
             None,
             false,
@@ -323,8 +359,7 @@ pub fn raster(ctx: &GpuContext, s: &Scene, max_chunk_bytes: u64) -> Result<Vec<[
                 d,
                 "raster.mesh",
                 &mesh_module,
-                "vs_mesh",
-                "fs_mesh",
+                mesh_raster::MESH,
                 &[uniform_entry(0), storage_entry(1), texture_entry(2)],
                 Some(wgpu::Face::Back),
                 true,
@@ -332,31 +367,15 @@ pub fn raster(ctx: &GpuContext, s: &Scene, max_chunk_bytes: u64) -> Result<Vec<[
                 n,
             );
             let view = texture_rgba32(ctx, "raster.texture", t.width, t.height, &t.texels);
-            let groups: Vec<(wgpu::BindGroup, u32)> =
-                chunks(ctx, "raster.tris", &s.tris, chunk_bytes)
-                    .into_iter()
-                    .map(|(buf, count)| {
-                        let bg = d.create_bind_group(&wgpu::BindGroupDescriptor {
-                            label: Some("raster.mesh"),
-                            layout: &p.layout,
-                            entries: &[
-                                wgpu::BindGroupEntry {
-                                    binding: 0,
-                                    resource: uniform.as_entire_binding(),
-                                },
-                                wgpu::BindGroupEntry {
-                                    binding: 1,
-                                    resource: buf.as_entire_binding(),
-                                },
-                                wgpu::BindGroupEntry {
-                                    binding: 2,
-                                    resource: wgpu::BindingResource::TextureView(&view),
-                                },
-                            ],
-                        });
-                        (bg, count)
-                    })
-                    .collect();
+            let groups = bind_chunks(
+                ctx,
+                &p,
+                "raster.mesh",
+                &uniform,
+                &s.tris,
+                chunk_bytes,
+                &view,
+            );
             Some((p, groups))
         }
         _ => None,
@@ -366,8 +385,7 @@ pub fn raster(ctx: &GpuContext, s: &Scene, max_chunk_bytes: u64) -> Result<Vec<[
             d,
             "raster.strands",
             &strand_module,
-            "vs_main",
-            "fs_main",
+            strand_raster::STRANDS,
             &[uniform_entry(0), storage_entry(1), texture_entry(2)],
             None,
             true,
@@ -380,31 +398,15 @@ pub fn raster(ctx: &GpuContext, s: &Scene, max_chunk_bytes: u64) -> Result<Vec<[
             Some(t) => texture_rgba32(ctx, "raster.photo", t.width, t.height, &t.texels),
             None => texture_rgba32(ctx, "raster.photo", 1, 1, &[[0.0; 4]]),
         };
-        let groups: Vec<(wgpu::BindGroup, u32)> =
-            chunks(ctx, "raster.segments", &s.segs, chunk_bytes)
-                .into_iter()
-                .map(|(buf, count)| {
-                    let bg = d.create_bind_group(&wgpu::BindGroupDescriptor {
-                        label: Some("raster.strands"),
-                        layout: &p.layout,
-                        entries: &[
-                            wgpu::BindGroupEntry {
-                                binding: 0,
-                                resource: uniform.as_entire_binding(),
-                            },
-                            wgpu::BindGroupEntry {
-                                binding: 1,
-                                resource: buf.as_entire_binding(),
-                            },
-                            wgpu::BindGroupEntry {
-                                binding: 2,
-                                resource: wgpu::BindingResource::TextureView(&photo),
-                            },
-                        ],
-                    });
-                    (bg, count)
-                })
-                .collect();
+        let groups = bind_chunks(
+            ctx,
+            &p,
+            "raster.strands",
+            &uniform,
+            &s.segs,
+            chunk_bytes,
+            &photo,
+        );
         (p, groups)
     });
 
