@@ -275,3 +275,55 @@ pub mod shader {
         )
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn srgb_round_trips_and_matches_the_curve() {
+        for v in 0..=255u8 {
+            assert_eq!(linear_to_srgb(srgb_to_linear(v)), v);
+        }
+        assert_eq!(srgb_to_linear(0), 0.0);
+        assert_eq!(srgb_to_linear(255), 1.0);
+        // Mid-grey 0.5 linear is sRGB 187.5 -> 188 (the curve, not a 2.2 gamma: 186).
+        assert_eq!(linear_to_srgb(0.5), 188);
+        assert_eq!(linear_to_srgb(f32::NAN), 0);
+        assert_eq!(linear_to_srgb(2.0), 255);
+        assert_eq!(linear_to_srgb16(1.0), 65535);
+        assert!((srgb_to_linear(10) - 10.0 / 255.0 / 12.92).abs() < 1e-9);
+        let img = [[1.0f32, 0.5, 0.0, 0.5]];
+        assert_eq!(to_rgba8(&img), vec![255, 188, 0, 128]);
+        assert_eq!(to_rgba16(&img)[3], 32768);
+    }
+
+    #[test]
+    fn f16_conversion_is_exact_and_rounds_to_even() {
+        for h in 0..=u16::MAX {
+            let f = f16_bits_to_f32(h);
+            if f.is_nan() {
+                assert!(f32_to_f16_bits(f) & 0x7c00 == 0x7c00 && f32_to_f16_bits(f) & 0x3ff != 0);
+                continue;
+            }
+            assert_eq!(f32_to_f16_bits(f), h, "round trip of {h:#06x} ({f})");
+            // Midpoint to the next value up rounds to the even one of the two.
+            let next = h.wrapping_add(1);
+            if h & 0x7fff < 0x7bff {
+                let g = f16_bits_to_f32(next);
+                let mid = ((f as f64 + g as f64) / 2.0) as f32;
+                if mid as f64 == (f as f64 + g as f64) / 2.0 {
+                    let even = if h & 1 == 0 { h } else { next };
+                    assert_eq!(
+                        f32_to_f16_bits(mid),
+                        even,
+                        "tie between {h:#06x} and {next:#06x}"
+                    );
+                }
+            }
+        }
+        assert_eq!(f16_bits_to_f32(0x3c00), 1.0);
+        assert_eq!(f32_to_f16_bits(65520.0), 0x7c00, "rounds up to infinity");
+        assert_eq!(f32_to_f16_bits(1e-8), 0);
+    }
+}
