@@ -454,7 +454,7 @@ pub(crate) fn sample_rgb(img: &image::RgbImage, x: f32, y: f32) -> [f32; 3] {
     let px = |x, y| {
         img.get_pixel(x, y)
             .0
-            .map(crate::render::raster::srgb_to_linear)
+            .map(crate::base::colour::srgb_to_linear)
     };
     let (a, b, c, d) = (px(x0, y0), px(x1, y0), px(x0, y1), px(x1, y1));
     std::array::from_fn(|k| {
