@@ -40,7 +40,6 @@ use glam::Vec3;
 
 pub use crate::stages::strand_shade::{kajiya_kay, marschner_lobes, Lobes};
 // Kept here for `crate::render`, which calls them as `shade::…`; they live in `base::colour`.
-pub use crate::base::colour::{hsv_adjust, unit_or_zero};
 
 /// The highlight model.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]

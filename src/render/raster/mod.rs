@@ -75,7 +75,6 @@ pub use crate::stages::mesh_raster::TriRec;
 pub use crate::stages::raster_common::{Config, SAMPLE_POSITIONS_4};
 pub use crate::stages::strand_raster::SegRec;
 // Kept here for `crate::render`, which calls them as `raster::…`; they live in `base::colour`.
-pub use crate::base::colour::{srgb_to_linear, to_rgba16, to_rgba8};
 
 // ---------------------------------------------------------------------------------------------
 // Public types
