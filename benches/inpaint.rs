@@ -12,8 +12,8 @@
 //! (needs `pip install opencv-python-headless` for the peer; COIF_BENCH_OUT=dir keeps the
 //! pictures: photo with the hole in magenta, our fill, Telea's.)
 
+use coif::base::colour::{linear_to_srgb, srgb_to_linear};
 use coif::render::inpaint::{inpaint, InpaintParams};
-use coif::render::raster::{linear_to_srgb, srgb_to_linear};
 use coif::{BackendChoice, Engine};
 use std::path::Path;
 use std::process::Command;

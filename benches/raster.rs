@@ -9,8 +9,9 @@
 //! run; needs `pip install skia-python numpy` for the peer; RASTER_BENCH_PNG=dir writes our
 //! two images there.)
 
+use coif::base::colour::to_rgba8;
 use coif::base::rng::Rng;
-use coif::render::raster::{render, to_rgba8, Frame, RasterParams, ScreenStrands};
+use coif::render::raster::{render, Frame, RasterParams, ScreenStrands};
 use coif::{BackendChoice, Engine};
 use std::io::Write;
 use std::path::Path;

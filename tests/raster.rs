@@ -2,6 +2,7 @@
 //! anti-aliasing rules checked pixel by pixel on both paths, bad input, determinism, limits.
 //! Run with `--release` (shaders on lavapipe).
 
+use coif::base::colour::to_rgba8;
 use coif::base::rng::Rng;
 use coif::gpu::GpuContext;
 use coif::hair::head::{Head, WeakPerspective};
@@ -75,62 +76,12 @@ fn image_agreement_helper_can_fail() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Colour helpers
+// Shaders: host/WGSL struct layouts of the render stages (`shader_validation` checks that
+// every file validates and is registered).
 // ---------------------------------------------------------------------------------------------
 
-#[test]
-fn srgb_round_trips_and_matches_the_curve() {
-    for v in 0..=255u8 {
-        assert_eq!(linear_to_srgb(srgb_to_linear(v)), v);
-    }
-    assert_eq!(srgb_to_linear(0), 0.0);
-    assert_eq!(srgb_to_linear(255), 1.0);
-    // Mid-grey 0.5 linear is sRGB 187.5 -> 188 (the curve, not a 2.2 gamma: 186).
-    assert_eq!(linear_to_srgb(0.5), 188);
-    assert_eq!(linear_to_srgb(f32::NAN), 0);
-    assert_eq!(linear_to_srgb(2.0), 255);
-    assert_eq!(linear_to_srgb16(1.0), 65535);
-    assert!((srgb_to_linear(10) - 10.0 / 255.0 / 12.92).abs() < 1e-9);
-    let img = [[1.0f32, 0.5, 0.0, 0.5]];
-    assert_eq!(to_rgba8(&img), vec![255, 188, 0, 128]);
-    assert_eq!(to_rgba16(&img)[3], 32768);
-}
-
-#[test]
-fn f16_conversion_is_exact_and_rounds_to_even() {
-    for h in 0..=u16::MAX {
-        let f = f16_bits_to_f32(h);
-        if f.is_nan() {
-            assert!(f32_to_f16_bits(f) & 0x7c00 == 0x7c00 && f32_to_f16_bits(f) & 0x3ff != 0);
-            continue;
-        }
-        assert_eq!(f32_to_f16_bits(f), h, "round trip of {h:#06x} ({f})");
-        // Midpoint to the next value up rounds to the even one of the two.
-        let next = h.wrapping_add(1);
-        if h & 0x7fff < 0x7bff {
-            let g = f16_bits_to_f32(next);
-            let mid = ((f as f64 + g as f64) / 2.0) as f32;
-            if mid as f64 == (f as f64 + g as f64) / 2.0 {
-                let even = if h & 1 == 0 { h } else { next };
-                assert_eq!(
-                    f32_to_f16_bits(mid),
-                    even,
-                    "tie between {h:#06x} and {next:#06x}"
-                );
-            }
-        }
-    }
-    assert_eq!(f16_bits_to_f32(0x3c00), 1.0);
-    assert_eq!(f32_to_f16_bits(65520.0), 0x7c00, "rounds up to infinity");
-    assert_eq!(f32_to_f16_bits(1e-8), 0);
-}
-
-// ---------------------------------------------------------------------------------------------
-// Shaders: naga validation and host/WGSL struct layouts (the render shaders in wgsl/render/
-// are not compute stages, so `shader_validation` does not see them).
-// ---------------------------------------------------------------------------------------------
-
-fn parse(src: &str) -> naga::Module {
+fn parse(name: &str, src: &str) -> naga::Module {
+    let src = &coif::gpu::wgsl::compose(name, src).unwrap();
     let m =
         naga::front::wgsl::parse_str(src).unwrap_or_else(|e| panic!("{}", e.emit_to_string(src)));
     naga::valid::Validator::new(
@@ -156,36 +107,10 @@ fn struct_layout(m: &naga::Module, name: &str) -> (Vec<u32>, u32) {
 
 #[test]
 fn shaders_validate_and_structs_match_the_host() {
+    use coif::stages::{mesh_raster, strand_raster};
     use std::mem::{offset_of, size_of};
-    // The render pipelines' shaders are exactly the files in wgsl/render/ (the GPU/CPU
-    // parity of both is tested below).
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("wgsl/render");
-    for (file, src) in [
-        ("strand_raster.wgsl", STRAND_WGSL),
-        ("mesh_raster.wgsl", MESH_WGSL),
-    ] {
-        assert_eq!(
-            std::fs::read_to_string(dir.join(file)).unwrap(),
-            src,
-            "{file} is stale"
-        );
-    }
-    let strand = parse(STRAND_WGSL);
-    let mesh = parse(MESH_WGSL);
-    for (m, eps) in [
-        (&strand, &["vs_main", "fs_main"][..]),
-        (
-            &mesh,
-            &["vs_mesh", "fs_mesh", "vs_background", "fs_background"][..],
-        ),
-    ] {
-        for e in eps {
-            assert!(
-                m.entry_points.iter().any(|p| p.name == *e),
-                "no entry point {e}"
-            );
-        }
-    }
+    let strand = parse("strand_raster", strand_raster::STAGE.wgsl);
+    let mesh = parse("mesh_raster", mesh_raster::STAGE.wgsl);
     let seg = [
         offset_of!(SegRec, p0),
         offset_of!(SegRec, p1),

@@ -1,23 +1,63 @@
-//! Every WGSL file parses and validates with naga, every file is a registered stage, and
-//! every uniform struct has the same size and member offsets on both sides. No GPU needed.
+//! Every WGSL file under `wgsl/` (subfolders included) parses and validates with naga after
+//! its `#include`s are expanded, every shader is used by exactly one registered stage
+//! (compute or render), every shared piece is included somewhere, and every uniform struct
+//! has the same size and member offsets on both sides. No GPU needed.
 
+use coif::gpu::wgsl::{compose, include_path, SHARED};
 use coif::stages;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-fn wgsl_files() -> Vec<std::path::PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("wgsl");
-    let mut v: Vec<_> = std::fs::read_dir(&dir)
-        .expect("wgsl/ exists")
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|e| e == "wgsl"))
-        .collect();
+fn wgsl_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("wgsl")
+}
+
+/// Every `.wgsl` file under `wgsl/`, subfolders included, as paths relative to `wgsl/`
+/// with `/` separators.
+fn wgsl_files() -> Vec<String> {
+    fn walk(dir: &Path, root: &Path, out: &mut Vec<String>) {
+        for e in std::fs::read_dir(dir).expect("wgsl/ is readable") {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                walk(&p, root, out);
+            } else if p.extension().is_some_and(|e| e == "wgsl") {
+                let rel = p.strip_prefix(root).unwrap();
+                let parts: Vec<_> = rel.iter().map(|c| c.to_string_lossy()).collect();
+                out.push(parts.join("/"));
+            }
+        }
+    }
+    let root = wgsl_root();
+    let mut v = Vec::new();
+    walk(&root, &root, &mut v);
     v.sort();
     v
 }
 
+fn read(rel: &str) -> String {
+    std::fs::read_to_string(wgsl_root().join(rel)).unwrap()
+}
+
+/// Shared pieces are include-only: they may use bindings the including shader declares.
+fn is_shared(rel: &str) -> bool {
+    rel.starts_with("shared/")
+}
+
+/// `(file under wgsl/, name, source)` of every registry entry, compute and render.
+fn registered() -> Vec<(String, &'static str, &'static str)> {
+    let compute = stages::ALL
+        .iter()
+        .map(|s| (format!("{}.wgsl", s.name), s.name, s.wgsl));
+    let render = stages::RENDER
+        .iter()
+        .map(|s| (format!("render/{}.wgsl", s.name), s.name, s.wgsl));
+    compute.chain(render).collect()
+}
+
+/// Composes (expands the includes), parses and validates.
 fn parse(name: &str, src: &str) -> Result<naga::Module, String> {
-    let module = naga::front::wgsl::parse_str(src)
-        .map_err(|e| format!("{name}: parse error:\n{}", e.emit_to_string(src)))?;
+    let src = compose(name, src).map_err(|e| e.to_string())?;
+    let module = naga::front::wgsl::parse_str(&src)
+        .map_err(|e| format!("{name}: parse error:\n{}", e.emit_to_string(&src)))?;
     naga::valid::Validator::new(
         naga::valid::ValidationFlags::all(),
         naga::valid::Capabilities::default(),
@@ -27,16 +67,20 @@ fn parse(name: &str, src: &str) -> Result<naga::Module, String> {
     Ok(module)
 }
 
+/// Every shader outside `wgsl/shared/` validates after composition. The shared pieces are
+/// validated as part of every shader that includes them (they are not self-contained), and
+/// [`every_shared_piece_is_embedded_and_included`] makes sure each one is included.
 #[test]
 fn every_wgsl_file_validates() {
-    let files = wgsl_files();
+    let files: Vec<String> = wgsl_files().into_iter().filter(|f| !is_shared(f)).collect();
     assert!(!files.is_empty(), "no shader found under wgsl/");
+    assert!(
+        files.iter().any(|f| f.contains('/')),
+        "no shader found in a subfolder of wgsl/ (wgsl/render/ has two)"
+    );
     let failures: Vec<String> = files
         .iter()
-        .filter_map(|p| {
-            let src = std::fs::read_to_string(p).unwrap();
-            parse(&p.display().to_string(), &src).err()
-        })
+        .filter_map(|f| parse(&format!("wgsl/{f}"), &read(f)).err())
         .collect();
     assert!(
         failures.is_empty(),
@@ -48,33 +92,76 @@ fn every_wgsl_file_validates() {
 }
 
 #[test]
-fn every_wgsl_file_is_a_registered_stage_and_back() {
-    let names: Vec<String> = wgsl_files()
-        .iter()
-        .map(|p| p.file_stem().unwrap().to_string_lossy().into_owned())
-        .collect();
-    for n in &names {
-        assert!(
-            stages::ALL.iter().any(|s| s.name == n),
-            "wgsl/{n}.wgsl is not registered in stages::ALL"
-        );
+fn every_shared_piece_is_embedded_and_included() {
+    let files = wgsl_files();
+    let shared: Vec<&String> = files.iter().filter(|f| is_shared(f)).collect();
+    let mut problems = Vec::new();
+    for f in &shared {
+        match SHARED.iter().find(|(p, _)| p == f) {
+            None => problems.push(format!("wgsl/{f} is not in coif::gpu::wgsl::SHARED")),
+            Some((_, text)) if *text != read(f) => {
+                problems.push(format!("wgsl/{f}: SHARED embeds a stale copy"))
+            }
+            Some(_) => {}
+        }
+        let included = files
+            .iter()
+            .any(|g| read(g).lines().any(|l| include_path(l) == Some(f.as_str())));
+        if !included {
+            problems.push(format!(
+                "wgsl/{f} is included by no shader, so nothing validates it"
+            ));
+        }
     }
-    for s in stages::ALL {
-        assert!(
-            names.iter().any(|n| n == s.name),
-            "stage {} has no wgsl/{}.wgsl",
-            s.name,
-            s.name
-        );
-        let on_disk = std::fs::read_to_string(
-            Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("wgsl/{}.wgsl", s.name)),
-        )
-        .unwrap();
-        assert_eq!(
-            on_disk, s.wgsl,
-            "stage {} embeds a stale copy of its shader",
-            s.name
-        );
+    for (p, _) in SHARED {
+        if !shared.iter().any(|f| f == p) {
+            problems.push(format!("SHARED lists {p}, which is not a file under wgsl/"));
+        }
+    }
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+}
+
+#[test]
+fn every_wgsl_file_is_registered_exactly_once_and_back() {
+    let files = wgsl_files();
+    let reg = registered();
+    let mut problems = Vec::new();
+    for f in files.iter().filter(|f| !is_shared(f)) {
+        let n = reg.iter().filter(|(p, ..)| p == f).count();
+        if n != 1 {
+            problems.push(format!(
+                "wgsl/{f} is used by {n} registry entries (stages::ALL, stages::RENDER), not 1"
+            ));
+        }
+    }
+    for (path, name, wgsl) in &reg {
+        if !files.contains(path) {
+            problems.push(format!("stage {name} has no wgsl/{path}"));
+        } else if read(path) != *wgsl {
+            problems.push(format!("stage {name} embeds a stale copy of wgsl/{path}"));
+        }
+    }
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+}
+
+#[test]
+fn every_render_stage_has_its_entry_points() {
+    for s in stages::RENDER {
+        let m = parse(s.name, s.wgsl).unwrap();
+        for (vs, fs) in s.entry_points {
+            for (ep, stage) in [
+                (vs, naga::ShaderStage::Vertex),
+                (fs, naga::ShaderStage::Fragment),
+            ] {
+                assert!(
+                    m.entry_points
+                        .iter()
+                        .any(|e| e.name == *ep && e.stage == stage),
+                    "render stage {} has no {stage:?} entry point {ep}",
+                    s.name
+                );
+            }
+        }
     }
 }
 

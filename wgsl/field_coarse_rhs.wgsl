@@ -1,18 +1,7 @@
 // Right-hand side of the coarsest level's direct solve. Eliminating u = σ L v - f1 from the
 // mixed form leaves (σ² L² + P) v = f2 + σ L f1, whose inverse the host precomputed.
 // One invocation per in-H cell of the compact list; output g is 3 floats per list entry.
-struct Config {
-    nx: u32,
-    ny: u32,
-    nz: u32,
-    colour: u32,
-    sigma: f32,
-    mode: u32,
-    cnx: u32,
-    cny: u32,
-    cnz: u32,
-    count: u32,
-}
+#include "shared/field_cfg.wgsl"
 
 @group(0) @binding(0) var<uniform> cfg: Config;
 @group(0) @binding(1) var<storage, read> cells: array<u32>;

@@ -1,18 +1,7 @@
 // Coarsest-level direct solve: v = A⁻¹ g with the dense inverse of A = σ² L² + P over the
 // level's compact cell list (a few hundred cells), written into the v part of uv. The u
 // rows follow by one field_smooth pass in mode 1 per colour.
-struct Config {
-    nx: u32,
-    ny: u32,
-    nz: u32,
-    colour: u32,
-    sigma: f32,
-    mode: u32,
-    cnx: u32,
-    cny: u32,
-    cnz: u32,
-    count: u32,
-}
+#include "shared/field_cfg.wgsl"
 
 @group(0) @binding(0) var<uniform> cfg: Config;
 @group(0) @binding(1) var<storage, read> cells: array<u32>;

@@ -3,18 +3,7 @@
 // the child's side 1/4 per axis. Coarse cells outside the coarse H drop out and the weights
 // are renormalised (the parent is always in H, so the sum is >= 27/64). Trilinear (order 2)
 // with a mean restriction (order 1) satisfies m_P + m_R > 2 for each Laplacian block.
-struct Config {
-    nx: u32,
-    ny: u32,
-    nz: u32,
-    colour: u32,
-    sigma: f32,
-    mode: u32,
-    cnx: u32,
-    cny: u32,
-    cnz: u32,
-    count: u32,
-}
+#include "shared/field_cfg.wgsl"
 
 @group(0) @binding(0) var<uniform> cfg: Config;
 @group(0) @binding(1) var<storage, read> cellw_f: array<f32>;

@@ -2,18 +2,7 @@
 // fine children, cell-centred) takes the mean of its in-H children's [r1, r2] as its
 // right-hand side, and its unknowns start the coarse correction at zero. The mean is
 // consistent with the rediscretised coarse operator (σ/4 per level, averaged penalty).
-struct Config {
-    nx: u32,
-    ny: u32,
-    nz: u32,
-    colour: u32,
-    sigma: f32,
-    mode: u32,
-    cnx: u32,
-    cny: u32,
-    cnz: u32,
-    count: u32,
-}
+#include "shared/field_cfg.wgsl"
 
 @group(0) @binding(0) var<uniform> cfg: Config;
 @group(0) @binding(1) var<storage, read> cellw_f: array<f32>;

@@ -7,18 +7,7 @@
 // smoother for the bi-Laplacian (plain point smoothing of L² smooths poorly).
 // mode 1 relaxes the u rows only (v held): used after the coarsest direct solve for v.
 // Threads cover half the x range: x = 2 gid.x + ((y + z + colour) & 1).
-struct Config {
-    nx: u32,
-    ny: u32,
-    nz: u32,
-    colour: u32,
-    sigma: f32,
-    mode: u32,
-    cnx: u32,
-    cny: u32,
-    cnz: u32,
-    count: u32,
-}
+#include "shared/field_cfg.wgsl"
 
 @group(0) @binding(0) var<uniform> cfg: Config;
 // -1 outside H, else the penalty weight p >= 0.
@@ -32,14 +21,7 @@ struct Config {
 // only through cells the fine level keeps apart stay apart.
 @group(0) @binding(4) var<storage, read> links: array<f32>;
 
-fn add_nb(j: u32, w: f32, su: ptr<function, vec3<f32>>, sv: ptr<function, vec3<f32>>, d: ptr<function, f32>) {
-    if w > 0.0 {
-        let b = 6u * j;
-        *su = *su + w * vec3<f32>(uv[b], uv[b + 1u], uv[b + 2u]);
-        *sv = *sv + w * vec3<f32>(uv[b + 3u], uv[b + 4u], uv[b + 5u]);
-        *d = *d + w;
-    }
-}
+#include "shared/field_uv_nb.wgsl"
 
 @compute @workgroup_size(4, 4, 4)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {

@@ -4,29 +4,7 @@
 // 2x2 block, Wexler et al. 2007), else, or when that lands on no valid source, uniformly
 // random draws from the integer hash (the same numbers on the CPU mirror), then a fixed
 // fallback source. Non-targets get NONE.
-struct Config {
-    width: u32,
-    height: u32,
-    radius: u32,
-    seed: u32,
-    pass_id: u32,
-    step: u32,
-    search_radius: u32,
-    fallback: u32,
-    coarse_width: u32,
-    coarse_height: u32,
-    vote_k: f32,
-    layer: u32,
-}
-
-// Per-pixel flags (pm_common.rs): to fill, has a nearest neighbour, may be a source.
-const HOLE: u32 = 1u;
-const TARGET: u32 = 2u;
-const SOURCE: u32 = 4u;
-const NONE: u32 = 0xffffffffu;
-// Matching word of a pixel whose colour is not known yet; flags >> LAYER_SHIFT = peel layer.
-const UNKNOWN: u32 = 0x80000000u;
-const LAYER_SHIFT: u32 = 8u;
+#include "shared/pm_common.wgsl"
 
 @group(0) @binding(0) var<uniform> cfg: Config;
 @group(0) @binding(1) var<storage, read> flags: array<u32>;
@@ -34,20 +12,7 @@ const LAYER_SHIFT: u32 = 8u;
 @group(0) @binding(2) var<storage, read> coarse_nnf: array<u32>;
 @group(0) @binding(3) var<storage, read_write> nnf: array<u32>;
 
-// Chris Wellons' lowbias32; rand() keys it by seed, pass, pixel and draw (pm_common.rs).
-fn hash(x0: u32) -> u32 {
-    var x = x0;
-    x ^= x >> 16u;
-    x *= 0x7feb352du;
-    x ^= x >> 15u;
-    x *= 0x846ca68bu;
-    x ^= x >> 16u;
-    return x;
-}
-
-fn rand(pixel: u32, k: u32) -> u32 {
-    return hash(cfg.seed ^ hash(cfg.pass_id ^ hash(pixel ^ hash(k))));
-}
+#include "shared/pm_rand.wgsl"
 
 fn valid_source(x: i32, y: i32) -> bool {
     let r = i32(cfg.radius);

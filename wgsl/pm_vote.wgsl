@@ -8,29 +8,7 @@
 // Onion peel (coarsest level, layer > 0): only the hole pixels of that layer are written, and
 // a patch's distance counts its known pixels only (outside the hole or in earlier layers),
 // its weight scaled by their share; patches with none do not vote.
-struct Config {
-    width: u32,
-    height: u32,
-    radius: u32,
-    seed: u32,
-    pass_id: u32,
-    step: u32,
-    search_radius: u32,
-    fallback: u32,
-    coarse_width: u32,
-    coarse_height: u32,
-    vote_k: f32,
-    layer: u32,
-}
-
-// Per-pixel flags (pm_common.rs): to fill, has a nearest neighbour, may be a source.
-const HOLE: u32 = 1u;
-const TARGET: u32 = 2u;
-const SOURCE: u32 = 4u;
-const NONE: u32 = 0xffffffffu;
-// Matching word of a pixel whose colour is not known yet; flags >> LAYER_SHIFT = peel layer.
-const UNKNOWN: u32 = 0x80000000u;
-const LAYER_SHIFT: u32 = 8u;
+#include "shared/pm_common.wgsl"
 
 @group(0) @binding(0) var<uniform> cfg: Config;
 @group(0) @binding(1) var<storage, read> flags: array<u32>;

@@ -39,9 +39,23 @@ pub type CpuStage = fn(workgroups: [u32; 3], bindings: &[CpuBinding]);
 pub struct StageDef {
     /// Label, also the WGSL file stem: `wgsl/<name>.wgsl`.
     pub name: &'static str,
+    /// The file as written: its `#include` lines are expanded by [`crate::gpu::wgsl::compose`]
+    /// when the module is created.
     pub wgsl: &'static str,
     pub bindings: &'static [Bind],
     pub cpu: CpuStage,
+}
+
+/// One render pass: a WGSL file with vertex and fragment entry points. Draws are not
+/// recorded like dispatches; the host that builds the pipelines is `crate::render::raster`
+/// and the CPU mirror, which reads like the shader, is `crate::stages::<name>`.
+pub struct RenderStageDef {
+    /// Label, also the WGSL file stem: `wgsl/render/<name>.wgsl`.
+    pub name: &'static str,
+    /// The file as written (see [`StageDef::wgsl`]).
+    pub wgsl: &'static str,
+    /// (vertex, fragment) entry points, one pair per pipeline the host builds from it.
+    pub entry_points: &'static [(&'static str, &'static str)],
 }
 
 /// A buffer as a CPU mirror sees it; backed by `u32` words so every 4-byte type casts.
@@ -303,67 +317,70 @@ impl Engine {
         g: &GpuContext,
         stage: &'static StageDef,
         constants: &[(&'static str, f64)],
-    ) -> wgpu::ComputePipeline {
-        let key = (
+    ) -> Result<wgpu::ComputePipeline> {
+        let key: PipelineKey = (
             stage.name,
             constants.iter().map(|(k, v)| (*k, v.to_bits())).collect(),
         );
         let mut cache = self.pipelines.lock().unwrap();
-        cache
-            .entry(key)
-            .or_insert_with(|| {
-                let module = g.device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        if let Some(p) = cache.get(&key) {
+            return Ok(p.clone());
+        }
+        let source = crate::gpu::wgsl::compose(stage.name, stage.wgsl)?;
+        let pipeline = {
+            let module = g.device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(stage.name),
+                source: wgpu::ShaderSource::Wgsl(source.into()),
+            });
+            let entries: Vec<wgpu::BindGroupLayoutEntry> = stage
+                .bindings
+                .iter()
+                .enumerate()
+                .map(|(i, b)| wgpu::BindGroupLayoutEntry {
+                    binding: i as u32,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: match b {
+                            Bind::Uniform => wgpu::BufferBindingType::Uniform,
+                            Bind::Read => wgpu::BufferBindingType::Storage { read_only: true },
+                            Bind::ReadWrite => {
+                                wgpu::BufferBindingType::Storage { read_only: false }
+                            }
+                        },
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                })
+                .collect();
+            let bgl = g
+                .device
+                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                     label: Some(stage.name),
-                    source: wgpu::ShaderSource::Wgsl(stage.wgsl.into()),
+                    entries: &entries,
                 });
-                let entries: Vec<wgpu::BindGroupLayoutEntry> = stage
-                    .bindings
-                    .iter()
-                    .enumerate()
-                    .map(|(i, b)| wgpu::BindGroupLayoutEntry {
-                        binding: i as u32,
-                        visibility: wgpu::ShaderStages::COMPUTE,
-                        ty: wgpu::BindingType::Buffer {
-                            ty: match b {
-                                Bind::Uniform => wgpu::BufferBindingType::Uniform,
-                                Bind::Read => wgpu::BufferBindingType::Storage { read_only: true },
-                                Bind::ReadWrite => {
-                                    wgpu::BufferBindingType::Storage { read_only: false }
-                                }
-                            },
-                            has_dynamic_offset: false,
-                            min_binding_size: None,
-                        },
-                        count: None,
-                    })
-                    .collect();
-                let bgl = g
-                    .device
-                    .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                        label: Some(stage.name),
-                        entries: &entries,
-                    });
-                let layout = g
-                    .device
-                    .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                        label: Some(stage.name),
-                        bind_group_layouts: &[Some(&bgl)],
-                        immediate_size: 0,
-                    });
-                g.device
-                    .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                        label: Some(stage.name),
-                        layout: Some(&layout),
-                        module: &module,
-                        entry_point: Some("main"),
-                        compilation_options: wgpu::PipelineCompilationOptions {
-                            constants,
-                            zero_initialize_workgroup_memory: true,
-                        },
-                        cache: None,
-                    })
-            })
-            .clone()
+            let layout = g
+                .device
+                .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                    label: Some(stage.name),
+                    bind_group_layouts: &[Some(&bgl)],
+                    immediate_size: 0,
+                });
+            g.device
+                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some(stage.name),
+                    layout: Some(&layout),
+                    module: &module,
+                    entry_point: Some("main"),
+                    compilation_options: wgpu::PipelineCompilationOptions {
+                        constants,
+                        zero_initialize_workgroup_memory: true,
+                    },
+                    cache: None,
+                })
+        };
+        cache.insert(key, pipeline.clone());
+        Ok(pipeline)
     }
 
     fn run_gpu(&self, g: &GpuContext, rec: Recording) -> Result<Downloads> {
@@ -411,7 +428,7 @@ impl Engine {
                     workgroups,
                     bindings,
                 } => {
-                    let pipeline = self.pipeline(g, stage, &constants);
+                    let pipeline = self.pipeline(g, stage, &constants)?;
                     let entries: Vec<wgpu::BindGroupEntry> = bindings
                         .iter()
                         .enumerate()

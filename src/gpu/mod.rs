@@ -3,5 +3,6 @@
 
 pub mod context;
 pub mod engine;
+pub mod wgsl;
 
 pub use context::{describe, hardware_gpu_present, list_adapters, GpuContext};

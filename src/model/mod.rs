@@ -13,6 +13,7 @@ mod write;
 pub use write::{preview, run, write};
 
 use crate::analyze::{analyze, Analysis, AnalyzeParams};
+use crate::base::colour::sample_rgb;
 use crate::base::grid::Grid;
 use crate::error::{Error, Result};
 use crate::gpu::engine::Engine;
@@ -440,28 +441,6 @@ fn to_model_space(
     set.colors = Some(colors);
     set.transparency = Some(transparency);
     (set, image_view)
-}
-
-/// Bilinear sample of the photo at pixel coordinates (pixel centres at +0.5), linear 0..1.
-pub(crate) fn sample_rgb(img: &image::RgbImage, x: f32, y: f32) -> [f32; 3] {
-    let (w, h) = img.dimensions();
-    let fx = (x - 0.5).clamp(0.0, (w - 1) as f32);
-    let fy = (y - 0.5).clamp(0.0, (h - 1) as f32);
-    let (x0, y0) = (fx.floor() as u32, fy.floor() as u32);
-    let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
-    let (ax, ay) = (fx - x0 as f32, fy - y0 as f32);
-    // Linear light, as `StrandSet::colors` holds (and bilinear mixing is meant in).
-    let px = |x, y| {
-        img.get_pixel(x, y)
-            .0
-            .map(crate::render::raster::srgb_to_linear)
-    };
-    let (a, b, c, d) = (px(x0, y0), px(x1, y0), px(x0, y1), px(x1, y1));
-    std::array::from_fn(|k| {
-        let top = a[k] + ax * (b[k] - a[k]);
-        let bot = c[k] + ax * (d[k] - c[k]);
-        top + ay * (bot - top)
-    })
 }
 
 /// Figures of [`Model`] against the photo's analysis (issue 4 acceptance): roots on the

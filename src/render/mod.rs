@@ -21,6 +21,7 @@ pub mod inpaint;
 pub mod raster;
 pub mod shade;
 
+use crate::base::colour;
 use crate::error::{Error, Result};
 use crate::hair::head::texture::{head_texture_with, HeadTextureParams};
 use crate::hair::head::WeakPerspective;
@@ -291,7 +292,7 @@ pub struct Rendered {
 
 fn linear_photo(img: &image::RgbImage) -> Vec<[f32; 3]> {
     img.pixels()
-        .map(|p| p.0.map(raster::srgb_to_linear))
+        .map(|p| p.0.map(colour::srgb_to_linear))
         .collect()
 }
 
@@ -380,8 +381,8 @@ pub fn render(engine: &Engine, m: &Scene, p: &RenderParams) -> Result<Rendered> 
             .map(|(c, b)| {
                 let b = [b[0], b[1], b[2]];
                 let b = match ph.hsv {
-                    Some([hue, sat, val]) => shade::hsv_adjust(b, hue, sat, val),
-                    None => b.map(shade::unit_or_zero),
+                    Some([hue, sat, val]) => colour::hsv_adjust(b, hue, sat, val),
+                    None => b.map(colour::unit_or_zero),
                 };
                 [c[0] - b[0], c[1] - b[1], c[2] - b[2], c[3]]
             })
@@ -411,7 +412,7 @@ pub fn render(engine: &Engine, m: &Scene, p: &RenderParams) -> Result<Rendered> 
     } else {
         let bg = p
             .background
-            .map(|c| vec![c.map(|v| raster::srgb_to_linear((v * 255.0).round() as u8)); 1]);
+            .map(|c| vec![c.map(|v| colour::srgb_to_linear((v * 255.0).round() as u8)); 1]);
         let bg = bg.map(|c| {
             let c = c[0];
             vec![[c[0], c[1], c[2], 1.0]; (w * h) as usize]
@@ -496,7 +497,7 @@ fn resample_colours(m: &Scene, spacing: f32) -> Option<StrandSet> {
     let (w, h) = photo.dimensions();
     let sample = |q: Vec3| -> ([f32; 3], f32) {
         let s = cam.project(q);
-        let rgb = crate::model::sample_rgb(photo, s.x, s.y);
+        let rgb = colour::sample_rgb(photo, s.x, s.y);
         let on = s.x >= 0.0
             && s.y >= 0.0
             && s.x < w as f32
@@ -714,7 +715,7 @@ pub fn psnr_region(a: &image::RgbImage, b: &image::RgbImage, region: &[bool]) ->
 
 /// The frame as 8-bit sRGB RGB (alpha dropped: the frame is opaque).
 pub fn to_rgb8(r: &Rendered) -> image::RgbImage {
-    let bytes = raster::to_rgba8(&r.pixels);
+    let bytes = colour::to_rgba8(&r.pixels);
     let rgb: Vec<u8> = bytes.chunks(4).flat_map(|c| [c[0], c[1], c[2]]).collect();
     image::RgbImage::from_raw(r.width, r.height, rgb).expect("frame size")
 }
@@ -726,7 +727,7 @@ pub fn write(path: &Path, r: &Rendered, p: &RenderParams, sixteen: bool) -> Resu
     let mut bytes = Vec::new();
     let enc = image::codecs::png::PngEncoder::new(&mut bytes);
     let res = if sixteen {
-        let px = raster::to_rgba16(&r.pixels);
+        let px = colour::to_rgba16(&r.pixels);
         let (data, ct): (Vec<u16>, _) = if r.has_alpha {
             (px, image::ExtendedColorType::Rgba16)
         } else {
@@ -739,7 +740,7 @@ pub fn write(path: &Path, r: &Rendered, p: &RenderParams, sixteen: bool) -> Resu
         let be: Vec<u8> = data.iter().flat_map(|v| v.to_be_bytes()).collect();
         enc.write_image(&be, r.width, r.height, ct)
     } else {
-        let px = raster::to_rgba8(&r.pixels);
+        let px = colour::to_rgba8(&r.pixels);
         if r.has_alpha {
             enc.write_image(&px, r.width, r.height, image::ExtendedColorType::Rgba8)
         } else {

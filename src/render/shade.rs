@@ -38,7 +38,8 @@ use crate::hair::strands::StrandSet;
 use crate::stages::strand_shade::{self, Config, HAS_NEXT, HAS_PREV};
 use glam::Vec3;
 
-pub use crate::stages::strand_shade::{kajiya_kay, marschner_lobes, unit_or_zero, Lobes};
+pub use crate::stages::strand_shade::{kajiya_kay, marschner_lobes, Lobes};
+// Kept here for `crate::render`, which calls them as `shade::…`; they live in `base::colour`.
 
 /// The highlight model.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
@@ -209,13 +210,6 @@ pub fn view_dir(cam: &WeakPerspective) -> Vec3 {
 /// A view-space direction (x right, y up, z toward the camera) in model space: rᵀ·d.
 pub fn view_to_model(cam: &WeakPerspective, d: Vec3) -> Vec3 {
     cam.r.transpose() * d
-}
-
-/// [`hsv_adjust_linear`](strand_shade::hsv_adjust_linear) on a linear colour: NaN channels
-/// become 0 and values are clamped to [0, 1] first, the hue shift is taken mod 360.
-pub fn hsv_adjust(rgb: [f32; 3], hue_deg_shift: f32, sat_scale: f32, val_scale: f32) -> [f32; 3] {
-    let c = Vec3::from(rgb.map(strand_shade::unit_or_zero));
-    strand_shade::hsv_adjust_linear(c, hue_deg_shift.rem_euclid(360.0), sat_scale, val_scale).into()
 }
 
 /// Base colours for a strand set: its colours (or `default_rgb`) and alpha = 1 − transparency.

@@ -1,4 +1,5 @@
-//! The uniform shared by every `field_*` stage, and the neighbour walk the CPU mirrors use.
+//! The uniform shared by every `field_*` stage (WGSL: `wgsl/shared/field_cfg.wgsl`), and the
+//! neighbour walk the CPU mirrors use.
 //!
 //! Data layout (one multigrid level of `nx·ny·nz` cells, index `x + nx·(y + ny·z)`):
 //! * `cellw`: one f32 per cell, `-1` outside the (level's) hair volume H, else the penalty

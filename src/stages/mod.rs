@@ -1,5 +1,8 @@
-//! Every compute stage: its WGSL file, its bindings, its uniform struct and its CPU mirror.
-//! Each file here pairs with `wgsl/<name>.wgsl`; the mirror reads like the shader.
+//! Every GPU pass: its WGSL file, its bindings, its uniform struct and its CPU mirror. Each
+//! compute stage pairs with `wgsl/<name>.wgsl` ([`ALL`]), each render stage with
+//! `wgsl/render/<name>.wgsl` ([`RENDER`]); the mirror reads like the shader. Pieces several
+//! shaders share live in `wgsl/shared/` (see [`crate::gpu::wgsl`]) and, on the CPU side, in
+//! the modules without a stage (`field_cfg`, `pm_common`, `raster_common`, `base::colour`).
 
 pub mod density_splat;
 pub mod depth_raster;
@@ -13,17 +16,20 @@ pub mod field_restrict;
 pub mod field_smooth;
 pub mod gabor;
 pub mod grow_rk2;
+pub mod mesh_raster;
 pub mod orient_resolve;
 pub mod pm_common;
 pub mod pm_cost;
 pub mod pm_init;
 pub mod pm_search;
 pub mod pm_vote;
+pub mod raster_common;
 pub mod sep_blur;
 pub mod sim_step;
+pub mod strand_raster;
 pub mod strand_shade;
 
-use crate::gpu::engine::StageDef;
+use crate::gpu::engine::{RenderStageDef, StageDef};
 
 /// Every registered stage, for shader validation and layout tests.
 pub const ALL: &[&StageDef] = &[
@@ -47,3 +53,6 @@ pub const ALL: &[&StageDef] = &[
     &pm_vote::STAGE,
     &sim_step::STAGE,
 ];
+
+/// Every registered render pass; the host is `crate::render::raster`.
+pub const RENDER: &[&RenderStageDef] = &[&strand_raster::STAGE, &mesh_raster::STAGE];

@@ -1,7 +1,8 @@
 //! What the four PatchMatch stages (`pm_init`, `pm_cost`, `pm_search`, `pm_vote`) share:
 //! the uniform, the per-pixel flags, the packed matching image, the integer hash RNG and the
-//! patch distance. Every WGSL file repeats the same definitions (a stage is one
-//! self-contained file); this is their CPU side, written to give bit-identical answers.
+//! patch distance. The WGSL side is in `wgsl/shared/` (`pm_common.wgsl`, `pm_rand.wgsl`,
+//! `pm_ssd.wgsl`, included by the stages); this is their CPU side, written to give
+//! bit-identical answers.
 //!
 //! Matching runs on integers so that the GPU and the CPU agree exactly: each pixel is packed
 //! into one u32 as three 10-bit channels of sqrt(linear) (a cheap perceptual encoding, so

@@ -1,12 +1,16 @@
 //! Per-vertex strand shading (C13 §4: highlights after Marschner et al. 2003, HSV recolour):
 //! one invocation per vertex computes the strand tangent by central differences, recolours
 //! the base colour in HSV and adds the highlight of every light. The CPU mirror below reads
-//! like `wgsl/strand_shade.wgsl`, function for function; `crate::render::shade` is the host.
+//! like `wgsl/strand_shade.wgsl`, function for function (its sRGB and HSV functions, which
+//! the shader includes from `wgsl/shared/colour.wgsl`, are in [`crate::base::colour::shader`]);
+//! `crate::render::shade` is the host.
 //!
 //! Only `+ - * /`, `sqrt`, `exp`, `exp2`/`log2` (through [`pow_pos`]) and `floor` are used:
 //! Mesa lowers `asin`/`acos` to short polynomials (errors near 1e-4), so both sides use the
 //! same Abramowitz-Stegun arcsine ([`asin_as`]) and trigonometric identities instead.
 
+use crate::base::colour::shader::hsv_adjust_linear;
+use crate::base::colour::unit_or_zero;
 use crate::gpu::engine::{Bind, CpuBinding, StageDef};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -113,15 +117,6 @@ fn strand_shade_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
 /// True for NaN or ±∞ (by bits, as the shader does, so no fast-math folding can hide it).
 pub fn not_finite(x: f32) -> bool {
     x.to_bits() & 0x7f80_0000 == 0x7f80_0000
-}
-
-/// NaN → 0, then clamped to [0, 1].
-pub fn unit_or_zero(x: f32) -> f32 {
-    if x.is_nan() {
-        0.0
-    } else {
-        x.clamp(0.0, 1.0)
-    }
 }
 
 /// One vertex: `prev`/`next` are its neighbours in the strand (itself at an end).
@@ -315,91 +310,4 @@ pub fn kajiya_kay(t: Vec3, l: Vec3, v: Vec3, c: Vec3, alpha: f32, beta: f32) -> 
     let p1 = 1.0 / (beta * beta);
     let p2 = 0.25 * p1;
     Vec3::splat(KK_SPEC1 * pow_pos(c1, p1)) + c * (KK_SPEC2 * pow_pos(c2, p2))
-}
-
-/// The exact sRGB encoding (IEC 61966-2-1) of a linear value in [0, 1].
-pub fn linear_to_srgb(x: f32) -> f32 {
-    if x <= 0.003_130_8 {
-        12.92 * x
-    } else {
-        1.055 * x.powf(0.416_666_66) - 0.055
-    }
-}
-
-/// The exact sRGB decoding of an encoded value in [0, 1].
-pub fn srgb_to_linear(x: f32) -> f32 {
-    if x <= 0.040_45 {
-        x / 12.92
-    } else {
-        ((x + 0.055) / 1.055).powf(2.4)
-    }
-}
-
-/// sRGB-encoded RGB in [0, 1] → [sextant base ∈ {0, 2, 4}, offset ∈ [−1, 1], saturation,
-/// value]; the hue is 60° · (base + offset). Base and offset stay apart so that a round trip
-/// keeps the offset's low bits (adding 2 or 4 first would cost up to 2.4e-7 of hue).
-pub fn rgb_to_hsv_split(c: Vec3) -> [f32; 4] {
-    let mx = c.x.max(c.y).max(c.z);
-    let mn = c.x.min(c.y).min(c.z);
-    let ch = mx - mn;
-    let s = if mx > 0.0 { ch / mx } else { 0.0 };
-    let (base, off) = if ch <= 0.0 {
-        (0.0, 0.0)
-    } else if mx == c.x {
-        (0.0, (c.y - c.z) / ch)
-    } else if mx == c.y {
-        (2.0, (c.z - c.x) / ch)
-    } else {
-        (4.0, (c.x - c.y) / ch)
-    };
-    [base, off, s, mx]
-}
-
-/// The textbook sector formula for hue 60° · (base + off), base integer-valued, off any real.
-pub fn hsv_split_to_rgb(base: f32, off: f32, s: f32, v: f32) -> Vec3 {
-    let fl = off.floor();
-    let f = off - fl;
-    let k = base + fl;
-    let sector = k - 6.0 * (k / 6.0).floor();
-    let p = v - v * s;
-    let q = v - v * s * f;
-    let t = v - v * s * (1.0 - f);
-    if sector < 0.5 {
-        Vec3::new(v, t, p)
-    } else if sector < 1.5 {
-        Vec3::new(q, v, p)
-    } else if sector < 2.5 {
-        Vec3::new(p, v, t)
-    } else if sector < 3.5 {
-        Vec3::new(p, q, v)
-    } else if sector < 4.5 {
-        Vec3::new(t, p, v)
-    } else {
-        Vec3::new(v, p, q)
-    }
-}
-
-/// HSV adjustment of a linear colour in [0, 1], done on the displayed (sRGB-encoded) colour:
-/// hue + `hue_deg`, saturation and value scaled and clamped to [0, 1].
-pub fn hsv_adjust_linear(rgb: Vec3, hue_deg: f32, sat: f32, val: f32) -> Vec3 {
-    let c = Vec3::new(
-        linear_to_srgb(rgb.x),
-        linear_to_srgb(rgb.y),
-        linear_to_srgb(rgb.z),
-    );
-    let hsv = rgb_to_hsv_split(c);
-    // The shift in sextants, split so that whole sextants move the base exactly.
-    let x = hue_deg / 60.0;
-    let xi = x.floor();
-    let o = hsv_split_to_rgb(
-        hsv[0] + xi,
-        hsv[1] + (x - xi),
-        (hsv[2] * sat).clamp(0.0, 1.0),
-        (hsv[3] * val).clamp(0.0, 1.0),
-    );
-    Vec3::new(
-        srgb_to_linear(o.x),
-        srgb_to_linear(o.y),
-        srgb_to_linear(o.z),
-    )
 }

@@ -4,7 +4,7 @@
 // Mesh: host-prepared triangles (`TriRec`, non-indexed, vertex pulling), depth test Less +
 // write, back faces culled (front = counter-clockwise in NDC, i.e. counter-clockwise as the
 // image is viewed). Texture: bilinear with clamp-to-edge done by hand with textureLoad, so
-// the weights are full f32 and the CPU mirror (`raster.rs`, `sample_bilinear`) reproduces
+// the weights are full f32 and the CPU mirror (`src/stages/mesh_raster.rs`, `sample_bilinear`) reproduces
 // them; hardware filtering may use as few as 8 fractional bits. Texel (i, j) has its centre
 // at uv ((i + 0.5) / W, (j + 0.5) / H), row 0 at v = 0. The mesh is opaque: texel alpha is
 // ignored.
@@ -12,21 +12,7 @@
 // Background: one full-screen triangle copies the pixel's (premultiplied) background colour
 // into every sample, without touching depth.
 
-struct Config {
-    width: u32,
-    height: u32,
-    samples: u32,
-    half_width: f32,
-    ndc_scale_x: f32,
-    ndc_scale_y: f32,
-    // Strand photo colour settings (unused here; the uniform is shared).
-    photo: u32,
-    photo_half_width: f32,
-    hue_deg: f32,
-    saturation: f32,
-    value: f32,
-    _pad: u32,
-}
+#include "shared/raster_common.wgsl"
 
 // Corner k is (x, y, depth in [0, 1], u) in screen px; `v` holds the three v coordinates.
 struct Tri {

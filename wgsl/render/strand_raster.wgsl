@@ -7,9 +7,9 @@
 //
 // Alpha-to-coverage is done HERE, not by the pipeline: hardware A2C maps alpha to a sample
 // mask in an implementation-defined way (dithered or not, per driver), which would make
-// golden images depend on the GPU. Rule (mirrored in `raster.rs`): k = floor(alpha·N + 0.5)
-// samples are kept, taken in the order r, r+1, ... (mod N) with the per-pixel, per-strand
-// rotation r = (x + 2·y + strand) mod N. Colour is per pixel (evaluated at the pixel centre),
+// golden images depend on the GPU. Rule (mirrored in `strand_raster.rs`): k =
+// floor(alpha·N + 0.5) samples are kept, taken in the order r, r+1, ... (mod N) with the
+// per-pixel, per-strand rotation r = (x + 2·y + strand) mod N. Colour is per pixel (evaluated at the pixel centre),
 // coverage and depth per sample.
 //
 // Photo colour (cfg.photo != 0): the corners also get photo points built like the screen
@@ -18,24 +18,10 @@
 // when cfg.photo == 2, and adds the vertex colour (an offset). At the photo's own view the
 // point is the pixel centre, so covered hair shows the photo itself.
 //
-// Mirrored by `raster.rs` (`cpu_quad`): keep the arithmetic below in step with it.
+// Mirrored by `src/stages/strand_raster.rs` (`strand_quad`): keep the arithmetic below in
+// step with it.
 
-struct Config {
-    width: u32,
-    height: u32,
-    samples: u32,
-    half_width: f32,
-    // 2 / width and 2 / height: screen px -> NDC.
-    ndc_scale_x: f32,
-    ndc_scale_y: f32,
-    // 0: vertex colours; 1: photo colour; 2: photo colour, HSV-adjusted.
-    photo: u32,
-    photo_half_width: f32,
-    hue_deg: f32,
-    saturation: f32,
-    value: f32,
-    _pad: u32,
-}
+#include "shared/raster_common.wgsl"
 
 // Host-prepared segment (`SegRec`): screen px, depth already mapped to [0, 1] (0 = near).
 struct Seg {
@@ -111,7 +97,7 @@ fn texel(i: i32, j: i32, dims: vec2<i32>) -> vec4<f32> {
     return textureLoad(photo, vec2<i32>(clamp(i, 0, dims.x - 1), clamp(j, 0, dims.y - 1)), 0);
 }
 
-// Bilinear at photo px `o` (texel centres at +0.5), as `raster.rs` `bilinear_at`.
+// Bilinear at photo px `o` (texel centres at +0.5), as `raster_common.rs` `bilinear_at`.
 fn photo_at(o: vec2<f32>) -> vec3<f32> {
     let dims = vec2<i32>(textureDimensions(photo));
     let s = o.x - 0.5;
@@ -127,80 +113,8 @@ fn photo_at(o: vec2<f32>) -> vec3<f32> {
     return mix(top, bottom, ay).rgb;
 }
 
-// The HSV adjustment of `strand_shade.wgsl` (kept in step with it and `shade::hsv_adjust`).
-fn linear_to_srgb(x: f32) -> f32 {
-    if x <= 0.0031308 {
-        return 12.92 * x;
-    }
-    return 1.055 * pow(x, 0.41666666) - 0.055;
-}
-
-fn srgb_to_linear(x: f32) -> f32 {
-    if x <= 0.04045 {
-        return x / 12.92;
-    }
-    return pow((x + 0.055) / 1.055, 2.4);
-}
-
-fn rgb_to_hsv_split(c: vec3<f32>) -> vec4<f32> {
-    let mx = max(max(c.x, c.y), c.z);
-    let mn = min(min(c.x, c.y), c.z);
-    let ch = mx - mn;
-    var s = 0.0;
-    if mx > 0.0 {
-        s = ch / mx;
-    }
-    var base = 0.0;
-    var off = 0.0;
-    if ch <= 0.0 {
-        base = 0.0;
-    } else if mx == c.x {
-        off = (c.y - c.z) / ch;
-    } else if mx == c.y {
-        base = 2.0;
-        off = (c.z - c.x) / ch;
-    } else {
-        base = 4.0;
-        off = (c.x - c.y) / ch;
-    }
-    return vec4<f32>(base, off, s, mx);
-}
-
-fn hsv_split_to_rgb(base: f32, off: f32, s: f32, v: f32) -> vec3<f32> {
-    let fl = floor(off);
-    let f = off - fl;
-    let k = base + fl;
-    let sector = k - 6.0 * floor(k / 6.0);
-    let p = v - v * s;
-    let q = v - v * s * f;
-    let t = v - v * s * (1.0 - f);
-    if sector < 0.5 {
-        return vec3<f32>(v, t, p);
-    } else if sector < 1.5 {
-        return vec3<f32>(q, v, p);
-    } else if sector < 2.5 {
-        return vec3<f32>(p, v, t);
-    } else if sector < 3.5 {
-        return vec3<f32>(p, q, v);
-    } else if sector < 4.5 {
-        return vec3<f32>(t, p, v);
-    }
-    return vec3<f32>(v, p, q);
-}
-
-fn hsv_adjust_linear(rgb: vec3<f32>, hue_deg: f32, sat: f32, val: f32) -> vec3<f32> {
-    let c = vec3<f32>(linear_to_srgb(rgb.x), linear_to_srgb(rgb.y), linear_to_srgb(rgb.z));
-    let hsv = rgb_to_hsv_split(c);
-    let x = hue_deg / 60.0;
-    let xi = floor(x);
-    let o = hsv_split_to_rgb(
-        hsv.x + xi,
-        hsv.y + (x - xi),
-        clamp(hsv.z * sat, 0.0, 1.0),
-        clamp(hsv.w * val, 0.0, 1.0),
-    );
-    return vec3<f32>(srgb_to_linear(o.x), srgb_to_linear(o.y), srgb_to_linear(o.z));
-}
+// The HSV adjustment shared with `strand_shade.wgsl` (and `colour::hsv_adjust`).
+#include "shared/colour.wgsl"
 
 @fragment
 fn fs_main(in: VsOut) -> FsOut {

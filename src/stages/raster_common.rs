@@ -1,0 +1,284 @@
+//! What the two render passes (`strand_raster`, `mesh_raster`) share on the CPU side: their
+//! uniform (`wgsl/shared/raster_common.wgsl`) and the fixed-point rasteriser the mirrors use
+//! to reproduce a Vulkan rasteriser's coverage (viewport mapping, 1/256 px snapping, edge
+//! functions with the top-left rule, per-sample depth planes and tests), tile by tile.
+//! The rules themselves are listed in [`crate::render::raster`].
+
+// Edges x samples loops index several arrays in lockstep over const-generic sizes; plain
+// index loops read (and unroll) best there.
+#![allow(clippy::needless_range_loop)]
+
+use crate::render::raster::Texture;
+
+/// The uniform of both shaders (WGSL `Config`, `wgsl/shared/raster_common.wgsl`).
+#[derive(Clone, Copy, Debug, PartialEq, encase::ShaderType)]
+pub struct Config {
+    pub width: u32,
+    pub height: u32,
+    pub samples: u32,
+    pub half_width: f32,
+    pub ndc_scale_x: f32,
+    pub ndc_scale_y: f32,
+    /// 0: vertex colours; 1: photo colour; 2: photo colour with the HSV adjustment.
+    pub photo: u32,
+    pub photo_half_width: f32,
+    pub hue_deg: f32,
+    pub saturation: f32,
+    pub value: f32,
+    pub _pad: u32,
+}
+
+/// Vulkan's standard 4x sample positions within a pixel (x right, y down).
+pub const SAMPLE_POSITIONS_4: [[f32; 2]; 4] = [
+    [0.375, 0.125],
+    [0.875, 0.375],
+    [0.125, 0.625],
+    [0.625, 0.875],
+];
+
+/// Sub-pixel grid vertices snap to (8 bits, as lavapipe).
+pub const SUBPIXEL: f32 = 256.0;
+
+/// Screen px -> framebuffer px through NDC and the viewport transform, with the f32
+/// operations the vertex shader and the (y-flipped) Vulkan viewport perform.
+pub struct Fb {
+    pub sx: f32,
+    pub sy: f32,
+    pub hw: f32,
+    pub hh: f32,
+}
+
+impl Fb {
+    pub fn new(c: &Config) -> Fb {
+        Fb {
+            sx: c.ndc_scale_x,
+            sy: c.ndc_scale_y,
+            hw: c.width as f32 * 0.5,
+            hh: c.height as f32 * 0.5,
+        }
+    }
+
+    #[inline]
+    pub fn map(&self, p: [f32; 2]) -> [f32; 2] {
+        let nx = p[0] * self.sx - 1.0;
+        let ny = 1.0 - p[1] * self.sy;
+        [nx * self.hw + self.hw, ny * -self.hh + self.hh]
+    }
+}
+
+/// Round to the 1/256 px grid, ties to even (as lavapipe), without a libm call: adding
+/// 1.5·2^52 leaves no fraction bits, so the FPU's own round-to-nearest-even does it.
+#[inline]
+pub fn snap(v: f32) -> i64 {
+    const MAGIC: f64 = 6_755_399_441_055_744.0;
+    ((v * SUBPIXEL) as f64 + MAGIC - MAGIC) as i64
+}
+
+/// Sample positions of an N-sample pixel, in 1/256 px and in px.
+pub fn sample_offsets<const N: usize>() -> ([[i64; 2]; N], [[f64; 2]; N]) {
+    let pos: [[f32; 2]; N] = std::array::from_fn(|s| {
+        if N == 4 {
+            SAMPLE_POSITIONS_4[s]
+        } else {
+            [0.5, 0.5]
+        }
+    });
+    (
+        pos.map(|p| p.map(|v| (v * SUBPIXEL) as i64)),
+        pos.map(|p| p.map(|v| v as f64)),
+    )
+}
+
+pub type Offsets<const N: usize> = ([[i64; 2]; N], [[f64; 2]; N]);
+
+/// A convex polygon of E edges set up for fixed-point coverage: a triangle, or a strand
+/// quad when the two triangles' union provably equals it (see `strand_quad`).
+pub struct Poly<const E: usize, const N: usize> {
+    /// Edge k: inside when a·X + b·Y + c >= 0 (X, Y in 1/256 px); the top-left rule is
+    /// folded into c.
+    pub a: [i64; E],
+    pub b: [i64; E],
+    pub c: [i64; E],
+    /// Per edge, per sample: a·ox + b·oy.
+    pub so: [[i64; N]; E],
+    /// Inclusive pixel bounding box.
+    pub bbox: [i32; 4],
+}
+
+impl<const E: usize, const N: usize> Poly<E, N> {
+    /// `v` in order around a convex polygon, either way round. None when the area is 0
+    /// and, with `cull_back`, for back faces (positive area in y-down fb coordinates =
+    /// clockwise in NDC).
+    pub fn new(v: [[i64; 2]; E], cull_back: bool, offs: &[[i64; 2]; N]) -> Option<Self> {
+        let area: i64 = (0..E)
+            .map(|k| {
+                let (p, q) = (v[k], v[(k + 1) % E]);
+                p[0] * q[1] - q[0] * p[1]
+            })
+            .sum();
+        if area == 0 || (cull_back && area > 0) {
+            return None;
+        }
+        let (mut a, mut b, mut c) = ([0i64; E], [0i64; E], [0i64; E]);
+        let mut so = [[0i64; N]; E];
+        for k in 0..E {
+            // Walk the edges with the interior on the positive side.
+            let (p, q) = if area > 0 {
+                (v[k], v[(k + 1) % E])
+            } else {
+                (v[(k + 1) % E], v[k])
+            };
+            let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
+            a[k] = -dy;
+            b[k] = dx;
+            // Top edge (horizontal, interior below) or left edge (interior to the right)
+            // include their samples; other edges exclude them.
+            let top_left = dy < 0 || (dy == 0 && dx > 0);
+            c[k] = -(a[k] * p[0] + b[k] * p[1]) - if top_left { 0 } else { 1 };
+            for (s, o) in offs.iter().enumerate() {
+                so[k][s] = a[k] * o[0] + b[k] * o[1];
+            }
+        }
+        let mut bbox = [i32::MAX, i32::MAX, i32::MIN, i32::MIN];
+        for p in &v {
+            let (x, y) = (p[0].div_euclid(256) as i32, p[1].div_euclid(256) as i32);
+            bbox = [
+                bbox[0].min(x),
+                bbox[1].min(y),
+                bbox[2].max(x),
+                bbox[3].max(y),
+            ];
+        }
+        Some(Poly { a, b, c, so, bbox })
+    }
+
+    /// Edge values at the corner of pixel (px, py); add [`Poly::step`] per pixel right.
+    #[inline]
+    pub fn edges(&self, px: i32, py: i32) -> [i64; E] {
+        let (x, y) = (px as i64 * 256, py as i64 * 256);
+        std::array::from_fn(|k| self.a[k] * x + self.b[k] * y + self.c[k])
+    }
+
+    #[inline]
+    pub fn step(&self) -> [i64; E] {
+        self.a.map(|a| a * 256)
+    }
+
+    /// Bit s set when sample s of the pixel whose corner has edge values `e` is covered.
+    /// Branch-free: coverage is data-dependent and mispredictions dominated.
+    #[inline]
+    pub fn mask(&self, e: &[i64; E]) -> u32 {
+        let mut m = 0;
+        for s in 0..N {
+            let mut inside = true;
+            for k in 0..E {
+                inside &= e[k] + self.so[k][s] >= 0;
+            }
+            m |= (inside as u32) << s;
+        }
+        m
+    }
+
+    /// The same set-up in i32, valid while every edge value visited fits (see
+    /// `strand_quad`): then 4 samples go through one SIMD compare.
+    pub fn narrow(&self) -> ([[i32; N]; E], [i32; E]) {
+        (
+            self.so.map(|r| r.map(|v| v as i32)),
+            self.step().map(|v| v as i32),
+        )
+    }
+}
+
+/// [`Poly::mask`] on i32 edge values.
+#[inline]
+pub fn mask32<const E: usize, const N: usize>(e: &[i32; E], so: &[[i32; N]; E]) -> u32 {
+    let mut m = 0;
+    for s in 0..N {
+        let mut inside = true;
+        for k in 0..E {
+            inside &= e[k].wrapping_add(so[k][s]) >= 0;
+        }
+        m |= (inside as u32) << s;
+    }
+    m
+}
+
+/// v = c + gx·x + gy·y (fb px).
+#[derive(Clone, Copy)]
+pub struct Plane {
+    pub c: f64,
+    pub gx: f64,
+    pub gy: f64,
+}
+
+impl Plane {
+    /// The plane at the N sample positions of pixel (px, py), given the per-sample
+    /// offsets `gx·ox + gy·oy`.
+    #[inline]
+    pub fn samples<const N: usize>(&self, px: i32, py: i32, off: &[f64; N]) -> [f32; N] {
+        let zc = self.c + self.gx * px as f64 + self.gy * py as f64;
+        std::array::from_fn(|i| (zc + off[i]) as f32)
+    }
+
+    pub fn offsets<const N: usize>(&self, offs: &[[f64; 2]; N]) -> [f64; N] {
+        std::array::from_fn(|i| self.gx * offs[i][0] + self.gy * offs[i][1])
+    }
+}
+
+/// The same fetch at texel coordinates (s, r) = px - 0.5.
+pub fn bilinear_at(t: &Texture, s: f32, r: f32) -> [f32; 4] {
+    let (w, h) = (t.width as i32, t.height as i32);
+    let (fs, fr) = (s.floor(), r.floor());
+    let (ax, ay) = (s - fs, r - fr);
+    let (i, j) = (fs as i32, fr as i32);
+    let tex = |i: i32, j: i32| {
+        let (i, j) = (i.clamp(0, w - 1), j.clamp(0, h - 1));
+        t.texels[(j * w + i) as usize]
+    };
+    let mix = |a: [f32; 4], b: [f32; 4], t: f32| -> [f32; 4] {
+        std::array::from_fn(|k| a[k] * (1.0 - t) + b[k] * t)
+    };
+    let (i1, j1) = (i.saturating_add(1), j.saturating_add(1));
+    let top = mix(tex(i, j), tex(i1, j), ax);
+    let bottom = mix(tex(i, j1), tex(i1, j1), ax);
+    mix(top, bottom, ay)
+}
+
+/// One tile's samples: colour (premultiplied, pixel-major) and depth.
+pub struct TileBuf<const N: usize> {
+    pub x0: i32,
+    pub y0: i32,
+    pub w: i32,
+    pub h: i32,
+    pub color: Vec<[[f32; 4]; N]>,
+    pub depth: Vec<[f32; N]>,
+}
+
+impl<const N: usize> TileBuf<N> {
+    /// Depth-tests and writes the samples in `mask` of tile pixel (lx, ly): `Less`
+    /// against the buffer, and outside [0, 1] nothing (the GPU clips the primitive).
+    /// Branch-free selects, for the same reason as `Tri::mask`.
+    #[inline]
+    pub fn write(&mut self, lx: i32, ly: i32, mask: u32, c: [f32; 4], z: [f32; N]) {
+        let i = (ly * self.w + lx) as usize;
+        let (depth, color) = (&mut self.depth[i], &mut self.color[i]);
+        for s in 0..N {
+            let zs = z[s];
+            let pass = ((mask >> s) & 1 == 1) & (0.0..=1.0).contains(&zs) & (zs < depth[s]);
+            depth[s] = if pass { zs } else { depth[s] };
+            let m = 0u32.wrapping_sub(pass as u32);
+            for k in 0..4 {
+                color[s][k] = f32::from_bits((c[k].to_bits() & m) | (color[s][k].to_bits() & !m));
+            }
+        }
+    }
+
+    /// Pixel range of `bbox` inside the tile, as local coordinates.
+    pub fn clip(&self, bbox: [i32; 4]) -> Option<(i32, i32, i32, i32)> {
+        let x0 = (bbox[0] - self.x0).max(0);
+        let y0 = (bbox[1] - self.y0).max(0);
+        let x1 = (bbox[2] - self.x0).min(self.w - 1);
+        let y1 = (bbox[3] - self.y0).min(self.h - 1);
+        (x0 <= x1 && y0 <= y1).then_some((x0, y0, x1, y1))
+    }
+}

@@ -1,0 +1,328 @@
+//! Strand quads (`wgsl/render/strand_raster.wgsl`): the CPU mirror of `vs_main` (corner
+//! construction, depth plane, photo points) and `fs_main` (colour at the pixel centre, photo
+//! colour and HSV adjustment, explicit alpha-to-coverage) for one segment in one tile.
+
+#![allow(clippy::needless_range_loop)]
+
+use crate::gpu::engine::RenderStageDef;
+use crate::render::raster::Texture;
+use crate::stages::raster_common::{
+    bilinear_at, mask32, snap, Config, Fb, Offsets, Plane, Poly, TileBuf, SUBPIXEL,
+};
+
+/// Entry points (vertex, fragment) of the strand pipeline.
+pub const STRANDS: (&str, &str) = ("vs_main", "fs_main");
+
+pub const STAGE: RenderStageDef = RenderStageDef {
+    name: "strand_raster",
+    wgsl: include_str!("../../wgsl/render/strand_raster.wgsl"),
+    entry_points: &[STRANDS],
+};
+
+/// One strand segment as both paths see it (the WGSL `Seg`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct SegRec {
+    pub p0: [f32; 2],
+    pub p1: [f32; 2],
+    /// Depth-buffer values in [0, 1] (0 = near); may lie outside, then clipped.
+    pub z0: f32,
+    pub z1: f32,
+    pub strand: u32,
+    pub _pad: u32,
+    pub c0: [f32; 4],
+    pub c1: [f32; 4],
+    /// Photo points of the two ends (o0.xy, o1.xy); zero without a photo.
+    pub o: [f32; 4],
+}
+
+/// Conservative pixel bounding box of a strand quad (for binning only): its corners lie
+/// within half·√2 of the end points, plus rounding and snapping.
+pub fn seg_bounds(s: &SegRec, half: f32) -> [f32; 4] {
+    let m = half * 1.415 + 0.01;
+    [
+        s.p0[0].min(s.p1[0]) - m,
+        s.p0[1].min(s.p1[1]) - m,
+        s.p0[0].max(s.p1[0]) + m,
+        s.p0[1].max(s.p1[1]) + m,
+    ]
+}
+
+/// Draws segment `s` into the tile: the corners `vs_main` builds, snapped as the rasteriser
+/// does, the quad's coverage, and every covered pixel shaded as `fs_main` ([`Shade`] below).
+pub fn strand_quad<const N: usize>(
+    buf: &mut TileBuf<N>,
+    s: &SegRec,
+    cfg: &Config,
+    photo: Option<&Texture>,
+    fb: &Fb,
+    offs: &Offsets<N>,
+) {
+    // The vertex shader's corner construction, operation for operation.
+    let h = cfg.half_width;
+    let d = [s.p1[0] - s.p0[0], s.p1[1] - s.p0[1]];
+    let len = (d[0] * d[0] + d[1] * d[1]).sqrt();
+    let u = [d[0] / len, d[1] / len];
+    let e = [u[0] * h, u[1] * h];
+    let nn = [-u[1] * h, u[0] * h];
+    let start = [s.p0[0] - e[0], s.p0[1] - e[1]];
+    let end = [s.p1[0] + e[0], s.p1[1] + e[1]];
+    let plus = |p: [f32; 2]| [p[0] + nn[0], p[1] + nn[1]];
+    let minus = |p: [f32; 2]| [p[0] - nn[0], p[1] - nn[1]];
+    // A, B, C, D = start+, start-, end+, end-; the GPU draws triangles ABC and CBD.
+    let fx = [plus(start), minus(start), plus(end), minus(end)].map(|p| fb.map(p).map(snap));
+    let [qa, qb, qc, qd] = fx;
+    let bbox = fx
+        .iter()
+        .fold([i32::MAX, i32::MAX, i32::MIN, i32::MIN], |m, p| {
+            let (x, y) = (p[0].div_euclid(256) as i32, p[1].div_euclid(256) as i32);
+            [m[0].min(x), m[1].min(y), m[2].max(x), m[3].max(y)]
+        });
+    let Some((lx_min, ly0, lx_max, ly1)) = buf.clip(bbox) else {
+        return;
+    };
+    // Depth: one plane over the quad, z0 along the start cap's edge to z1 along the end
+    // cap's edge (what the GPU interpolates from the corners), in screen px.
+    let (gz, zl) = ((s.z1 - s.z0) as f64, (len + 2.0 * h) as f64);
+    let (ux, uy) = (u[0] as f64 * gz / zl, u[1] as f64 * gz / zl);
+    let zp = Plane {
+        c: s.z0 as f64 - ux * start[0] as f64 - uy * start[1] as f64,
+        gx: ux,
+        gy: uy,
+    };
+    let z_off = zp.offsets(&offs.1);
+    // Row spans from the two long sides A->C and B->D: when both run the same way in y,
+    // every point of the quad lies between them, so a row's columns are bounded by the
+    // sides' x at the row's top and bottom. Otherwise (sides near horizontal, where
+    // snapping may tilt them apart) the bounding box is used.
+    let to_px = |q: [i64; 2]| q.map(|v| v as f64 / SUBPIXEL as f64);
+    let (a, b, c, dd) = (to_px(qa), to_px(qb), to_px(qc), to_px(qd));
+    let (dy_ac, dy_bd) = (qc[1] - qa[1], qd[1] - qb[1]);
+    let by_sides = (dy_ac > 0 && dy_bd > 0) || (dy_ac < 0 && dy_bd < 0);
+    let (sl_ac, sl_bd) = (
+        (c[0] - a[0]) / (c[1] - a[1]),
+        (dd[0] - b[0]) / (dd[1] - b[1]),
+    );
+    let span = |py: i32| -> Option<(i32, i32)> {
+        if !by_sides {
+            return Some((bbox[0], bbox[2]));
+        }
+        let (y0, y1) = (py as f64, py as f64 + 1.0);
+        let xs = [
+            a[0] + sl_ac * (y0 - a[1]),
+            a[0] + sl_ac * (y1 - a[1]),
+            b[0] + sl_bd * (y0 - b[1]),
+            b[0] + sl_bd * (y1 - b[1]),
+        ];
+        let lo = xs
+            .iter()
+            .fold(f64::INFINITY, |m, &v| if v < m { v } else { m });
+        let hi = xs
+            .iter()
+            .fold(f64::NEG_INFINITY, |m, &v| if v > m { v } else { m });
+        Some((
+            floor_i32(lo.max(bbox[0] as f64) - 1e-6),
+            floor_i32(hi.min(bbox[2] as f64 + 1.0) + 1e-6),
+        ))
+    };
+    let shade = Shade {
+        p0: s.p0,
+        d,
+        inv_len2: 1.0 / (len * len),
+        c0: s.c0,
+        c1: s.c1,
+        strand: s.strand,
+        zp,
+        z_off,
+        photo: photo.map(|tex| {
+            let o0 = [s.o[0], s.o[1]];
+            let od = [s.o[2] - s.o[0], s.o[3] - s.o[1]];
+            let ol = (od[0] * od[0] + od[1] * od[1]).sqrt();
+            let hp = cfg.photo_half_width;
+            let on = if ol > 1e-6 {
+                [-od[1] / ol * hp, od[0] / ol * hp]
+            } else {
+                [0.0; 2]
+            };
+            PhotoShade {
+                tex,
+                o0,
+                od,
+                on,
+                nl: [nn[0] / (h * h), nn[1] / (h * h)],
+                hsv: (cfg.photo == 2).then_some([cfg.hue_deg, cfg.saturation, cfg.value]),
+            }
+        }),
+    };
+    let (rows, cols) = ((ly0, ly1), (lx_min, lx_max));
+    // The quad A C D B as one convex polygon covers exactly the samples of ABC ∪ CBD:
+    // the top-left rule equals nudging a sample by (ε, ε²) and testing strictly, and the
+    // nudged sample never lies on the diagonal, so it is in the quad iff it is in one of
+    // the triangles. That needs a convex quad; snapping can break it for very thin quads,
+    // and then the two triangles are used.
+    let convex = {
+        let ring = [qa, qc, qd, qb];
+        let turns: [i64; 4] = std::array::from_fn(|k| {
+            let (p, q, r) = (ring[k], ring[(k + 1) % 4], ring[(k + 2) % 4]);
+            (q[0] - p[0]) * (r[1] - q[1]) - (q[1] - p[1]) * (r[0] - q[0])
+        });
+        turns.iter().all(|&t| t > 0) || turns.iter().all(|&t| t < 0)
+    };
+    if convex {
+        if let Some(quad) = Poly::<4, N>::new([qa, qc, qd, qb], false, &offs.0) {
+            scan(buf, &[quad], bbox, rows, cols, &span, &shade);
+        }
+    } else {
+        let tris: Vec<Poly<3, N>> = [[qa, qb, qc], [qc, qb, qd]]
+            .into_iter()
+            .filter_map(|t| Poly::new(t, false, &offs.0))
+            .collect();
+        scan(buf, &tris, bbox, rows, cols, &span, &shade);
+    }
+}
+
+// fs_main
+/// What a covered strand pixel needs once its raster coverage is known.
+struct Shade<'a, const N: usize> {
+    p0: [f32; 2],
+    d: [f32; 2],
+    inv_len2: f32,
+    c0: [f32; 4],
+    c1: [f32; 4],
+    strand: u32,
+    zp: Plane,
+    z_off: [f64; N],
+    /// Photo colour: the photo, o0, o1 - o0, n_o, the screen normal n / h² (so that
+    /// (c - p0)·it is the signed width fraction), the mode and the HSV settings.
+    photo: Option<PhotoShade<'a>>,
+}
+
+struct PhotoShade<'a> {
+    tex: &'a Texture,
+    o0: [f32; 2],
+    od: [f32; 2],
+    on: [f32; 2],
+    nl: [f32; 2],
+    hsv: Option<[f32; 3]>,
+}
+
+impl<const N: usize> Shade<'_, N> {
+    #[inline(always)]
+    fn pixel(&self, buf: &mut TileBuf<N>, lx: i32, ly: i32, cov: u32) {
+        let n = N as u32;
+        let (px, py) = (buf.x0 + lx, buf.y0 + ly);
+        // Colour at the pixel centre: position along the segment, clamped.
+        let (cx, cy) = (px as f32 + 0.5, py as f32 + 0.5);
+        let (rx, ry) = (cx - self.p0[0], cy - self.p0[1]);
+        let t_raw = (rx * self.d[0] + ry * self.d[1]) * self.inv_len2;
+        let t = t_raw.clamp(0.0, 1.0);
+        let mut col: [f32; 4] = std::array::from_fn(|k| self.c0[k] * (1.0 - t) + self.c1[k] * t);
+        if let Some(ph) = &self.photo {
+            let l = rx * ph.nl[0] + ry * ph.nl[1];
+            let o: [f32; 2] = std::array::from_fn(|k| ph.o0[k] + ph.od[k] * t_raw + ph.on[k] * l);
+            let p = bilinear_at(ph.tex, o[0] - 0.5, o[1] - 0.5);
+            let p = [p[0], p[1], p[2]].map(|v| v.clamp(0.0, 1.0));
+            let p = match ph.hsv {
+                Some([hue, sat, val]) => crate::base::colour::hsv_adjust(p, hue, sat, val),
+                None => p,
+            };
+            for k in 0..3 {
+                col[k] = (p[k] + col[k]).clamp(0.0, 1.0);
+            }
+        }
+        // Alpha-to-coverage (see the WGSL): keep floor(alpha·N + 0.5) samples.
+        let k = (col[3].clamp(0.0, 1.0) * n as f32 + 0.5) as u32;
+        let r = (px as u32)
+            .wrapping_add(2u32.wrapping_mul(py as u32))
+            .wrapping_add(self.strand)
+            & (n - 1);
+        let mask = cov & a2c_mask(n, r, k);
+        if mask != 0 {
+            let z = self.zp.samples(px, py, &self.z_off);
+            buf.write(lx, ly, mask, [col[0], col[1], col[2], 1.0], z);
+        }
+    }
+}
+
+/// Rasterises the pixels of `pieces` (convex polygons whose coverage masks are OR-ed)
+/// inside `bbox`, shading the covered tile pixels.
+#[allow(clippy::too_many_arguments)]
+fn scan<const E: usize, const N: usize>(
+    buf: &mut TileBuf<N>,
+    pieces: &[Poly<E, N>],
+    bbox: [i32; 4],
+    rows: (i32, i32),
+    cols: (i32, i32),
+    span: &impl Fn(i32) -> Option<(i32, i32)>,
+    shade: &Shade<N>,
+) {
+    // Polygons up to 64 px a side keep every edge value at their pixels within ±2^31
+    // (|a|, |b| <= 64·256 and offsets <= 66·256 from the edge), so the hot loop runs in
+    // i32, 4 samples per SIMD compare.
+    let narrow = bbox[2] - bbox[0] <= 64 && bbox[3] - bbox[1] <= 64;
+    let np = pieces.len().min(2);
+    let small: [([[i32; N]; E], [i32; E]); 2] =
+        [0, 1].map(|i| pieces.get(i).map_or(([[0; N]; E], [0; E]), |p| p.narrow()));
+    for ly in rows.0..=rows.1 {
+        let py = buf.y0 + ly;
+        let Some((sx0, sx1)) = span(py) else {
+            continue;
+        };
+        let lx0 = cols.0.max(sx0 - buf.x0);
+        let lx1 = cols.1.min(sx1 - buf.x0);
+        if lx0 > lx1 {
+            continue;
+        }
+        let px0 = buf.x0 + lx0;
+        if narrow {
+            let mut e: [[i32; E]; 2] = [0, 1].map(|i| {
+                pieces
+                    .get(i)
+                    .map_or([0; E], |p| p.edges(px0, py).map(|v| v as i32))
+            });
+            for lx in lx0..=lx1 {
+                let mut cov = 0;
+                for (i, (so, st)) in small[..np].iter().enumerate() {
+                    cov |= mask32(&e[i], so);
+                    for k in 0..E {
+                        e[i][k] = e[i][k].wrapping_add(st[k]);
+                    }
+                }
+                if cov != 0 {
+                    shade.pixel(buf, lx, ly, cov);
+                }
+            }
+        } else {
+            let mut e: [[i64; E]; 2] =
+                [0, 1].map(|i| pieces.get(i).map_or([0; E], |p| p.edges(px0, py)));
+            for lx in lx0..=lx1 {
+                let mut cov = 0;
+                for (i, p) in pieces.iter().enumerate() {
+                    cov |= p.mask(&e[i]);
+                    let st = p.step();
+                    for k in 0..E {
+                        e[i][k] += st[k];
+                    }
+                }
+                if cov != 0 {
+                    shade.pixel(buf, lx, ly, cov);
+                }
+            }
+        }
+    }
+}
+
+/// The alpha-to-coverage mask: k <= n samples starting at r, in order (mod n), for
+/// n = 1 or 4 (powers of two).
+#[inline]
+fn a2c_mask(n: u32, r: u32, k: u32) -> u32 {
+    let run = (1u32 << k) - 1;
+    ((run << r) | (run >> (n - r))) & ((1u32 << n) - 1)
+}
+
+/// floor(v) as i32 without a libm call (x86-64's baseline has no rounding instruction).
+#[inline]
+fn floor_i32(v: f64) -> i32 {
+    let i = v as i32;
+    i - ((i as f64) > v) as i32
+}
