@@ -133,18 +133,48 @@ fn a_head_turn_carries_the_roots() {
     assert!(deepest >= -5e-4, "{deepest}");
 }
 
+fn lavapipe() -> Engine {
+    Engine::new(coif::gpu::engine::BackendChoice::Gpu).expect("a Vulkan adapter (lavapipe)")
+}
+
+/// sim_step on lavapipe against its CPU mirror: after one step and after 100 steps of wind
+/// with a head turn.
 #[test]
-#[ignore]
-fn debug_wind() {
-    let (s, head) = strands(50);
+fn sim_step_parity() {
+    let (s, head) = strands(256);
     let p = SimParams {
-        wind: 2.0,
+        wind: 1.5,
+        track: HeadTrack {
+            yaw: coif::sim::track::parse_keys("0:0,10:10").unwrap(),
+            ..Default::default()
+        },
         ..Default::default()
     };
-    let e = Engine::cpu();
-    let mut sim = Sim::new(&s, &head, &p).unwrap();
-    for k in 0..100 {
-        let _ = sim.advance(&e, 1);
-        println!("{k}: strain {:.4} {:?}", sim.max_strain(), sim.figures());
-    }
+    let (cpu, gpu) = (Engine::cpu(), lavapipe());
+    let mut a = Sim::new(&s, &head, &p).unwrap();
+    let mut b = Sim::new(&s, &head, &p).unwrap();
+    a.advance(&cpu, 1).unwrap();
+    b.advance(&gpu, 1).unwrap();
+    let one = max_displacement(&a.x, &b.x);
+    println!("sim_step parity after 1 step: largest difference {one:.2e} m");
+    assert!(one <= 1e-5, "{one} m");
+    a.advance(&cpu, 99).unwrap();
+    b.advance(&gpu, 99).unwrap();
+    let mut d: Vec<f64> =
+        a.x.chunks(3)
+            .zip(b.x.chunks(3))
+            .map(|(p, q)| max_displacement(p, q))
+            .collect();
+    d.sort_by(f64::total_cmp);
+    let q999 = d[((d.len() - 1) as f64 * 0.999) as usize];
+    let moved = max_displacement(&s_first(&a), &a.x);
+    println!(
+        "after 100 steps: 99.9th percentile difference {q999:.2e} m, largest {:.2e} m (hair moved up to {moved:.3} m)",
+        d[d.len() - 1]
+    );
+    assert!(q999 <= 1e-3, "{q999} m");
+}
+
+fn s_first(sim: &Sim) -> Vec<f32> {
+    sim.rest.points.iter().flatten().copied().collect()
 }

@@ -21,6 +21,7 @@ struct Config {
     noise_speed: f32,
     gravity: f32,
     margin: f32,
+    strain_limit: f32,
 }
 
 @group(0) @binding(0) var<uniform> cfg: Config;
@@ -41,6 +42,7 @@ struct Config {
 #include "shared/head_sdf.wgsl"
 
 const BAND: u32 = 11u;
+const PROJECTIONS: u32 = 3u;
 const B1: u32 = 12u;
 // 3 * (MAX_VERTS - 1) with MAX_VERTS = 64.
 const MAX_UNKNOWNS: u32 = 189u;
@@ -89,6 +91,52 @@ fn wind(p: vec3<f32>, t: f32) -> vec3<f32> {
 
 fn vert(a: ptr<function, array<f32, 192>>, i: u32) -> vec3<f32> {
     return vec3<f32>((*a)[3u * i], (*a)[3u * i + 1u], (*a)[3u * i + 2u]);
+}
+
+struct Moved {
+    x: vec3<f32>,
+    v: vec3<f32>,
+}
+
+// A vertex closer to the head than `margin` moves out along the distance gradient and loses
+// its velocity into the head, relative to the head's own motion there.
+fn collide(m0: Rigid, m1: Rigid, xi: vec3<f32>, vi: vec3<f32>, margin: f32) -> Moved {
+    let ph = apply_inv(m1, xi);
+    let dist = head_sdf(ph);
+    if dist >= margin {
+        return Moved(xi, vi);
+    }
+    let g = head_sdf_grad(ph);
+    let gl = sqrt(dot(g, g));
+    if gl <= 1e-12 {
+        return Moved(xi, vi);
+    }
+    let nh = g * (1.0 / gl);
+    let ph2 = ph + nh * (margin - dist);
+    let x2 = apply(m1, ph2);
+    let vsurf = (x2 - apply(m0, ph2)) * (1.0 / cfg.dt);
+    let nw = rot(m1, nh);
+    let vn = dot(vi - vsurf, nw);
+    if vn < 0.0 {
+        return Moved(x2, vi - nw * vn);
+    }
+    return Moved(x2, vi);
+}
+
+// Strain limiting: the vertex moves along its edge to within `lim` of the rest length.
+fn limit(lim: f32, l0: f32, parent: vec3<f32>, xi: vec3<f32>) -> vec3<f32> {
+    if lim <= 0.0 || l0 <= 0.0 {
+        return xi;
+    }
+    let e = xi - parent;
+    let len = sqrt(dot(e, e));
+    let hi = l0 * (1.0 + lim);
+    let lo = l0 * (1.0 - lim);
+    if len <= 1e-12 || (len <= hi && len >= lo) {
+        return xi;
+    }
+    let want = select(lo, hi, len > hi);
+    return parent + e * (want / len);
 }
 
 @compute @workgroup_size(64, 1, 1)
@@ -215,33 +263,36 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     vs[base] = v_root.x;
     vs[base + 1u] = v_root.y;
     vs[base + 2u] = v_root.z;
+    var parent = root_new;
+    var prev_v = vec3<f32>(0.0);
     for (var i = 1u; i < n; i++) {
         let r = 3u * (i - 1u);
         var vi = vec3<f32>(rhs[r], rhs[r + 1u], rhs[r + 2u]);
         var xi = vert(&x, i) + vi * dt;
-        let ph = apply_inv(m1, xi);
-        let dist = head_sdf(ph);
-        if dist < cfg.margin {
-            let g = head_sdf_grad(ph);
-            let gl = sqrt(dot(g, g));
-            if gl > 1e-12 {
-                let nh = g * (1.0 / gl);
-                let ph2 = ph + nh * (cfg.margin - dist);
-                xi = apply(m1, ph2);
-                let vsurf = (xi - apply(m0, ph2)) * (1.0 / dt);
-                let nw = rot(m1, nh);
-                let rel = vi - vsurf;
-                let vn = dot(rel, nw);
-                if vn < 0.0 {
-                    vi = vi - nw * vn;
-                }
-            }
+        var c = collide(m0, m1, xi, vi, cfg.margin);
+        let before = c.x;
+        xi = limit(cfg.strain_limit, rest[base + 3u * (i - 1u)], parent, c.x);
+        vi = c.v;
+        // Alternating projections: outside the head, within the limit of the parent.
+        for (var k = 0u; k < PROJECTIONS; k++) {
+            c = collide(m0, m1, xi, vi, 0.5 * cfg.margin);
+            xi = limit(cfg.strain_limit, rest[base + 3u * (i - 1u)], parent, c.x);
+            vi = c.v;
         }
+        let d = xi - before;
+        if i > 1u {
+            let pv = prev_v - d * (1.0 / dt);
+            vs[base + 3u * (i - 1u)] = pv.x;
+            vs[base + 3u * (i - 1u) + 1u] = pv.y;
+            vs[base + 3u * (i - 1u) + 2u] = pv.z;
+        }
+        prev_v = vi + d * (1.0 / dt);
         xs[base + 3u * i] = xi.x;
         xs[base + 3u * i + 1u] = xi.y;
         xs[base + 3u * i + 2u] = xi.z;
-        vs[base + 3u * i] = vi.x;
-        vs[base + 3u * i + 1u] = vi.y;
-        vs[base + 3u * i + 2u] = vi.z;
+        parent = xi;
     }
+    vs[base + 3u * (n - 1u)] = prev_v.x;
+    vs[base + 3u * (n - 1u) + 1u] = prev_v.y;
+    vs[base + 3u * (n - 1u) + 2u] = prev_v.z;
 }

@@ -54,6 +54,9 @@ const BAND: usize = 11;
 const B1: usize = BAND + 1;
 const MAX_UNKNOWNS: usize = 3 * (MAX_VERTS as usize - 1);
 
+/// Alternations of collision and strain limit after the first of each (see the step).
+const PROJECTIONS: u32 = 3;
+
 /// Floats per step in the `motion` buffer: the head rotation (row-major) and translation.
 pub const MOTION_STRIDE: usize = 12;
 
@@ -268,31 +271,37 @@ pub fn step_strand(
     }
     x[0..3].copy_from_slice(&root_new);
     v[0..3].copy_from_slice(&v_root);
+    let m = Rigid { r0, t0, r1, t1, dt };
     let mut parent = root_new;
-    let mut v_parent = v_root;
+    // The previous vertex's velocity waits for this vertex's limit correction (DFTL).
+    let mut prev_v = [0.0f32; 3];
     for i in 1..n {
         let r = 3 * (i - 1);
         let mut vi = [rhs[r], rhs[r + 1], rhs[r + 2]];
         let mut xi = add(get(x, i), scale(vi, dt));
-        // Collision first, then strain limiting root to tip, then collision again at the
-        // surface itself: the limit pulls a vertex towards its (final) parent, which can
-        // dip the edge into the head by a little, never by a whole margin.
-        let m = Rigid { r0, t0, r1, t1, dt };
+        // Collision, then strain limiting root to tip: the limit pulls a vertex towards its
+        // (final) parent, which can dip the edge into the margin or the head.
         (xi, vi) = collide(head, &m, xi, vi, cfg.margin);
-        (xi, vi) = limit(
-            cfg.strain_limit,
-            rest[3 * (i - 1)],
-            parent,
-            v_parent,
-            xi,
-            vi,
-        );
-        (xi, vi) = collide(head, &m, xi, vi, 0.0);
+        let before = xi;
+        xi = limit(cfg.strain_limit, rest[3 * (i - 1)], parent, xi);
+        // Where the edge wraps round the head (an ear, the nape) one push and one pull do
+        // not meet: alternating projections onto "outside the head" and "within the limit
+        // of the parent" converge to a point in both when there is one; the limit has the
+        // last word, so no edge ever stretches past it.
+        for _ in 0..PROJECTIONS {
+            (xi, vi) = collide(head, &m, xi, vi, 0.5 * cfg.margin);
+            xi = limit(cfg.strain_limit, rest[3 * (i - 1)], parent, xi);
+        }
+        let d = sub(xi, before);
+        if i > 1 {
+            let pv = sub(prev_v, scale(d, 1.0 / dt));
+            v[3 * (i - 1)..3 * i].copy_from_slice(&pv);
+        }
+        prev_v = add(vi, scale(d, 1.0 / dt));
         x[3 * i..3 * i + 3].copy_from_slice(&xi);
-        v[3 * i..3 * i + 3].copy_from_slice(&vi);
         parent = xi;
-        v_parent = vi;
     }
+    v[3 * (n - 1)..3 * n].copy_from_slice(&prev_v);
 }
 
 /// The head's transforms at the start and end of the step.
@@ -329,30 +338,21 @@ fn collide(head: &[f32], m: &Rigid, xi: V3, vi: V3, margin: f32) -> (V3, V3) {
 }
 
 /// Strain limiting (Provot 1995): with frozen directions an edge that turns through φ in one
-/// step grows by 1/cos φ; the vertex is pulled back along the edge to within `limit` of the
-/// rest length `l0` and loses the part of its relative velocity that stretches (or
-/// compresses) the edge further, so the limit never adds energy.
-fn limit(limit: f32, l0: f32, parent: V3, v_parent: V3, xi: V3, vi: V3) -> (V3, V3) {
+/// step grows by 1/cos φ; the vertex is moved along the edge to within `limit` of the rest
+/// length `l0` of its parent.
+fn limit(limit: f32, l0: f32, parent: V3, xi: V3) -> V3 {
     if limit <= 0.0 || l0 <= 0.0 {
-        return (xi, vi);
+        return xi;
     }
     let e = sub(xi, parent);
     let len = dot(e, e).sqrt();
     let hi = l0 * (1.0 + limit);
     let lo = l0 * (1.0 - limit);
     if len <= 1e-12 || (len <= hi && len >= lo) {
-        return (xi, vi);
+        return xi;
     }
-    let d = scale(e, 1.0 / len);
     let target = if len > hi { hi } else { lo };
-    let x2 = add(parent, scale(d, target));
-    let vr = dot(sub(vi, v_parent), d);
-    let v2 = if (len > hi && vr > 0.0) || (len < lo && vr < 0.0) {
-        sub(vi, scale(d, vr))
-    } else {
-        vi
-    };
-    (x2, v2)
+    add(parent, scale(e, target / len))
 }
 
 /// Bindings: cfg, perm (512 u32), head (packed f32), motion (12 f32 per step frame), roots
