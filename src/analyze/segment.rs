@@ -958,47 +958,22 @@ impl GridFlow {
 /// 8-connected (as in the graph), non-hair 4-connected, so the two never cross.
 fn clean(label: &mut [bool], seed: &[u8], w: usize, h: usize, min_island: u32, max_hole: u32) {
     for (target, eight) in [(false, false), (true, true)] {
-        let mut seen = vec![false; label.len()];
-        let mut comp = Vec::new();
-        let mut stack = Vec::new();
-        for start in 0..label.len() {
-            if seen[start] || label[start] != target {
-                continue;
-            }
-            comp.clear();
-            seen[start] = true;
-            stack.push(start);
-            let (mut border, mut keep_seed) = (false, false);
-            while let Some(i) = stack.pop() {
-                comp.push(i);
-                let (x, y) = (i % w, i / w);
-                border |= x == 0 || y == 0 || x + 1 == w || y + 1 == h;
-                keep_seed |= seed[i] == if target { HAIR } else { BACK };
-                for &(dx, dy) in DIRS.iter() {
-                    if !eight && dx != 0 && dy != 0 {
-                        continue;
-                    }
-                    let (nx, ny) = (x as i64 + dx as i64, y as i64 + dy as i64);
-                    if nx < 0 || ny < 0 || nx as usize >= w || ny as usize >= h {
-                        continue;
-                    }
-                    let j = ny as usize * w + nx as usize;
-                    if !seen[j] && label[j] == target {
-                        seen[j] = true;
-                        stack.push(j);
-                    }
-                }
-            }
+        let mut flip = Vec::new();
+        crate::base::mask::for_each_component(label, w, h, target, eight, |comp, border| {
+            let keep_seed = comp
+                .iter()
+                .any(|&i| seed[i] == if target { HAIR } else { BACK });
             let drop = if target {
                 !keep_seed && (comp.len() as u64) < min_island as u64
             } else {
                 !keep_seed && !border && (comp.len() as u64) < max_hole as u64
             };
             if drop {
-                for &i in &comp {
-                    label[i] = !target;
-                }
+                flip.extend_from_slice(comp);
             }
+        });
+        for i in flip {
+            label[i] = !target;
         }
     }
 }

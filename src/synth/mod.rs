@@ -141,26 +141,11 @@ impl SynthCase {
 /// Pixels of `mask` (value > 127) whose distance to every non-mask pixel, and to the outside
 /// of the image, is at least `min_dist` pixel-centre spacings. Row-major, W*H.
 pub fn mask_interior(mask: &GrayImage, min_dist: f32) -> Vec<bool> {
-    let (w, h) = (mask.width() as i64, mask.height() as i64);
-    let r = min_dist.ceil().max(0.0) as i64;
+    let (w, h) = (mask.width() as usize, mask.height() as usize);
+    let hair: Vec<bool> = mask.as_raw().iter().map(|&v| v > 127).collect();
     // Offsets strictly closer than `min_dist`: any non-hair pixel there disqualifies.
-    let offs: Vec<(i64, i64)> = (-r..=r)
-        .flat_map(|dy| (-r..=r).map(move |dx| (dx, dy)))
-        .filter(|&(dx, dy)| ((dx * dx + dy * dy) as f32) < min_dist * min_dist)
-        .collect();
-    let m = mask.as_raw();
-    let hair = |x: i64, y: i64| x >= 0 && y >= 0 && x < w && y < h && m[(y * w + x) as usize] > 127;
-    let mut out = vec![false; (w * h) as usize];
-    out.par_chunks_mut(w.max(1) as usize)
-        .enumerate()
-        .for_each(|(y, row)| {
-            let y = y as i64;
-            for (x, o) in row.iter_mut().enumerate() {
-                let x = x as i64;
-                *o = hair(x, y) && offs.iter().all(|&(dx, dy)| hair(x + dx, y + dy));
-            }
-        });
-    out
+    let offs = crate::base::mask::disc(min_dist, true);
+    crate::base::mask::erode_by(&hair, w, h, &offs, false)
 }
 
 /// Smallest angle between two orientations (mod pi), in degrees.
@@ -1434,38 +1419,9 @@ mod tests {
     /// 4-connected components of the mask.
     fn components(c: &SynthCase) -> usize {
         let (w, h) = (c.width as usize, c.height as usize);
-        let m = c.mask.as_raw();
-        let mut seen = vec![false; w * h];
+        let hair: Vec<bool> = c.mask.as_raw().iter().map(|&v| v > 0).collect();
         let mut count = 0;
-        for start in 0..w * h {
-            if m[start] == 0 || seen[start] {
-                continue;
-            }
-            count += 1;
-            let mut stack = vec![start];
-            seen[start] = true;
-            while let Some(k) = stack.pop() {
-                let (x, y) = (k % w, k / w);
-                let mut push = |j: usize| {
-                    if m[j] > 0 && !seen[j] {
-                        seen[j] = true;
-                        stack.push(j);
-                    }
-                };
-                if x > 0 {
-                    push(k - 1);
-                }
-                if x + 1 < w {
-                    push(k + 1);
-                }
-                if y > 0 {
-                    push(k - w);
-                }
-                if y + 1 < h {
-                    push(k + w);
-                }
-            }
-        }
+        crate::base::mask::for_each_component(&hair, w, h, true, false, |_, _| count += 1);
         count
     }
 

@@ -30,7 +30,10 @@
 //! and the face centre (0.3 b below the model origin) placed like `crate::synth` places its
 //! face ellipse: about the image centre, a little below it.
 
+use crate::base::mask;
 use crate::base::rng::Rng;
+use crate::base::sdf::{sd_ellipsoid, smin};
+use crate::base::stats::{quantile, Rank};
 use crate::error::{Error, Result};
 use crate::hair::head::{Head, ScalpPoint, WeakPerspective};
 use crate::hair::strands::StrandSet;
@@ -320,29 +323,6 @@ impl Look {
 
 // ---------------------------------------------------------------------------------------------
 // The body: head ∪ shoulders.
-
-/// Ellipsoid distance estimate (as in `crate::hair::head`, private there): (k0 − 1)·k0/k1 outside,
-/// blended towards the smallest radius inside so the centre is continuous.
-fn sd_ellipsoid(p: DVec3, r: DVec3) -> f64 {
-    let k0 = (p / r).length();
-    let k1 = (p / (r * r)).length();
-    let rmin = r.min_element();
-    if k1 < 1e-300 {
-        return -rmin;
-    }
-    let inv_g = k0 / k1;
-    if k0 >= 1.0 {
-        (k0 - 1.0) * inv_g
-    } else {
-        let w = k0 * k0 * k0;
-        (k0 - 1.0) * (w * inv_g + (1.0 - w) * rmin)
-    }
-}
-
-fn smin(a: f64, b: f64, k: f64) -> f64 {
-    let h = (k - (a - b).abs()).max(0.0) / k;
-    a.min(b) - h * h * k * 0.25
-}
 
 /// What the hair rests on and what hides it: the head and the shoulders of the synth
 /// portraits (its torso ellipse, 3.25 b below the face centre with semi-axes 2.7 a and
@@ -1001,81 +981,21 @@ impl Footprint {
     }
 }
 
-/// Disc offsets of radius r.
-fn disc(r: f32) -> Vec<(i64, i64)> {
-    let ri = r.ceil() as i64;
-    (-ri..=ri)
-        .flat_map(|dy| (-ri..=ri).map(move |dx| (dx, dy)))
-        .filter(|&(dx, dy)| (dx * dx + dy * dy) as f32 <= r * r)
-        .collect()
-}
-
 /// Morphological closing (disc of radius r; outside the image counts as hair for the
 /// erosion, so hair reaching the border stays), then small holes (< 1% of the image) filled.
 /// Returns 255 / 0 bytes.
 fn close_mask(raw: &[bool], w: usize, h: usize, r: f32) -> Vec<u8> {
-    let offs = disc(r);
-    let at = |m: &[bool], x: i64, y: i64, outside: bool| {
-        if x < 0 || y < 0 || x >= w as i64 || y >= h as i64 {
-            outside
-        } else {
-            m[y as usize * w + x as usize]
-        }
-    };
-    let morph = |m: &[bool], dilate: bool| -> Vec<bool> {
-        let mut out = vec![false; w * h];
-        out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-            for (x, o) in row.iter_mut().enumerate() {
-                let (x, y) = (x as i64, y as i64);
-                *o = if dilate {
-                    offs.iter().any(|&(dx, dy)| at(m, x + dx, y + dy, false))
-                } else {
-                    offs.iter().all(|&(dx, dy)| at(m, x + dx, y + dy, true))
-                };
-            }
-        });
-        out
-    };
-    let mut m = morph(&morph(raw, true), false);
+    let offs = mask::disc(r, false);
+    let mut m = mask::erode_by(&mask::dilate_by(raw, w, h, &offs, false), w, h, &offs, true);
     // Holes: 4-connected non-hair components not touching the border.
-    let mut seen = vec![false; w * h];
-    for start in 0..w * h {
-        if m[start] || seen[start] {
-            continue;
-        }
-        let mut comp = vec![start];
-        seen[start] = true;
-        let mut border = false;
-        let mut i = 0;
-        while i < comp.len() {
-            let k = comp[i];
-            i += 1;
-            let (x, y) = (k % w, k / w);
-            border |= x == 0 || y == 0 || x + 1 == w || y + 1 == h;
-            let mut push = |j: usize| {
-                if !m[j] && !seen[j] {
-                    seen[j] = true;
-                    comp.push(j);
-                }
-            };
-            if x > 0 {
-                push(k - 1);
-            }
-            if x + 1 < w {
-                push(k + 1);
-            }
-            if y > 0 {
-                push(k - w);
-            }
-            if y + 1 < h {
-                push(k + w);
-            }
-        }
+    let mut fill = Vec::new();
+    mask::for_each_component(&m, w, h, false, false, |comp, border| {
         if !border && comp.len() * 100 < w * h {
-            for k in comp {
-                m[k] = true;
-            }
+            fill.extend_from_slice(comp);
         }
+    });
+    for k in fill {
+        m[k] = true;
     }
     m.iter().map(|&b| if b { 255 } else { 0 }).collect()
 }
@@ -1691,14 +1611,6 @@ fn tangents(s: &StrandSet) -> Vec<Vec3> {
     out
 }
 
-fn percentile(v: &mut [f32], q: f64) -> f32 {
-    if v.is_empty() {
-        return f32::NAN;
-    }
-    v.sort_by(f32::total_cmp);
-    v[((v.len() as f64 * q) as usize).min(v.len() - 1)]
-}
-
 /// Compares a reconstructed model (model space, metres) with the ground truth.
 pub fn compare_to_gt(model: &StrandSet, gt: &StrandSet, head: &Head) -> GtFigures {
     let gt_pts: Vec<Vec3> = gt.points.iter().map(|&p| Vec3::from_array(p)).collect();
@@ -1743,10 +1655,10 @@ pub fn compare_to_gt(model: &StrandSet, gt: &StrandSet, head: &Head) -> GtFigure
     GtFigures {
         model_vertices: m_pts.len(),
         gt_vertices: gt_pts.len(),
-        tangent_median_deg: percentile(&mut angs, 0.5),
+        tangent_median_deg: quantile(&mut angs, 0.5, Rank::Floor).unwrap_or(f32::NAN),
         tangent_within_30: within as f32 / n_ang,
-        dist_median_mm: percentile(&mut dists, 0.5),
-        dist_p90_mm: percentile(&mut dists, 0.9),
+        dist_median_mm: quantile(&mut dists, 0.5, Rank::Floor).unwrap_or(f32::NAN),
+        dist_p90_mm: quantile(&mut dists, 0.9, Rank::Floor).unwrap_or(f32::NAN),
         gt_covered_1cm: covered as f32 / gt_pts.len().max(1) as f32,
         model_inside_head: inside as f32 / n,
     }

@@ -31,13 +31,10 @@ use std::path::{Path, PathBuf};
 /// large square (many workgroups, exercises bounds checks at scale).
 pub const PARITY_SIZES: &[(u32, u32)] = &[(1, 1), (63, 65), (200, 120), (512, 512)];
 
-/// Bit pattern of [`SENTINEL_F32`]: a quiet NaN with a payload no arithmetic produces
-/// (hardware NaNs are canonical, `0x7fc0_0000`), so a surviving sentinel means "never written".
-pub const SENTINEL_BITS: u32 = 0x7fc0_c01f;
-
+/// Bit pattern of [`SENTINEL_F32`]; see [`crate::base::sentinel`].
+pub use crate::base::sentinel::SENTINEL as SENTINEL_BITS;
 /// Fill value for GPU output buffers before a pass runs; see [`assert_no_sentinel`].
-/// Upload it as raw bits ([`SENTINEL_BITS`]) so no float conversion can canonicalise the NaN.
-pub const SENTINEL_F32: f32 = f32::from_bits(SENTINEL_BITS);
+pub use crate::base::sentinel::SENTINEL_F32;
 
 /// A buffer of `len` sentinels, to upload as the initial content of an output buffer.
 pub fn sentinel_vec(len: usize) -> Vec<f32> {

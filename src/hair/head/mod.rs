@@ -18,6 +18,7 @@
 pub mod texture;
 
 use crate::base::rng::Rng;
+use crate::base::sdf::{sd_ellipsoid, smin};
 use crate::error::{Error, Result};
 use crate::io::annot::{Landmarks, REQUIRED_LANDMARKS};
 use glam::{DMat3, DVec2, DVec3, Mat3, Vec2, Vec3};
@@ -191,30 +192,6 @@ impl HeadParams {
 // ---------------------------------------------------------------------------------------------
 // Distance primitives (f64).
 
-/// Ellipsoid distance estimate. Outside and on the surface it is (k0 − 1)/|∇k0| with
-/// k0 = |p/r|: unit gradient on the surface and close to the true distance near it (the
-/// ellipsoids here are only mildly eccentric). That form jumps at the centre (its value
-/// there depends on the direction), so inside the factor 1/|∇k0| is blended towards the
-/// smallest radius with weight 1 − k0³: the value and gradient are unchanged on the surface
-/// (C1 there), the centre gets the continuous value −r_min, and the difference quotient
-/// stays close to 1.
-fn sd_ellipsoid(p: DVec3, r: DVec3) -> f64 {
-    let k0 = (p / r).length();
-    let k1 = (p / (r * r)).length();
-    let rmin = r.min_element();
-    if k1 < 1e-300 {
-        return -rmin;
-    }
-    // 1/|∇k0| = k0/k1.
-    let inv_g = k0 / k1;
-    if k0 >= 1.0 {
-        (k0 - 1.0) * inv_g
-    } else {
-        let w = k0 * k0 * k0;
-        (k0 - 1.0) * (w * inv_g + (1.0 - w) * rmin)
-    }
-}
-
 fn sd_capsule(p: DVec3, a: DVec3, b: DVec3, r: f64) -> f64 {
     let (pa, ba) = (p - a, b - a);
     let h = (pa.dot(ba) / ba.length_squared().max(1e-18)).clamp(0.0, 1.0);
@@ -227,13 +204,6 @@ fn sd_rounded_cylinder(p: DVec3, c: DVec3, ra: f64, hh: f64, rb: f64) -> f64 {
     let q = p - c;
     let d = DVec2::new(DVec2::new(q.x, q.z).length() - ra + rb, q.y.abs() - hh + rb);
     d.x.max(d.y).min(0.0) + d.max(DVec2::ZERO).length() - rb
-}
-
-/// Quadratic smooth minimum: C1, never above min(a, b), and at most k/4 below it, so the
-/// union stays a (slightly conservative) distance bound.
-fn smin(a: f64, b: f64, k: f64) -> f64 {
-    let h = (k - (a - b).abs()).max(0.0) / k;
-    a.min(b) - h * h * k * 0.25
 }
 
 fn v3(a: [f32; 3]) -> DVec3 {
