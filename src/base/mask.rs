@@ -88,7 +88,14 @@ fn square_1d(v: &[u8], w: usize, h: usize, r: usize, along_x: bool, erode: bool)
 
 /// `mask` (nonzero = set) grown by `r` pixels in a (2r+1)² square (separable). Writes 1 / 0.
 pub fn dilate(mask: &[u8], w: usize, h: usize, r: usize) -> Vec<u8> {
-    square_1d(&square_1d(mask, w, h, r, true, false), w, h, r, false, false)
+    square_1d(
+        &square_1d(mask, w, h, r, true, false),
+        w,
+        h,
+        r,
+        false,
+        false,
+    )
 }
 
 /// Pixels whose Chebyshev distance to the nearest unset pixel or the image border is more
@@ -156,7 +163,10 @@ mod tests {
     use super::*;
 
     fn grid(rows: &[&str]) -> (Vec<bool>, usize, usize) {
-        let m = rows.iter().flat_map(|r| r.bytes().map(|b| b == b'#')).collect();
+        let m = rows
+            .iter()
+            .flat_map(|r| r.bytes().map(|b| b == b'#'))
+            .collect();
         (m, rows[0].len(), rows.len())
     }
 
@@ -202,7 +212,9 @@ mod tests {
         assert_eq!(sizes, [2, 2]);
         let (ring, w, h) = grid(&["#####", "#...#", "#####"]);
         let mut holes = Vec::new();
-        for_each_component(&ring, w, h, false, false, |c, border| holes.push((c.len(), border)));
+        for_each_component(&ring, w, h, false, false, |c, border| {
+            holes.push((c.len(), border))
+        });
         assert_eq!(holes, [(3, false)]);
     }
 }

@@ -21,11 +21,11 @@ pub mod inpaint;
 pub mod raster;
 pub mod shade;
 
+use crate::base::mask::dilate;
 use crate::error::{Error, Result};
 use crate::hair::head::texture::{head_texture_with, HeadTextureParams};
 use crate::hair::head::{Head, HeadParams, WeakPerspective};
 use crate::hair::strands::StrandSet;
-use crate::base::mask::dilate;
 use crate::render::inpaint::{inpaint, InpaintParams};
 use crate::render::raster::{Frame, RasterParams, ScreenMesh, ScreenStrands, StrandPhoto, Texture};
 use crate::render::shade::ShadeParams;
