@@ -1,5 +1,4 @@
-//! Binary mask morphology on row-major W×H grids: disc and square dilation / erosion, and
-//! connected components (for hole filling and island removal).
+//! Binary mask morphology (disc and square dilation / erosion) and connected components.
 
 use rayon::prelude::*;
 

@@ -1,4 +1,4 @@
-//! Drawing primitives of the synthetic portraits (shared with `synth3d`): distances, colour mixing, value noise, path resampling, anti-aliased strands.
+//! Drawing primitives shared with `synth3d`: distances, colour mixing, noise, strands on a canvas.
 
 use crate::base::rng::Rng;
 

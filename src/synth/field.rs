@@ -1,4 +1,4 @@
-//! The analytic 2-D growth field the synthetic hair follows (the orientation ground truth).
+//! The analytic 2D growth field the synthetic hair follows (the orientation ground truth).
 
 use super::smoothstep;
 use std::f32::consts::FRAC_PI_2;

@@ -1,4 +1,4 @@
-//! The synthetic portrait's scene: face, body and hair region, its looks, and how it draws the hair and the strokes.
+//! The 2D portrait's scene: face, body, hair region and looks, and how it draws hair and strokes.
 
 use super::draw::{mark_disk, StrandCanvas};
 use super::field::{normalize, Field};

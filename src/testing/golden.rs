@@ -1,4 +1,4 @@
-//! Golden-image checks: a rendered image against a reviewed PNG under `golden/`, with failure images and blessing.
+//! Golden images: a rendering against a reviewed PNG under `golden/`, failure images, blessing.
 
 use crate::error::Error;
 use crate::io::{ensure_dir, write_atomic, write_png};

@@ -1,4 +1,4 @@
-//! Parity comparison of a GPU pass's output with its CPU mirror, and the sentinel check that a pass wrote every element.
+//! Parity of a GPU pass with its CPU mirror, and the check that a pass wrote every element.
 
 use std::fmt;
 

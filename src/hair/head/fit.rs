@@ -1,4 +1,4 @@
-//! Camera fits: from the photo's landmarks (scaled orthographic Procrustes, then Gauss-Newton) or a default framing.
+//! Camera fits: from the photo's landmarks (Procrustes, then Gauss-Newton) or a default framing.
 
 use super::{Head, WeakPerspective};
 use crate::error::{Error, Result};

@@ -1,4 +1,4 @@
-//! The multigrid hierarchy: levels as the shaders see them, 2x2x2 coarsening, and the dense f64 inverse of the coarsest level.
+//! The multigrid hierarchy: levels, 2x2x2 coarsening, the dense inverse of the coarsest level.
 
 use super::{neighbours6, Prepared};
 use crate::base::grid::Grid;

@@ -1,4 +1,4 @@
-//! Host references in f64: the same normal equations, matrix-free over the compact H, solved by CG or damped Jacobi.
+//! Host f64 references: the same normal equations, matrix-free, solved by CG or damped Jacobi.
 
 use super::{dot, neighbours6, prepare, Prepared};
 use crate::base::grid::Grid;

@@ -1,4 +1,4 @@
-//! The body the synthetic hair rests on and that hides it: the parametric head united with shoulders, as a signed distance.
+//! What the synthetic hair rests on and what hides it: the head united with shoulders (an SDF).
 
 use crate::base::sdf::{sd_ellipsoid, smin};
 use crate::hair::head::Head;

@@ -1,4 +1,4 @@
-//! Style rules and strand growth of the 3D synthetic hair: the combing field, per-strand variation, the bounded-turn integrator.
+//! Style rules and strand growth: the combing field, per-strand variation, bounded turns.
 
 use super::body::Body;
 use crate::base::rng::Rng;

@@ -1,4 +1,4 @@
-//! Rendering of the 3D synthetic portrait: looks, the body's depth and shading, face features, the strands' footprint, mask and ground-truth direction, and the strands painted back to front.
+//! Rendering of the 3D portrait: body, face, strand footprint, mask, gt_dir, painted strands.
 
 use super::body::Body;
 use super::grow::StrandVar;

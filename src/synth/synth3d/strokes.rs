@@ -1,4 +1,4 @@
-//! Annotation strokes of the 3D synthetic portrait, along visible front strands or the ground-truth direction.
+//! Strokes of the 3D portrait, along visible front strands or the ground-truth direction.
 
 use super::grow::StrandVar;
 use crate::base::rng::Rng;
