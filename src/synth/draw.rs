@@ -226,3 +226,67 @@ impl StrandCanvas {
         }
     }
 }
+
+// Palettes the looks pick from.
+const SKINS: [[f32; 3]; 6] = [
+    [0.96, 0.80, 0.69],
+    [0.92, 0.74, 0.62],
+    [0.86, 0.66, 0.52],
+    [0.76, 0.55, 0.40],
+    [0.58, 0.40, 0.28],
+    [0.44, 0.30, 0.21],
+];
+const HAIRS: [[f32; 3]; 8] = [
+    [0.17, 0.14, 0.13],
+    [0.30, 0.20, 0.13],
+    [0.44, 0.29, 0.17],
+    [0.55, 0.26, 0.12],
+    [0.80, 0.64, 0.40],
+    [0.72, 0.40, 0.18],
+    [0.62, 0.60, 0.60],
+    [0.36, 0.26, 0.20],
+];
+const IRISES: [[f32; 3]; 4] = [
+    [0.36, 0.22, 0.12],
+    [0.25, 0.42, 0.62],
+    [0.30, 0.48, 0.30],
+    [0.50, 0.38, 0.20],
+];
+
+/// Colours and background noise of a portrait, drawn in this order from the look stream
+/// (the 2D and 3D portraits share them, so their looks match).
+pub(crate) struct Look {
+    pub(crate) skin: [f32; 3],
+    pub(crate) hair: [f32; 3],
+    pub(crate) iris: [f32; 3],
+    pub(crate) lips: [f32; 3],
+    pub(crate) cloth: [f32; 3],
+    pub(crate) bg_top: [f32; 3],
+    pub(crate) bg_bot: [f32; 3],
+    pub(crate) noise: Noise,
+}
+
+impl Look {
+    pub(crate) fn new(look: &mut Rng) -> Look {
+        let bg_top = mix3(
+            [look.next_f32(), look.next_f32(), look.next_f32()],
+            [0.75, 0.75, 0.75],
+            0.55,
+        );
+        let bg_bot = scale3(bg_top, look.range_f32(0.55, 0.8));
+        Look {
+            skin: jitter3(pick(look, &SKINS), look, 0.04),
+            hair: jitter3(pick(look, &HAIRS), look, 0.08),
+            iris: jitter3(pick(look, &IRISES), look, 0.1),
+            lips: jitter3([0.72, 0.36, 0.36], look, 0.1),
+            cloth: mix3(
+                [look.next_f32(), look.next_f32(), look.next_f32()],
+                [0.3, 0.3, 0.3],
+                0.4,
+            ),
+            bg_top,
+            bg_bot,
+            noise: Noise::new(6, look),
+        }
+    }
+}

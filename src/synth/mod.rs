@@ -14,10 +14,9 @@ mod field;
 mod scene;
 pub mod synth3d;
 
-// Drawing helpers and colour tables shared with `synth3d`.
+// Drawing helpers and looks shared with `synth3d`.
 pub(crate) use draw::*;
 use scene::Scene;
-pub(crate) use scene::{HAIRS, IRISES, SKINS};
 
 use crate::base::rng::Rng;
 use crate::error::{Error, Result};

@@ -54,46 +54,13 @@ pub(super) struct Scene {
     pub(super) field: Field,
     /// Whorl centre, kept clear of strokes.
     singular: Option<[f32; 2]>,
-    // Looks.
-    skin: [f32; 3],
-    hair: [f32; 3],
-    iris: [f32; 3],
-    lips: [f32; 3],
-    cloth: [f32; 3],
-    bg_top: [f32; 3],
-    bg_bot: [f32; 3],
-    noise: Noise,
+    look: Look,
     /// Strand lengths (min, max), px.
     strand_len: (f32, f32),
     /// No strand starts closer than this to an earlier one, px; neighbouring strands end up
     /// one to two times this apart.
     spacing: f32,
 }
-
-pub(crate) const SKINS: [[f32; 3]; 6] = [
-    [0.96, 0.80, 0.69],
-    [0.92, 0.74, 0.62],
-    [0.86, 0.66, 0.52],
-    [0.76, 0.55, 0.40],
-    [0.58, 0.40, 0.28],
-    [0.44, 0.30, 0.21],
-];
-pub(crate) const HAIRS: [[f32; 3]; 8] = [
-    [0.17, 0.14, 0.13],
-    [0.30, 0.20, 0.13],
-    [0.44, 0.29, 0.17],
-    [0.55, 0.26, 0.12],
-    [0.80, 0.64, 0.40],
-    [0.72, 0.40, 0.18],
-    [0.62, 0.60, 0.60],
-    [0.36, 0.26, 0.20],
-];
-pub(crate) const IRISES: [[f32; 3]; 4] = [
-    [0.36, 0.22, 0.12],
-    [0.25, 0.42, 0.62],
-    [0.30, 0.48, 0.30],
-    [0.50, 0.38, 0.20],
-];
 
 impl Scene {
     pub(super) fn new(p: &SynthParams, g: &mut Rng, look: &mut Rng) -> Scene {
@@ -212,12 +179,7 @@ impl Scene {
             }
         };
 
-        let bg_top = mix3(
-            [look.next_f32(), look.next_f32(), look.next_f32()],
-            [0.75, 0.75, 0.75],
-            0.55,
-        );
-        let bg_bot = scale3(bg_top, look.range_f32(0.55, 0.8));
+        let look = Look::new(look);
         Scene {
             w,
             h,
@@ -231,18 +193,7 @@ impl Scene {
             region,
             field,
             singular,
-            skin: jitter3(pick(look, &SKINS), look, 0.04),
-            hair: jitter3(pick(look, &HAIRS), look, 0.08),
-            iris: jitter3(pick(look, &IRISES), look, 0.1),
-            lips: jitter3([0.72, 0.36, 0.36], look, 0.1),
-            cloth: mix3(
-                [look.next_f32(), look.next_f32(), look.next_f32()],
-                [0.3, 0.3, 0.3],
-                0.4,
-            ),
-            bg_top,
-            bg_bot,
-            noise: Noise::new(6, look),
+            look,
             strand_len,
             spacing,
         }
@@ -351,22 +302,22 @@ impl Scene {
     fn base_pixel(&self, x: f32, y: f32) -> [f32; 3] {
         let (cx, cy, a, b, s) = (self.cx, self.cy, self.a, self.b, self.s);
         let (u, v) = (x / self.w, y / self.h);
-        let mut c = mix3(self.bg_top, self.bg_bot, v);
-        let n = self.noise.sample(u, v) - 0.5;
+        let mut c = mix3(self.look.bg_top, self.look.bg_bot, v);
+        let n = self.look.noise.sample(u, v) - 0.5;
         let vig = (u - 0.5).powi(2) + (v - 0.45).powi(2);
         c = scale3(c, (1.0 + 0.25 * n) * (1.0 - 0.35 * vig));
 
         // Shoulders and neck.
         let torso = ellipse_sdf(x - cx, y - (cy + 3.25 * b), 2.7 * a, 1.75 * b);
         let shade = 0.8 + 0.2 * smoothstep(cy + 1.5 * b, cy + 2.4 * b, y);
-        blend(&mut c, scale3(self.cloth, shade), cov(torso));
+        blend(&mut c, scale3(self.look.cloth, shade), cov(torso));
         let neck = ((x - cx).abs() - 0.4 * a).max(cy + 0.3 * b - y).max(-torso);
         let neck_shade = 0.72 + 0.16 * smoothstep(cy + b, cy + 1.35 * b, y);
-        blend(&mut c, scale3(self.skin, neck_shade), cov(neck));
+        blend(&mut c, scale3(self.look.skin, neck_shade), cov(neck));
         // Collar line where neck meets clothing.
         blend(
             &mut c,
-            scale3(self.cloth, 0.6),
+            scale3(self.look.cloth, 0.6),
             cov(torso.abs() - 1.0 * s) * cov((x - cx).abs() - 0.55 * a),
         );
 
@@ -378,12 +329,12 @@ impl Scene {
                 0.16 * a,
                 0.22 * b,
             );
-            blend(&mut c, scale3(self.skin, 0.88), cov(e));
+            blend(&mut c, scale3(self.look.skin, 0.88), cov(e));
         }
         let face = ellipse_sdf(x - cx, y - cy, a, b);
         if face < 1.0 {
             let q2 = ((x - cx) / a).powi(2) + ((y - cy) / b).powi(2);
-            let mut fc = scale3(self.skin, 0.9 + 0.1 * (1.0 - q2).max(0.0));
+            let mut fc = scale3(self.look.skin, 0.9 + 0.1 * (1.0 - q2).max(0.0));
             for side in [-1.0f32, 1.0] {
                 let ch = ((x - (cx + side * 0.55 * a)) / (0.2 * a)).powi(2)
                     + ((y - (cy + 0.3 * b)) / (0.12 * b)).powi(2);
@@ -397,7 +348,7 @@ impl Scene {
         let hs = self.hair_sdf(x, y);
         if hs < 1.0 {
             let shade = self.hair_shade(x, y, hs);
-            blend(&mut c, scale3(self.hair, 0.4 * shade), cov(hs));
+            blend(&mut c, scale3(self.look.hair, 0.4 * shade), cov(hs));
         }
         c
     }
@@ -405,7 +356,7 @@ impl Scene {
     fn features(&self, c: &mut [f32; 3], x: f32, y: f32) {
         let (cx, cy, a, b, s) = (self.cx, self.cy, self.a, self.b, self.s);
         let p = [x, y];
-        let brow = scale3(self.hair, 0.6);
+        let brow = scale3(self.look.hair, 0.6);
         for side in [-1.0f32, 1.0] {
             // Eyebrow: a thick arc.
             let pts = [
@@ -420,7 +371,7 @@ impl Scene {
             let scl = ellipse_sdf(x - ex, y - ey, 0.18 * a, 0.075 * b);
             blend(c, [0.95, 0.94, 0.92], cov(scl));
             let iris = ((x - ex).hypot(y - ey) - 0.065 * b).max(scl);
-            blend(c, self.iris, cov(iris));
+            blend(c, self.look.iris, cov(iris));
             let pupil = (x - ex).hypot(y - ey) - 0.03 * b;
             blend(c, [0.03, 0.03, 0.03], cov(pupil));
             let glint = (x - ex - 0.02 * b).hypot(y - ey + 0.02 * b) - 0.012 * b;
@@ -437,7 +388,7 @@ impl Scene {
         ];
         blend(
             c,
-            scale3(self.skin, 0.75),
+            scale3(self.look.skin, 0.75),
             0.5 * cov(poly_dist(p, &bridge) - 1.2 * s),
         );
         for side in [-1.0f32, 1.0] {
@@ -447,14 +398,14 @@ impl Scene {
                 0.05 * a,
                 0.022 * b,
             );
-            blend(c, scale3(self.skin, 0.5), cov(nos));
+            blend(c, scale3(self.look.skin, 0.5), cov(nos));
         }
 
         // Mouth: lips and the line between them, smiling slightly.
         let [ml, my] = self.mouth(-1.0);
         let mw = cx - ml;
         let lips = ellipse_sdf(x - cx, y - (my + 0.01 * b), mw * 1.02, 0.065 * b);
-        blend(c, self.lips, cov(lips));
+        blend(c, self.look.lips, cov(lips));
         let line = [
             [cx - mw, my],
             [cx - 0.5 * mw, my + 0.02 * b],
@@ -564,12 +515,12 @@ impl Scene {
                 1.0 + 0.05 * rng.range_f32(-1.0, 1.0),
             ];
             // A grey sheen keeps dark hair's strands visible, as on real black hair.
-            let lum = 0.3 * self.hair[0] + 0.59 * self.hair[1] + 0.11 * self.hair[2];
+            let lum = 0.3 * self.look.hair[0] + 0.59 * self.look.hair[1] + 0.11 * self.look.hair[2];
             let sheen = 0.16 * (1.0 - lum);
             let col = [
-                (self.hair[0] + sheen) * bright * tint[0],
-                (self.hair[1] + sheen) * bright * tint[1],
-                (self.hair[2] + sheen) * bright * tint[2],
+                (self.look.hair[0] + sheen) * bright * tint[0],
+                (self.look.hair[1] + sheen) * bright * tint[1],
+                (self.look.hair[2] + sheen) * bright * tint[2],
             ];
             let width = rng.range_f32(1.0, 1.5) * self.s.clamp(0.75, 1.5);
             let alpha = rng.range_f32(0.6, 0.95);
@@ -590,7 +541,7 @@ impl Scene {
         };
         let (w, h) = (self.w as usize, self.h as usize);
         let half = 0.9 * self.s.max(0.75);
-        let scalp = scale3(self.skin, 0.8);
+        let scalp = scale3(self.look.skin, 0.8);
         let x0 = ((px - half - 1.0).floor().max(0.0)) as usize;
         let x1 = ((px + half + 1.0).ceil() as usize).min(w - 1);
         for y in 0..(hy.max(0.0) as usize).min(h) {

@@ -35,7 +35,7 @@ use crate::error::{Error, Result};
 use crate::hair::head::{Head, WeakPerspective};
 use crate::hair::strands::StrandSet;
 use crate::io::annot::Landmarks;
-use crate::synth::{theta_of, Style, SynthCase, SynthParams};
+use crate::synth::{theta_of, Look, Style, SynthCase, SynthParams};
 use glam::{Mat3, Vec2, Vec3};
 use image::{GrayImage, RgbImage};
 use rayon::prelude::*;
@@ -53,7 +53,7 @@ pub use compare::{compare_to_gt, GtFigures, GT_SEARCH_M};
 use grow::{grow_strand, Rule, StrandVar, StyleSpec};
 use render::{
     base_fill, close_mask, draw_strands, fill_dir, render_base, render_body, shade_strand,
-    Footprint, Look,
+    Footprint,
 };
 use strokes::make_strokes;
 

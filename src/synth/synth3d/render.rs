@@ -3,51 +3,11 @@
 use super::body::Body;
 use super::grow::StrandVar;
 use crate::base::mask;
-use crate::base::rng::Rng;
 use crate::hair::head::{Head, WeakPerspective};
-use crate::synth::{
-    blend, cov, ellipse_sdf, jitter3, mix3, pick, poly_dist, scale3, smoothstep, Noise, HAIRS,
-    IRISES, SKINS,
-};
+use crate::synth::{blend, cov, ellipse_sdf, mix3, poly_dist, scale3, smoothstep, Look};
 use glam::Vec3;
 use rayon::prelude::*;
 use std::collections::VecDeque;
-/// Colours of a portrait (drawn like `crate::synth`'s scene).
-pub(super) struct Look {
-    pub(super) skin: [f32; 3],
-    pub(super) hair: [f32; 3],
-    pub(super) iris: [f32; 3],
-    pub(super) lips: [f32; 3],
-    pub(super) cloth: [f32; 3],
-    pub(super) bg_top: [f32; 3],
-    pub(super) bg_bot: [f32; 3],
-    pub(super) noise: Noise,
-}
-
-impl Look {
-    pub(super) fn new(look: &mut Rng) -> Look {
-        let bg_top = mix3(
-            [look.next_f32(), look.next_f32(), look.next_f32()],
-            [0.75, 0.75, 0.75],
-            0.55,
-        );
-        let bg_bot = scale3(bg_top, look.range_f32(0.55, 0.8));
-        Look {
-            skin: jitter3(pick(look, &SKINS), look, 0.04),
-            hair: jitter3(pick(look, &HAIRS), look, 0.08),
-            iris: jitter3(pick(look, &IRISES), look, 0.1),
-            lips: jitter3([0.72, 0.36, 0.36], look, 0.1),
-            cloth: mix3(
-                [look.next_f32(), look.next_f32(), look.next_f32()],
-                [0.3, 0.3, 0.3],
-                0.4,
-            ),
-            bg_top,
-            bg_bot,
-            noise: Noise::new(6, look),
-        }
-    }
-}
 
 /// The body seen through one pixel.
 #[derive(Clone, Copy, Debug)]
