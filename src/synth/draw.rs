@@ -290,3 +290,36 @@ impl Look {
         }
     }
 }
+
+/// Linear [0, 1] RGB to 8-bit pixels (clamped, rounded).
+pub(crate) fn to_image(rgb: &[[f32; 3]], width: u32, height: u32) -> image::RgbImage {
+    let mut image = image::RgbImage::new(width, height);
+    for (px, c) in image.pixels_mut().zip(rgb) {
+        *px = image::Rgb(c.map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8));
+    }
+    image
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn to_image_clamps_and_rounds() {
+        let img = to_image(&[[-0.5, 0.5, 2.0], [0.2, 0.0, 1.0]], 2, 1);
+        assert_eq!(img.get_pixel(0, 0).0, [0, 128, 255]);
+        assert_eq!(img.get_pixel(1, 0).0, [51, 0, 255]);
+    }
+
+    #[test]
+    fn look_is_deterministic_and_near_its_palettes() {
+        let a = Look::new(&mut Rng::new(5));
+        let b = Look::new(&mut Rng::new(5));
+        assert_eq!((a.skin, a.hair, a.bg_bot), (b.skin, b.hair, b.bg_bot));
+        let near = |c: [f32; 3], p: &[[f32; 3]]| {
+            p.iter()
+                .any(|q| (0..3).all(|k| (c[k] - q[k]).abs() <= 0.08 + 1e-6))
+        };
+        assert!(near(a.skin, &SKINS) && near(a.hair, &HAIRS) && near(a.iris, &IRISES));
+    }
+}

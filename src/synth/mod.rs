@@ -162,19 +162,8 @@ pub fn orientation_error_deg(a: f32, b: f32) -> f32 {
 
 /// Generates the portrait. Panics if a side is below [`SynthParams::MIN_SIZE`].
 pub fn synth(p: &SynthParams) -> SynthCase {
-    assert!(
-        p.width >= SynthParams::MIN_SIZE && p.height >= SynthParams::MIN_SIZE,
-        "synthetic portraits need at least {0}x{0} pixels, got {1}x{2}",
-        SynthParams::MIN_SIZE,
-        p.width,
-        p.height
-    );
-    let mut root = Rng::new(p.seed ^ style_salt(p.style));
-    // Separate streams, so that changing how one part draws numbers leaves the others alone.
-    let mut geo_rng = root.fork(1);
-    let mut look_rng = root.fork(2);
-    let mut strand_rng = root.fork(3);
-    let mut stroke_rng = root.fork(4);
+    let [mut geo_rng, mut look_rng, mut strand_rng, mut stroke_rng] =
+        streams(p, style_salt(p.style));
 
     let scene = Scene::new(p, &mut geo_rng, &mut look_rng);
     let (w, h) = (p.width as usize, p.height as usize);
@@ -205,10 +194,7 @@ pub fn synth(p: &SynthParams) -> SynthCase {
     scene.draw_hair(&mut rgb, &mask, &mut strand_rng);
     let strokes = scene.make_strokes(&mask, &gt_dir, &mut stroke_rng);
 
-    let mut image = RgbImage::new(p.width, p.height);
-    for (px, c) in image.pixels_mut().zip(&rgb) {
-        *px = image::Rgb(c.map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8));
-    }
+    let image = to_image(&rgb, p.width, p.height);
     SynthCase {
         image,
         mask: GrayImage::from_raw(p.width, p.height, mask).expect("mask size"),
@@ -219,6 +205,21 @@ pub fn synth(p: &SynthParams) -> SynthCase {
         width: p.width,
         height: p.height,
     }
+}
+
+/// The portrait's random streams (geometry, look, strands, strokes), forked from one root
+/// salted per style, so that changing how one part draws numbers leaves the others alone.
+/// Panics if a side is below [`SynthParams::MIN_SIZE`].
+pub(crate) fn streams(p: &SynthParams, salt: u64) -> [Rng; 4] {
+    assert!(
+        p.width >= SynthParams::MIN_SIZE && p.height >= SynthParams::MIN_SIZE,
+        "synthetic portraits need at least {0}x{0} pixels, got {1}x{2}",
+        SynthParams::MIN_SIZE,
+        p.width,
+        p.height
+    );
+    let mut root = Rng::new(p.seed ^ salt);
+    [1, 2, 3, 4].map(|k| root.fork(k))
 }
 
 fn style_salt(s: Style) -> u64 {
@@ -319,6 +320,23 @@ mod tests {
         let mut count = 0;
         crate::base::mask::for_each_component(&hair, w, h, true, false, |_, _| count += 1);
         count
+    }
+
+    #[test]
+    fn streams_are_distinct_and_reproducible() {
+        let p = SynthParams::new(Style::Long, 3);
+        let mut a = streams(&p, 1);
+        let mut b = streams(&p, 1);
+        let first: Vec<u32> = a.iter_mut().map(|r| r.next_u32()).collect();
+        assert_eq!(
+            first,
+            b.iter_mut().map(|r| r.next_u32()).collect::<Vec<_>>()
+        );
+        assert!(first
+            .iter()
+            .enumerate()
+            .all(|(i, x)| !first[..i].contains(x)));
+        assert_ne!(streams(&p, 2)[0].next_u32(), first[0]);
     }
 
     #[test]

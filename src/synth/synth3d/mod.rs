@@ -30,14 +30,13 @@
 //! and the face centre (0.3 b below the model origin) placed like `crate::synth` places its
 //! face ellipse: about the image centre, a little below it.
 
-use crate::base::rng::Rng;
 use crate::error::{Error, Result};
 use crate::hair::head::{Head, WeakPerspective};
 use crate::hair::strands::StrandSet;
 use crate::io::annot::Landmarks;
-use crate::synth::{theta_of, Look, Style, SynthCase, SynthParams};
+use crate::synth::{streams, theta_of, to_image, Look, Style, SynthCase, SynthParams};
 use glam::{Mat3, Vec2, Vec3};
-use image::{GrayImage, RgbImage};
+use image::GrayImage;
 use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -131,19 +130,7 @@ pub fn synth3d(p: &SynthParams) -> Synth3dCase {
 /// Generates the portrait and its ground truth; deterministic for (params, options).
 /// Panics if a side is below [`SynthParams::MIN_SIZE`].
 pub fn synth3d_with(p: &SynthParams, o: &Synth3dOptions) -> Synth3dCase {
-    assert!(
-        p.width >= SynthParams::MIN_SIZE && p.height >= SynthParams::MIN_SIZE,
-        "synthetic portraits need at least {0}x{0} pixels, got {1}x{2}",
-        SynthParams::MIN_SIZE,
-        p.width,
-        p.height
-    );
-    let mut root = Rng::new(p.seed ^ style_salt(p.style));
-    // Separate streams, so that changing how one part draws numbers leaves the others alone.
-    let mut geo = root.fork(1);
-    let mut look_rng = root.fork(2);
-    let mut strand_rng = root.fork(3);
-    let mut stroke_rng = root.fork(4);
+    let [mut geo, mut look_rng, mut strand_rng, mut stroke_rng] = streams(p, style_salt(p.style));
 
     let head = Head::default();
     let body = Body::new(head.clone());
@@ -245,10 +232,7 @@ pub fn synth3d_with(p: &SynthParams, o: &Synth3dOptions) -> Synth3dCase {
         }
     }
 
-    let mut image = RgbImage::new(p.width, p.height);
-    for (px, c) in image.pixels_mut().zip(&rgb) {
-        *px = image::Rgb(c.map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8));
-    }
+    let image = to_image(&rgb, p.width, p.height);
     let counts: Vec<u32> = strands.iter().map(|st| st.len() as u32).collect();
     let points: Vec<[f32; 3]> = strands.iter().flatten().map(|q| q.to_array()).collect();
     let mut gt = StrandSet::new(points, counts);
