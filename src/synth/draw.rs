@@ -291,6 +291,76 @@ impl Look {
     }
 }
 
+// Face features, sized by the face ellipse's semi-axes a (half width) and b (half height)
+// and the length unit s; `p` is the pixel centre being shaded.
+
+/// An eye centred at `e`: sclera, iris, pupil, glint and upper lid.
+pub(crate) fn draw_eye(
+    c: &mut [f32; 3],
+    p: [f32; 2],
+    e: [f32; 2],
+    a: f32,
+    b: f32,
+    s: f32,
+    iris_col: [f32; 3],
+) {
+    let ([x, y], [ex, ey]) = (p, e);
+    let scl = ellipse_sdf(x - ex, y - ey, 0.18 * a, 0.075 * b);
+    blend(c, [0.95, 0.94, 0.92], cov(scl));
+    let iris = ((x - ex).hypot(y - ey) - 0.065 * b).max(scl);
+    blend(c, iris_col, cov(iris));
+    let pupil = (x - ex).hypot(y - ey) - 0.03 * b;
+    blend(c, [0.03, 0.03, 0.03], cov(pupil));
+    let glint = (x - ex - 0.02 * b).hypot(y - ey + 0.02 * b) - 0.012 * b;
+    blend(c, [1.0, 1.0, 1.0], 0.9 * cov(glint));
+    let lid = (scl.abs() - 0.9 * s).max(y - ey);
+    blend(c, [0.12, 0.08, 0.07], cov(lid));
+}
+
+/// Two nostrils beside and just below the nose tip `n`.
+pub(crate) fn draw_nostrils(
+    c: &mut [f32; 3],
+    p: [f32; 2],
+    n: [f32; 2],
+    a: f32,
+    b: f32,
+    skin: [f32; 3],
+) {
+    let ([x, y], [nx, ny]) = (p, n);
+    for side in [-1.0f32, 1.0] {
+        let nos = ellipse_sdf(
+            x - (nx + side * 0.09 * a),
+            y - (ny + 0.015 * b),
+            0.05 * a,
+            0.022 * b,
+        );
+        blend(c, scale3(skin, 0.5), cov(nos));
+    }
+}
+
+/// Lips centred at `m` with half width `mw`, and the line between them, smiling slightly.
+pub(crate) fn draw_mouth(
+    c: &mut [f32; 3],
+    p: [f32; 2],
+    m: [f32; 2],
+    mw: f32,
+    b: f32,
+    s: f32,
+    lips_col: [f32; 3],
+) {
+    let ([x, y], [mx, my]) = (p, m);
+    let lips = ellipse_sdf(x - mx, y - (my + 0.01 * b), mw * 1.02, 0.065 * b);
+    blend(c, lips_col, cov(lips));
+    let line = [
+        [mx - mw, my],
+        [mx - 0.5 * mw, my + 0.02 * b],
+        [mx, my + 0.025 * b],
+        [mx + 0.5 * mw, my + 0.02 * b],
+        [mx + mw, my],
+    ];
+    blend(c, [0.3, 0.1, 0.1], cov(poly_dist(p, &line) - 0.7 * s));
+}
+
 /// Linear [0, 1] RGB to 8-bit pixels (clamped, rounded).
 pub(crate) fn to_image(rgb: &[[f32; 3]], width: u32, height: u32) -> image::RgbImage {
     let mut image = image::RgbImage::new(width, height);
@@ -321,5 +391,26 @@ mod tests {
                 .any(|q| (0..3).all(|k| (c[k] - q[k]).abs() <= 0.08 + 1e-6))
         };
         assert!(near(a.skin, &SKINS) && near(a.hair, &HAIRS) && near(a.iris, &IRISES));
+    }
+
+    #[test]
+    fn face_features_paint_near_their_centres_only() {
+        let (a, b, s) = (60.0, 80.0, 1.0);
+        let paint = |f: &dyn Fn(&mut [f32; 3], [f32; 2])| {
+            [[100.0, 100.0], [300.0, 300.0]].map(|p| {
+                let mut c = [0.5; 3];
+                f(&mut c, p);
+                c
+            })
+        };
+        let eye = paint(&|c, p| draw_eye(c, p, [100.0, 100.0], a, b, s, [0.0, 1.0, 0.0]));
+        assert!(eye[0].iter().all(|&v| v < 0.1), "pupil {:?}", eye[0]);
+        let nose = paint(&|c, p| draw_nostrils(c, p, [100.0 - 5.4, 98.8], a, b, [0.8; 3]));
+        assert_eq!(nose[0], [0.4; 3]);
+        let mouth = paint(&|c, p| draw_mouth(c, p, [100.0, 99.2], 30.0, b, s, [1.0, 0.0, 0.0]));
+        assert!(mouth[0][0] > mouth[0][1]);
+        for c in [eye[1], nose[1], mouth[1]] {
+            assert_eq!(c, [0.5; 3]);
+        }
     }
 }

@@ -366,18 +366,7 @@ impl Scene {
             ];
             blend(c, brow, 0.9 * cov(poly_dist(p, &pts) - 0.035 * b));
 
-            // Eye: sclera, iris, pupil, glint and upper lid.
-            let [ex, ey] = self.eye(side);
-            let scl = ellipse_sdf(x - ex, y - ey, 0.18 * a, 0.075 * b);
-            blend(c, [0.95, 0.94, 0.92], cov(scl));
-            let iris = ((x - ex).hypot(y - ey) - 0.065 * b).max(scl);
-            blend(c, self.look.iris, cov(iris));
-            let pupil = (x - ex).hypot(y - ey) - 0.03 * b;
-            blend(c, [0.03, 0.03, 0.03], cov(pupil));
-            let glint = (x - ex - 0.02 * b).hypot(y - ey + 0.02 * b) - 0.012 * b;
-            blend(c, [1.0, 1.0, 1.0], 0.9 * cov(glint));
-            let lid = (scl.abs() - 0.9 * s).max(y - ey);
-            blend(c, [0.12, 0.08, 0.07], cov(lid));
+            draw_eye(c, p, self.eye(side), a, b, s, self.look.iris);
         }
 
         // Nose: a soft side shadow and two nostrils.
@@ -391,29 +380,11 @@ impl Scene {
             scale3(self.look.skin, 0.75),
             0.5 * cov(poly_dist(p, &bridge) - 1.2 * s),
         );
-        for side in [-1.0f32, 1.0] {
-            let nos = ellipse_sdf(
-                x - (nx + side * 0.09 * a),
-                y - (ny + 0.015 * b),
-                0.05 * a,
-                0.022 * b,
-            );
-            blend(c, scale3(self.look.skin, 0.5), cov(nos));
-        }
+        draw_nostrils(c, p, [nx, ny], a, b, self.look.skin);
 
         // Mouth: lips and the line between them, smiling slightly.
         let [ml, my] = self.mouth(-1.0);
-        let mw = cx - ml;
-        let lips = ellipse_sdf(x - cx, y - (my + 0.01 * b), mw * 1.02, 0.065 * b);
-        blend(c, self.look.lips, cov(lips));
-        let line = [
-            [cx - mw, my],
-            [cx - 0.5 * mw, my + 0.02 * b],
-            [cx, my + 0.025 * b],
-            [cx + 0.5 * mw, my + 0.02 * b],
-            [cx + mw, my],
-        ];
-        blend(c, [0.3, 0.1, 0.1], cov(poly_dist(p, &line) - 0.7 * s));
+        draw_mouth(c, p, [cx, my], cx - ml, b, s, self.look.lips);
     }
 
     // -----------------------------------------------------------------------------------------

@@ -4,7 +4,9 @@ use super::body::Body;
 use super::grow::StrandVar;
 use crate::base::mask;
 use crate::hair::head::{Head, WeakPerspective};
-use crate::synth::{blend, cov, ellipse_sdf, mix3, poly_dist, scale3, smoothstep, Look};
+use crate::synth::{
+    blend, cov, draw_eye, draw_mouth, draw_nostrils, mix3, poly_dist, scale3, smoothstep, Look,
+};
 use glam::Vec3;
 use rayon::prelude::*;
 use std::collections::VecDeque;
@@ -187,40 +189,13 @@ impl Features {
                 [ex + side * 0.23 * a, ey - 0.19 * b],
             ];
             blend(c, brow, 0.9 * cov(poly_dist(p, &pts) - 0.035 * b));
-            let scl = ellipse_sdf(x - ex, y - ey, 0.18 * a, 0.075 * b);
-            blend(c, [0.95, 0.94, 0.92], cov(scl));
-            let iris = ((x - ex).hypot(y - ey) - 0.065 * b).max(scl);
-            blend(c, look.iris, cov(iris));
-            let pupil = (x - ex).hypot(y - ey) - 0.03 * b;
-            blend(c, [0.03, 0.03, 0.03], cov(pupil));
-            let glint = (x - ex - 0.02 * b).hypot(y - ey + 0.02 * b) - 0.012 * b;
-            blend(c, [1.0, 1.0, 1.0], 0.9 * cov(glint));
-            let lid = (scl.abs() - 0.9 * s).max(y - ey);
-            blend(c, [0.12, 0.08, 0.07], cov(lid));
+            draw_eye(c, p, [ex, ey], a, b, s, look.iris);
         }
-        let [nx, ny] = self.nose;
-        for side in [-1.0f32, 1.0] {
-            let nos = ellipse_sdf(
-                x - (nx + side * 0.09 * a),
-                y - (ny + 0.015 * b),
-                0.05 * a,
-                0.022 * b,
-            );
-            blend(c, scale3(look.skin, 0.5), cov(nos));
-        }
+        draw_nostrils(c, p, self.nose, a, b, look.skin);
         let (ml, mr) = (self.mouth[0], self.mouth[1]);
         let (mcx, my) = (0.5 * (ml[0] + mr[0]), 0.5 * (ml[1] + mr[1]));
         let mw = 0.5 * (mr[0] - ml[0]).abs().max(1e-3);
-        let lips = ellipse_sdf(x - mcx, y - (my + 0.01 * b), mw * 1.02, 0.065 * b);
-        blend(c, look.lips, cov(lips));
-        let line = [
-            [mcx - mw, my],
-            [mcx - 0.5 * mw, my + 0.02 * b],
-            [mcx, my + 0.025 * b],
-            [mcx + 0.5 * mw, my + 0.02 * b],
-            [mcx + mw, my],
-        ];
-        blend(c, [0.3, 0.1, 0.1], cov(poly_dist(p, &line) - 0.7 * s));
+        draw_mouth(c, p, [mcx, my], mw, b, s, look.lips);
     }
 }
 
