@@ -207,6 +207,42 @@ pub fn synth(p: &SynthParams) -> SynthCase {
     }
 }
 
+/// The longest prefix of a stroke whose points are hair (`mask` > 0) and whose segments agree
+/// with the ground truth `gt_dir` within 12° at their midpoints, so sampling on the pixel grid
+/// cannot contradict it. `unit` turns a segment into its direction (how each synth treats a
+/// degenerate segment).
+pub(crate) fn checked_prefix(
+    pts: Vec<[f32; 2]>,
+    mask: &[u8],
+    gt_dir: &[f32],
+    w: usize,
+    h: usize,
+    unit: impl Fn([f32; 2]) -> [f32; 2],
+) -> Vec<[f32; 2]> {
+    let at = |p: [f32; 2]| -> Option<usize> {
+        let (ix, iy) = (p[0].floor() as i64, p[1].floor() as i64);
+        (ix >= 0 && iy >= 0 && (ix as usize) < w && (iy as usize) < h)
+            .then(|| iy as usize * w + ix as usize)
+            .filter(|&i| mask[i] > 0)
+    };
+    let mut out: Vec<[f32; 2]> = Vec::new();
+    for p in pts {
+        if at(p).is_none() {
+            break;
+        }
+        if let Some(&q) = out.last() {
+            let m = [(p[0] + q[0]) * 0.5, (p[1] + q[1]) * 0.5];
+            let Some(i) = at(m) else { break };
+            let seg = unit([p[0] - q[0], p[1] - q[1]]);
+            if seg[0] * gt_dir[2 * i] + seg[1] * gt_dir[2 * i + 1] < 12f32.to_radians().cos() {
+                break;
+            }
+        }
+        out.push(p);
+    }
+    out
+}
+
 /// The portrait's random streams (geometry, look, strands, strokes), forked from one root
 /// salted per style, so that changing how one part draws numbers leaves the others alone.
 /// Panics if a side is below [`SynthParams::MIN_SIZE`].
@@ -320,6 +356,35 @@ mod tests {
         let mut count = 0;
         crate::base::mask::for_each_component(&hair, w, h, true, false, |_, _| count += 1);
         count
+    }
+
+    #[test]
+    fn checked_prefix_stops_off_hair_and_against_the_field() {
+        let (w, h) = (10, 10);
+        let mut mask = vec![255u8; w * h];
+        mask[9 * w + 4] = 0;
+        let gt: Vec<f32> = (0..w * h).flat_map(|_| [1.0, 0.0]).collect();
+        let run = |pts: &[[f32; 2]], unit: fn([f32; 2]) -> [f32; 2]| {
+            checked_prefix(pts.to_vec(), &mask, &gt, w, h, unit).len()
+        };
+        let zero = |v: [f32; 2]| {
+            if v == [0.0; 2] {
+                v
+            } else {
+                field::normalize(v)
+            }
+        };
+        assert_eq!(
+            run(&[[0.5, 0.5], [2.5, 0.5], [4.5, 0.6]], field::normalize),
+            3
+        );
+        assert_eq!(
+            run(&[[0.5, 0.5], [2.5, 0.5], [2.5, 3.5]], field::normalize),
+            2
+        );
+        assert_eq!(run(&[[2.5, 9.5], [4.5, 9.5]], field::normalize), 1);
+        assert_eq!(run(&[[0.5, 0.5], [0.5, 0.5]], field::normalize), 2);
+        assert_eq!(run(&[[0.5, 0.5], [0.5, 0.5]], zero), 1);
     }
 
     #[test]
@@ -561,24 +626,7 @@ mod tests {
             .collect();
         let ks: f32 = k.iter().sum();
         let k: Vec<f32> = k.iter().map(|x| x / ks).collect();
-        let clampi = |i: i64, n: usize| i.clamp(0, n as i64 - 1) as usize;
-        let mut tmp = vec![0.0; w * h];
-        for y in 0..h {
-            for x in 0..w {
-                tmp[y * w + x] = (-r..=r)
-                    .map(|i| k[(i + r) as usize] * v[y * w + clampi(x as i64 + i, w)])
-                    .sum();
-            }
-        }
-        let mut out = vec![0.0; w * h];
-        for y in 0..h {
-            for x in 0..w {
-                out[y * w + x] = (-r..=r)
-                    .map(|i| k[(i + r) as usize] * tmp[clampi(y as i64 + i, h) * w + x])
-                    .sum();
-            }
-        }
-        out
+        sep_filter(v, w, h, &k, &k)
     }
 
     /// Test-only orientation estimate: structure tensor of the luma (central differences,

@@ -623,7 +623,7 @@ impl Scene {
             path.push(start);
             path.extend(self.trace(start, 1.0, len - back, 0.5, keep_in));
             let pts = resample(&path, 10.0 * s.max(0.5));
-            let pts = self.checked_prefix(pts, mask, gt_dir, w, h);
+            let pts = checked_prefix(pts, mask, gt_dir, w, h, normalize);
             let total: f32 = pts
                 .windows(2)
                 .map(|q| (q[1][0] - q[0][0]).hypot(q[1][1] - q[0][1]))
@@ -647,40 +647,5 @@ impl Scene {
             });
         }
         Strokes::new(strokes)
-    }
-
-    /// The longest prefix of a stroke whose points are hair and whose segments agree with the
-    /// ground truth at their midpoints, so sampling on the pixel grid cannot contradict it.
-    fn checked_prefix(
-        &self,
-        pts: Vec<[f32; 2]>,
-        mask: &[u8],
-        gt_dir: &[f32],
-        w: usize,
-        h: usize,
-    ) -> Vec<[f32; 2]> {
-        let at = |p: [f32; 2]| -> Option<usize> {
-            let (ix, iy) = (p[0].floor() as i64, p[1].floor() as i64);
-            (ix >= 0 && iy >= 0 && (ix as usize) < w && (iy as usize) < h)
-                .then(|| iy as usize * w + ix as usize)
-                .filter(|&i| mask[i] > 0)
-        };
-        let mut out: Vec<[f32; 2]> = Vec::new();
-        for p in pts {
-            if at(p).is_none() {
-                break;
-            }
-            if let Some(&q) = out.last() {
-                let m = [(p[0] + q[0]) * 0.5, (p[1] + q[1]) * 0.5];
-                let Some(i) = at(m) else { break };
-                let seg = normalize([p[0] - q[0], p[1] - q[1]]);
-                let cosang = seg[0] * gt_dir[2 * i] + seg[1] * gt_dir[2 * i + 1];
-                if cosang < 12f32.to_radians().cos() {
-                    break;
-                }
-            }
-            out.push(p);
-        }
-        out
     }
 }

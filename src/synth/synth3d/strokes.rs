@@ -3,8 +3,7 @@
 use super::grow::StrandVar;
 use crate::base::rng::Rng;
 use crate::io::annot::{Stroke, StrokeKind, Strokes};
-use crate::synth::mask_interior;
-use crate::synth::resample;
+use crate::synth::{checked_prefix, mask_interior, resample};
 use glam::Vec3;
 use image::GrayImage;
 /// What the stroke maker needs to know about the image.
@@ -84,7 +83,14 @@ impl StrokeCtx<'_> {
 
     pub(super) fn finish(&self, path: &[[f32; 2]]) -> Option<Vec<[f32; 2]>> {
         let (w, h) = (self.mask.width() as usize, self.mask.height() as usize);
-        let pts = checked_prefix(resample(path, 10.0 * self.su), self.mask, self.gt_dir, w, h);
+        let pts = checked_prefix(
+            resample(path, 10.0 * self.su),
+            self.mask.as_raw(),
+            self.gt_dir,
+            w,
+            h,
+            unit_or_zero,
+        );
         let total: f32 = pts
             .windows(2)
             .map(|q| (q[1][0] - q[0][0]).hypot(q[1][1] - q[0][1]))
@@ -296,37 +302,8 @@ pub(super) fn sub_run(
         .collect()
 }
 
-/// The longest prefix of a stroke whose points are hair and whose segments agree with the
-/// ground truth at their midpoints (from `crate::synth`).
-pub(super) fn checked_prefix(
-    pts: Vec<[f32; 2]>,
-    mask: &GrayImage,
-    gt_dir: &[f32],
-    w: usize,
-    h: usize,
-) -> Vec<[f32; 2]> {
-    let m = mask.as_raw();
-    let at = |p: [f32; 2]| -> Option<usize> {
-        let (ix, iy) = (p[0].floor() as i64, p[1].floor() as i64);
-        (ix >= 0 && iy >= 0 && (ix as usize) < w && (iy as usize) < h)
-            .then(|| iy as usize * w + ix as usize)
-            .filter(|&i| m[i] > 0)
-    };
-    let mut out: Vec<[f32; 2]> = Vec::new();
-    for p in pts {
-        if at(p).is_none() {
-            break;
-        }
-        if let Some(&q) = out.last() {
-            let mid = [(p[0] + q[0]) * 0.5, (p[1] + q[1]) * 0.5];
-            let Some(i) = at(mid) else { break };
-            let l = (p[0] - q[0]).hypot(p[1] - q[1]).max(1e-6);
-            let seg = [(p[0] - q[0]) / l, (p[1] - q[1]) / l];
-            if seg[0] * gt_dir[2 * i] + seg[1] * gt_dir[2 * i + 1] < 12f32.to_radians().cos() {
-                break;
-            }
-        }
-        out.push(p);
-    }
-    out
+/// `v` scaled to unit length; ~0 for a (near-)zero `v`, whose segment then never agrees.
+fn unit_or_zero(v: [f32; 2]) -> [f32; 2] {
+    let l = v[0].hypot(v[1]).max(1e-6);
+    [v[0] / l, v[1] / l]
 }
