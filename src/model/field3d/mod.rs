@@ -629,3 +629,18 @@ fn neighbours6(i: usize, [nx, ny, nz]: [usize; 3]) -> [(bool, usize); 6] {
         (z + 1 < nz, i + nx * ny),
     ]
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn neighbours6_flags_the_grid_faces() {
+        let dims = [3, 2, 2];
+        // Cell (0, 1, 1) = 9: no -x, +x is 10, -y is 6, no +y, -z is 3, no +z.
+        let n = neighbours6(9, dims);
+        let inside: Vec<usize> = n.iter().filter(|(ok, _)| *ok).map(|(_, j)| *j).collect();
+        assert_eq!(inside, [10, 6, 3]);
+        assert!(neighbours6(13, [3, 3, 3]).iter().all(|(ok, _)| *ok));
+    }
+}
