@@ -18,14 +18,16 @@ pub fn disc(r: f32, strict: bool) -> Vec<(i64, i64)> {
         .collect()
 }
 
-/// Applies `f(x, y, at)` at every pixel in parallel rows, where `at(x, y)` reads `m` and
-/// returns `outside` off the image.
-fn per_pixel(
+/// Disc-style morphology with the structuring element `offs`: dilation sets a pixel where any
+/// offset pixel is set, erosion where the pixel itself and every offset pixel are; off the
+/// image reads as `outside`.
+fn morph(
     m: &[bool],
     w: usize,
     h: usize,
+    offs: &[(i64, i64)],
     outside: bool,
-    f: impl Fn(i64, i64, &dyn Fn(i64, i64) -> bool) -> bool + Sync,
+    erode: bool,
 ) -> Vec<bool> {
     let at = |x: i64, y: i64| {
         if x < 0 || y < 0 || x >= w as i64 || y >= h as i64 {
@@ -38,8 +40,14 @@ fn per_pixel(
     out.par_chunks_mut(w.max(1))
         .enumerate()
         .for_each(|(y, row)| {
+            let y = y as i64;
             for (x, o) in row.iter_mut().enumerate() {
-                *o = f(x as i64, y as i64, &at);
+                let x = x as i64;
+                *o = if erode {
+                    at(x, y) && offs.iter().all(|&(dx, dy)| at(x + dx, y + dy))
+                } else {
+                    offs.iter().any(|&(dx, dy)| at(x + dx, y + dy))
+                };
             }
         });
     out
@@ -47,17 +55,13 @@ fn per_pixel(
 
 /// Set where any pixel at one of `offs` from it is set; off the image counts as `outside`.
 pub fn dilate_by(m: &[bool], w: usize, h: usize, offs: &[(i64, i64)], outside: bool) -> Vec<bool> {
-    per_pixel(m, w, h, outside, |x, y, at| {
-        offs.iter().any(|&(dx, dy)| at(x + dx, y + dy))
-    })
+    morph(m, w, h, offs, outside, false)
 }
 
 /// Set where the pixel itself and every pixel at one of `offs` from it are set; off the image
 /// counts as `outside`.
 pub fn erode_by(m: &[bool], w: usize, h: usize, offs: &[(i64, i64)], outside: bool) -> Vec<bool> {
-    per_pixel(m, w, h, outside, |x, y, at| {
-        at(x, y) && offs.iter().all(|&(dx, dy)| at(x + dx, y + dy))
-    })
+    morph(m, w, h, offs, outside, true)
 }
 
 /// One pass of a square morphology along rows (`along_x`) or columns over nonzero bytes:
