@@ -2,6 +2,19 @@
 
 use rayon::prelude::*;
 
+/// The 8-neighbourhood as (dx, dy), row by row; `NEIGHBOURS_8[7 - d]` is the opposite of
+/// `NEIGHBOURS_8[d]`.
+pub const NEIGHBOURS_8: [(i32, i32); 8] = [
+    (-1, -1),
+    (0, -1),
+    (1, -1),
+    (-1, 0),
+    (1, 0),
+    (-1, 1),
+    (0, 1),
+    (1, 1),
+];
+
 /// Offsets (dx, dy) with dx² + dy² ≤ r² (`strict`: < r²): a disc structuring element.
 pub fn disc(r: f32, strict: bool) -> Vec<(i64, i64)> {
     let ri = r.ceil() as i64;

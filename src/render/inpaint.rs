@@ -27,7 +27,7 @@
 //! it one pixel per pass. Random search runs once per iteration, in the step-1 pass, as Barnes
 //! does once per pixel per iteration.
 
-use crate::base::mask::dilate;
+use crate::base::mask::{dilate, NEIGHBOURS_8};
 use crate::base::sentinel::SENTINEL;
 use crate::error::{Error, Result};
 use crate::gpu::engine::{BufProxy, Engine, Recording};
@@ -237,7 +237,7 @@ impl Level {
             for &i in &front {
                 let (x, y) = (i as i64 % w, i as i64 / w);
                 for (dx, dy) in NEIGHBOURS_8 {
-                    let (xx, yy) = (x + dx, y + dy);
+                    let (xx, yy) = (x + dx as i64, y + dy as i64);
                     if xx < 0 || yy < 0 || xx >= w || yy >= h {
                         continue;
                     }
@@ -260,17 +260,6 @@ impl Level {
         layer.into_iter().max().unwrap_or(0)
     }
 }
-
-const NEIGHBOURS_8: [(i64, i64); 8] = [
-    (-1, -1),
-    (0, -1),
-    (1, -1),
-    (-1, 0),
-    (1, 0),
-    (-1, 1),
-    (0, 1),
-    (1, 1),
-];
 
 /// Fewest sources a coarser level must keep to be used.
 const MIN_COARSE_SOURCES: usize = 64;

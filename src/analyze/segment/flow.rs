@@ -4,16 +4,7 @@ use rayon::prelude::*;
 use std::collections::VecDeque;
 
 /// Neighbour offsets (dx, dy); direction `7 - d` is the opposite of `d`.
-pub(super) const DIRS: [(i32, i32); 8] = [
-    (-1, -1),
-    (0, -1),
-    (1, -1),
-    (-1, 0),
-    (1, 0),
-    (-1, 1),
-    (0, 1),
-    (1, 1),
-];
+pub(super) use crate::base::mask::NEIGHBOURS_8 as DIRS;
 
 /// GrabCut smoothness gamma * exp(-beta |dI|^2) / dist for every pixel and direction
 /// (`n * 8`, zero towards outside the image), with beta = 1 / (2 <|dI|^2>) over all

@@ -42,13 +42,13 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 mod body;
-mod compare;
+
 mod grow;
 mod render;
 mod strokes;
 
+pub use crate::eval::gt3d::{compare_to_gt, GtFigures, GT_SEARCH_M};
 use body::Body;
-pub use compare::{compare_to_gt, GtFigures, GT_SEARCH_M};
 use grow::{grow_strand, Rule, StrandVar, StyleSpec};
 use render::{
     base_fill, close_mask, draw_strands, fill_dir, render_base, render_body, shade_strand,

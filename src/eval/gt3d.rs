@@ -1,4 +1,5 @@
-//! Comparison of a reconstructed strand model with the 3D ground truth.
+//! Comparison of a reconstructed strand model with the 3D ground truth (the strands
+//! `crate::synth::synth3d` grows and draws).
 
 use crate::base::stats::{quantile, Rank};
 use crate::hair::head::Head;
@@ -6,6 +7,7 @@ use crate::hair::strands::StrandSet;
 use glam::Vec3;
 use rayon::prelude::*;
 use std::collections::HashMap;
+
 /// How close a reconstructed strand model is to the ground truth, in 3D (model space).
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct GtFigures {
