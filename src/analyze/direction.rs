@@ -2,7 +2,7 @@
 //! user strokes are splatted as known directions, then Jacobi sweeps of `dir_diffuse` spread
 //! them over the hair mask while keeping every pixel's direction on ± its image orientation.
 
-use crate::analyze::orient::SENTINEL;
+use crate::base::sentinel::SENTINEL;
 use crate::error::{Error, Result};
 use crate::gpu::engine::{Engine, Recording};
 use crate::stages::dir_diffuse;

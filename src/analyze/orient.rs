@@ -9,9 +9,8 @@ use crate::error::{Error, Result};
 use crate::gpu::engine::{BufProxy, Engine, Recording};
 use crate::stages::{gabor, orient_resolve, sep_blur};
 
-/// Word every output buffer is filled with before a pass runs: a quiet NaN with a payload
-/// that no arithmetic produces, so "never written" differs from any written value.
-pub const SENTINEL: u32 = 0x7fc0_c01f;
+/// The fill word of output buffers (kept here for the callers that name it from this stage).
+pub use crate::base::sentinel::SENTINEL;
 
 /// Parameters of the orientation stage; defaults from DESIGN.md and C13 / Chai 2012.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]

@@ -1,5 +1,10 @@
-//! Small shared building blocks with no knowledge of hair: grids, random numbers.
+//! Small shared building blocks with no knowledge of hair: grids, random numbers, mask
+//! morphology, distance functions, order statistics, the buffer sentinel.
 
 pub mod colour;
 pub mod grid;
+pub mod mask;
 pub mod rng;
+pub mod sdf;
+pub mod sentinel;
+pub mod stats;

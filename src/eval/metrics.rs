@@ -15,27 +15,11 @@ pub struct OrientError {
 /// least `inset`: a square erosion of the mask, separable so it costs O(n) per radius.
 pub fn erode(mask: &image::GrayImage, inset: u32) -> Vec<bool> {
     let (w, h) = (mask.width() as usize, mask.height() as usize);
-    let r = inset as i64;
-    let on: Vec<bool> = mask.pixels().map(|p| p[0] > 127).collect();
-    let mut rows = vec![false; w * h];
-    for y in 0..h {
-        for x in 0..w {
-            rows[y * w + x] = (-r..=r).all(|d| {
-                let xx = x as i64 + d;
-                xx >= 0 && (xx as usize) < w && on[y * w + xx as usize]
-            });
-        }
-    }
-    let mut out = vec![false; w * h];
-    for y in 0..h {
-        for x in 0..w {
-            out[y * w + x] = (-r..=r).all(|d| {
-                let yy = y as i64 + d;
-                yy >= 0 && (yy as usize) < h && rows[yy as usize * w + x]
-            });
-        }
-    }
-    out
+    let on: Vec<u8> = mask.pixels().map(|p| (p[0] > 127) as u8).collect();
+    crate::base::mask::erode(&on, w, h, inset as usize)
+        .into_iter()
+        .map(|v| v != 0)
+        .collect()
 }
 
 /// Angular distance of two orientations modulo π, in radians.

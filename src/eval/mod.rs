@@ -1,3 +1,5 @@
-//! Accuracy figures against ground truth.
+//! Accuracy figures against ground truth: image-space metrics, and a strand model scored
+//! against 3D ground-truth strands.
 
+pub mod gt3d;
 pub mod metrics;

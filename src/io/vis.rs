@@ -20,16 +20,7 @@ pub fn hsv(h: f32, s: f32, v: f32) -> Rgb<u8> {
     Rgb([q(r), q(g), q(b)])
 }
 
-/// Value below which `frac` of the finite samples lie (for robust normalisation).
-pub fn percentile(data: &[f32], frac: f32) -> f32 {
-    let mut v: Vec<f32> = data.iter().copied().filter(|x| x.is_finite()).collect();
-    if v.is_empty() {
-        return 0.0;
-    }
-    let k = ((v.len() - 1) as f32 * frac.clamp(0.0, 1.0)).round() as usize;
-    let (_, x, _) = v.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
-    *x
-}
+pub use crate::base::stats::percentile;
 
 /// Orientation as hue (θ = 0 red, π/3 green, 2π/3 blue, wrapping at π), brightness from
 /// the confidence (normalised by its 99th percentile, floor 0.35 so weak hair still shows

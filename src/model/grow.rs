@@ -9,8 +9,8 @@
 //! field at the start or midpoint of a step has length ≤ `min_speed`, or after `max_steps`
 //! steps. The root is always the given seed, unchanged (roots on the scalp stay put).
 
-use crate::analyze::orient::SENTINEL;
 use crate::base::grid::Grid;
+use crate::base::sentinel::SENTINEL;
 use crate::error::{Error, Result};
 use crate::gpu::engine::{Engine, Recording};
 use crate::hair::strands::StrandSet;

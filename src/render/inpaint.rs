@@ -27,7 +27,8 @@
 //! it one pixel per pass. Random search runs once per iteration, in the step-1 pass, as Barnes
 //! does once per pixel per iteration.
 
-use crate::analyze::orient::SENTINEL;
+use crate::base::mask::{dilate, NEIGHBOURS_8};
+use crate::base::sentinel::SENTINEL;
 use crate::error::{Error, Result};
 use crate::gpu::engine::{BufProxy, Engine, Recording};
 use crate::stages::pm_common::{
@@ -142,28 +143,6 @@ pub struct Level {
     pub fallback: u32,
 }
 
-/// Max of `v` over a window of half-side `r` along rows (`along_x`) or columns.
-fn dilate_1d(v: &[u8], w: usize, h: usize, r: usize, along_x: bool) -> Vec<u8> {
-    let mut out = vec![0u8; v.len()];
-    out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        for (x, o) in row.iter_mut().enumerate() {
-            *o = if along_x {
-                let (a, b) = (x.saturating_sub(r), (x + r).min(w - 1));
-                v[y * w + a..=y * w + b].iter().any(|&q| q != 0) as u8
-            } else {
-                let (a, b) = (y.saturating_sub(r), (y + r).min(h - 1));
-                (a..=b).any(|yy| v[yy * w + x] != 0) as u8
-            };
-        }
-    });
-    out
-}
-
-/// `mask` (nonzero = set) grown by `r` pixels in a (2r+1)² square (separable).
-pub fn dilate(mask: &[u8], w: usize, h: usize, r: usize) -> Vec<u8> {
-    dilate_1d(&dilate_1d(mask, w, h, r, true), w, h, r, false)
-}
-
 /// Per-pixel flags for a hole (nonzero = hole) and patch half-side `radius`: a target's
 /// image-clipped patch overlaps the hole (the hole dilated by `radius`, Chebyshev); a source's
 /// patch lies inside the image and off the dilated hole.
@@ -258,7 +237,7 @@ impl Level {
             for &i in &front {
                 let (x, y) = (i as i64 % w, i as i64 / w);
                 for (dx, dy) in NEIGHBOURS_8 {
-                    let (xx, yy) = (x + dx, y + dy);
+                    let (xx, yy) = (x + dx as i64, y + dy as i64);
                     if xx < 0 || yy < 0 || xx >= w || yy >= h {
                         continue;
                     }
@@ -281,17 +260,6 @@ impl Level {
         layer.into_iter().max().unwrap_or(0)
     }
 }
-
-const NEIGHBOURS_8: [(i64, i64); 8] = [
-    (-1, -1),
-    (0, -1),
-    (1, -1),
-    (-1, 0),
-    (1, 0),
-    (-1, 1),
-    (0, 1),
-    (1, 1),
-];
 
 /// Fewest sources a coarser level must keep to be used.
 const MIN_COARSE_SOURCES: usize = 64;

@@ -22,12 +22,13 @@ pub mod raster;
 pub mod shade;
 
 use crate::base::colour;
+use crate::base::mask::dilate;
 use crate::error::{Error, Result};
 use crate::hair::head::texture::{head_texture_with, HeadTextureParams};
 use crate::hair::head::WeakPerspective;
 use crate::hair::scene::Scene;
 use crate::hair::strands::StrandSet;
-use crate::render::inpaint::{dilate, inpaint, InpaintParams};
+use crate::render::inpaint::{inpaint, InpaintParams};
 use crate::render::raster::{Frame, RasterParams, ScreenMesh, ScreenStrands, StrandPhoto, Texture};
 use crate::render::shade::ShadeParams;
 use crate::Engine;

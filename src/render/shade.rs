@@ -30,7 +30,7 @@
 //! saturation and value scaled and clamped to [0, 1]) → RGB → linear, identically on the CPU
 //! ([`hsv_adjust`]) and in the shader.
 
-use crate::analyze::orient::SENTINEL;
+use crate::base::sentinel::SENTINEL;
 use crate::error::{Error, Result};
 use crate::gpu::engine::{Engine, Recording};
 use crate::hair::head::WeakPerspective;

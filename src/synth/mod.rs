@@ -9,7 +9,14 @@
 //! Coordinates follow `annot`: pixel (i, j) has its centre at (i + 0.5, j + 0.5), x right,
 //! y down. Orientation angles are measured from +x towards +y (clockwise on screen).
 
+mod draw;
+mod field;
+mod scene;
 pub mod synth3d;
+
+// Drawing helpers and looks shared with `synth3d`.
+pub(crate) use draw::*;
+use scene::Scene;
 
 use crate::base::rng::Rng;
 use crate::error::{Error, Result};
@@ -17,7 +24,7 @@ use crate::io::annot::{Landmarks, Stroke, StrokeKind, Strokes};
 use image::{GrayImage, RgbImage};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
-use std::f32::consts::{FRAC_PI_2, PI};
+use std::f32::consts::PI;
 use std::path::Path;
 use std::str::FromStr;
 
@@ -141,26 +148,11 @@ impl SynthCase {
 /// Pixels of `mask` (value > 127) whose distance to every non-mask pixel, and to the outside
 /// of the image, is at least `min_dist` pixel-centre spacings. Row-major, W*H.
 pub fn mask_interior(mask: &GrayImage, min_dist: f32) -> Vec<bool> {
-    let (w, h) = (mask.width() as i64, mask.height() as i64);
-    let r = min_dist.ceil().max(0.0) as i64;
+    let (w, h) = (mask.width() as usize, mask.height() as usize);
+    let hair: Vec<bool> = mask.as_raw().iter().map(|&v| v > 127).collect();
     // Offsets strictly closer than `min_dist`: any non-hair pixel there disqualifies.
-    let offs: Vec<(i64, i64)> = (-r..=r)
-        .flat_map(|dy| (-r..=r).map(move |dx| (dx, dy)))
-        .filter(|&(dx, dy)| ((dx * dx + dy * dy) as f32) < min_dist * min_dist)
-        .collect();
-    let m = mask.as_raw();
-    let hair = |x: i64, y: i64| x >= 0 && y >= 0 && x < w && y < h && m[(y * w + x) as usize] > 127;
-    let mut out = vec![false; (w * h) as usize];
-    out.par_chunks_mut(w.max(1) as usize)
-        .enumerate()
-        .for_each(|(y, row)| {
-            let y = y as i64;
-            for (x, o) in row.iter_mut().enumerate() {
-                let x = x as i64;
-                *o = hair(x, y) && offs.iter().all(|&(dx, dy)| hair(x + dx, y + dy));
-            }
-        });
-    out
+    let offs = crate::base::mask::disc(min_dist, true);
+    crate::base::mask::erode_by(&hair, w, h, &offs, false)
 }
 
 /// Smallest angle between two orientations (mod pi), in degrees.
@@ -170,19 +162,8 @@ pub fn orientation_error_deg(a: f32, b: f32) -> f32 {
 
 /// Generates the portrait. Panics if a side is below [`SynthParams::MIN_SIZE`].
 pub fn synth(p: &SynthParams) -> SynthCase {
-    assert!(
-        p.width >= SynthParams::MIN_SIZE && p.height >= SynthParams::MIN_SIZE,
-        "synthetic portraits need at least {0}x{0} pixels, got {1}x{2}",
-        SynthParams::MIN_SIZE,
-        p.width,
-        p.height
-    );
-    let mut root = Rng::new(p.seed ^ style_salt(p.style));
-    // Separate streams, so that changing how one part draws numbers leaves the others alone.
-    let mut geo_rng = root.fork(1);
-    let mut look_rng = root.fork(2);
-    let mut strand_rng = root.fork(3);
-    let mut stroke_rng = root.fork(4);
+    let [mut geo_rng, mut look_rng, mut strand_rng, mut stroke_rng] =
+        streams(p, style_salt(p.style));
 
     let scene = Scene::new(p, &mut geo_rng, &mut look_rng);
     let (w, h) = (p.width as usize, p.height as usize);
@@ -213,10 +194,7 @@ pub fn synth(p: &SynthParams) -> SynthCase {
     scene.draw_hair(&mut rgb, &mask, &mut strand_rng);
     let strokes = scene.make_strokes(&mask, &gt_dir, &mut stroke_rng);
 
-    let mut image = RgbImage::new(p.width, p.height);
-    for (px, c) in image.pixels_mut().zip(&rgb) {
-        *px = image::Rgb(c.map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8));
-    }
+    let image = to_image(&rgb, p.width, p.height);
     SynthCase {
         image,
         mask: GrayImage::from_raw(p.width, p.height, mask).expect("mask size"),
@@ -227,6 +205,57 @@ pub fn synth(p: &SynthParams) -> SynthCase {
         width: p.width,
         height: p.height,
     }
+}
+
+/// The longest prefix of a stroke whose points are hair (`mask` > 0) and whose segments agree
+/// with the ground truth `gt_dir` within 12° at their midpoints, so sampling on the pixel grid
+/// cannot contradict it. `unit` turns a segment into its direction (how each synth treats a
+/// degenerate segment).
+pub(crate) fn checked_prefix(
+    pts: Vec<[f32; 2]>,
+    mask: &[u8],
+    gt_dir: &[f32],
+    w: usize,
+    h: usize,
+    unit: impl Fn([f32; 2]) -> [f32; 2],
+) -> Vec<[f32; 2]> {
+    let at = |p: [f32; 2]| -> Option<usize> {
+        let (ix, iy) = (p[0].floor() as i64, p[1].floor() as i64);
+        (ix >= 0 && iy >= 0 && (ix as usize) < w && (iy as usize) < h)
+            .then(|| iy as usize * w + ix as usize)
+            .filter(|&i| mask[i] > 0)
+    };
+    let mut out: Vec<[f32; 2]> = Vec::new();
+    for p in pts {
+        if at(p).is_none() {
+            break;
+        }
+        if let Some(&q) = out.last() {
+            let m = [(p[0] + q[0]) * 0.5, (p[1] + q[1]) * 0.5];
+            let Some(i) = at(m) else { break };
+            let seg = unit([p[0] - q[0], p[1] - q[1]]);
+            if seg[0] * gt_dir[2 * i] + seg[1] * gt_dir[2 * i + 1] < 12f32.to_radians().cos() {
+                break;
+            }
+        }
+        out.push(p);
+    }
+    out
+}
+
+/// The portrait's random streams (geometry, look, strands, strokes), forked from one root
+/// salted per style, so that changing how one part draws numbers leaves the others alone.
+/// Panics if a side is below [`SynthParams::MIN_SIZE`].
+pub(crate) fn streams(p: &SynthParams, salt: u64) -> [Rng; 4] {
+    assert!(
+        p.width >= SynthParams::MIN_SIZE && p.height >= SynthParams::MIN_SIZE,
+        "synthetic portraits need at least {0}x{0} pixels, got {1}x{2}",
+        SynthParams::MIN_SIZE,
+        p.width,
+        p.height
+    );
+    let mut root = Rng::new(p.seed ^ salt);
+    [1, 2, 3, 4].map(|k| root.fork(k))
 }
 
 fn style_salt(s: Style) -> u64 {
@@ -252,1121 +281,10 @@ pub(crate) fn theta_of(d: [f32; 2]) -> f32 {
     }
 }
 
-// ---------------------------------------------------------------------------------------------
-// Small geometry helpers.
-
-pub(crate) fn smoothstep(e0: f32, e1: f32, x: f32) -> f32 {
-    let t = ((x - e0) / (e1 - e0)).clamp(0.0, 1.0);
-    t * t * (3.0 - 2.0 * t)
-}
-
-/// Approximate signed distance to an axis-aligned ellipse centred at the origin (first-order,
-/// exact on the axes and good near the boundary, which is where anti-aliasing needs it).
-pub(crate) fn ellipse_sdf(x: f32, y: f32, rx: f32, ry: f32) -> f32 {
-    let k0 = ((x / rx).powi(2) + (y / ry).powi(2)).sqrt();
-    let k1 = ((x / (rx * rx)).powi(2) + (y / (ry * ry)).powi(2)).sqrt();
-    if k1 < 1e-12 {
-        return -rx.min(ry);
-    }
-    (k0 - 1.0) * k0 / k1
-}
-
-pub(crate) fn seg_dist(p: [f32; 2], a: [f32; 2], b: [f32; 2]) -> f32 {
-    let (abx, aby) = (b[0] - a[0], b[1] - a[1]);
-    let (apx, apy) = (p[0] - a[0], p[1] - a[1]);
-    let l2 = abx * abx + aby * aby;
-    let t = if l2 > 0.0 {
-        ((apx * abx + apy * aby) / l2).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    (apx - t * abx).hypot(apy - t * aby)
-}
-
-/// Distance to a polyline.
-pub(crate) fn poly_dist(p: [f32; 2], pts: &[[f32; 2]]) -> f32 {
-    pts.windows(2)
-        .map(|s| seg_dist(p, s[0], s[1]))
-        .fold(f32::INFINITY, f32::min)
-}
-
-/// Pixel coverage of a shape from its signed distance (box filter, 1 px wide ramp).
-pub(crate) fn cov(d: f32) -> f32 {
-    (0.5 - d).clamp(0.0, 1.0)
-}
-
-pub(crate) fn blend(c: &mut [f32; 3], col: [f32; 3], a: f32) {
-    if a > 0.0 {
-        for k in 0..3 {
-            c[k] += (col[k] - c[k]) * a;
-        }
-    }
-}
-
-pub(crate) fn scale3(c: [f32; 3], s: f32) -> [f32; 3] {
-    c.map(|v| v * s)
-}
-
-pub(crate) fn mix3(a: [f32; 3], b: [f32; 3], t: f32) -> [f32; 3] {
-    [
-        a[0] + (b[0] - a[0]) * t,
-        a[1] + (b[1] - a[1]) * t,
-        a[2] + (b[2] - a[2]) * t,
-    ]
-}
-
-pub(crate) fn jitter3(c: [f32; 3], rng: &mut Rng, amount: f32) -> [f32; 3] {
-    c.map(|v| (v * (1.0 + amount * rng.range_f32(-1.0, 1.0))).clamp(0.0, 1.0))
-}
-
-pub(crate) fn pick<T: Copy>(rng: &mut Rng, xs: &[T]) -> T {
-    xs[rng.below(xs.len() as u32) as usize]
-}
-
-/// Smooth value noise on a coarse random lattice, for the background.
-pub(crate) struct Noise {
-    n: usize,
-    v: Vec<f32>,
-}
-
-impl Noise {
-    pub(crate) fn new(n: usize, rng: &mut Rng) -> Self {
-        Noise {
-            n,
-            v: (0..(n + 1) * (n + 1)).map(|_| rng.next_f32()).collect(),
-        }
-    }
-
-    /// u, v in [0, 1]; result in [0, 1].
-    pub(crate) fn sample(&self, u: f32, v: f32) -> f32 {
-        let fx = (u.clamp(0.0, 1.0) * self.n as f32).min(self.n as f32 - 1e-3);
-        let fy = (v.clamp(0.0, 1.0) * self.n as f32).min(self.n as f32 - 1e-3);
-        let (ix, iy) = (fx as usize, fy as usize);
-        let (tx, ty) = (
-            smoothstep(0.0, 1.0, fx.fract()),
-            smoothstep(0.0, 1.0, fy.fract()),
-        );
-        let at = |x: usize, y: usize| self.v[y * (self.n + 1) + x];
-        let top = at(ix, iy) + (at(ix + 1, iy) - at(ix, iy)) * tx;
-        let bot = at(ix, iy + 1) + (at(ix + 1, iy + 1) - at(ix, iy + 1)) * tx;
-        top + (bot - top) * ty
-    }
-}
-
-// ---------------------------------------------------------------------------------------------
-// The growth field.
-
-#[derive(Clone, Debug)]
-enum Field {
-    /// Hair parted along the vertical line x = px above the head centre (hx, hy): on each side
-    /// it leaves the part horizontally and turns down following an elliptic angle around the
-    /// head centre, so orientation is continuous across the part while direction flips.
-    Part {
-        px: f32,
-        hy: f32,
-        rx_l: f32,
-        rx_r: f32,
-        ry: f32,
-        amax_l: f32,
-        amax_r: f32,
-        /// Gentle waves and an outward flare of the falling hair, both below `y_low`.
-        wave_amp: f32,
-        wave_k: f32,
-        wave_phase: f32,
-        flare: f32,
-        y_low: f32,
-        y_bottom: f32,
-    },
-    /// A spiral out of the whorl point, bending downwards further away.
-    Whorl {
-        wx: f32,
-        wy: f32,
-        twist: f32,
-        fall: f32,
-        r0: f32,
-        r1: f32,
-    },
-    /// Straight out of a crown point above the head silhouette (so no singularity on hair),
-    /// turned by a small twist.
-    Radial { ox: f32, oy: f32, twist: f32 },
-}
-
-impl Field {
-    /// Unit growth direction (root -> tip) at (x, y).
-    fn dir(&self, x: f32, y: f32) -> [f32; 2] {
-        match *self {
-            Field::Part {
-                px,
-                hy,
-                rx_l,
-                rx_r,
-                ry,
-                amax_l,
-                amax_r,
-                wave_amp,
-                wave_k,
-                wave_phase,
-                flare,
-                y_low,
-                y_bottom,
-            } => {
-                let u = x - px;
-                let right = u >= 0.0;
-                let (rx, amax) = if right {
-                    (rx_r, amax_r)
-                } else {
-                    (rx_l, amax_l)
-                };
-                // 0 straight above the head centre, pi straight below.
-                let alpha = (u.abs() / rx).atan2(-(y - hy) / ry);
-                let t = (alpha / amax).min(1.0);
-                // Linear near the part (so orientation is smooth across it), flat at pi/2.
-                let mut beta = FRAC_PI_2 * t * (2.0 - t);
-                let low = smoothstep(y_low, y_low + 0.5 * (y_bottom - y_low), y);
-                beta += low * (wave_amp * (wave_k * y + wave_phase).sin() - flare);
-                let s = if right { 1.0 } else { -1.0 };
-                [s * beta.cos(), beta.sin()]
-            }
-            Field::Whorl {
-                wx,
-                wy,
-                twist,
-                fall,
-                r0,
-                r1,
-            } => {
-                let (rx, ry) = (x - wx, y - wy);
-                let d = rx.hypot(ry);
-                if d < 1e-6 {
-                    return [1.0, 0.0];
-                }
-                let (s, c) = twist.sin_cos();
-                let tx = (rx * c - ry * s) / d;
-                let ty = (rx * s + ry * c) / d;
-                // fall < 1 keeps the sum away from zero, so the field has no second singularity.
-                let g = fall * smoothstep(r0, r1, d);
-                normalize([tx, ty + g])
-            }
-            Field::Radial { ox, oy, twist } => {
-                let (rx, ry) = (x - ox, y - oy);
-                let (s, c) = twist.sin_cos();
-                normalize([rx * c - ry * s, rx * s + ry * c])
-            }
-        }
-    }
-
-    /// Which side of a part a point is on (+1 / -1); 0 for fields without a part.
-    fn side(&self, x: f32) -> i32 {
-        match *self {
-            Field::Part { px, .. } => {
-                if x >= px {
-                    1
-                } else {
-                    -1
-                }
-            }
-            _ => 0,
-        }
-    }
-}
-
-fn normalize(v: [f32; 2]) -> [f32; 2] {
-    let l = v[0].hypot(v[1]);
-    if l > 0.0 {
-        [v[0] / l, v[1] / l]
-    } else {
-        [1.0, 0.0]
-    }
-}
-
-// ---------------------------------------------------------------------------------------------
-// The scene.
-
-#[derive(Clone, Debug)]
-enum Region {
-    /// Rounded top over the head, then a curtain widening down to `y_bot`.
-    Long {
-        rx: f32,
-        ry: f32,
-        hw_bot: f32,
-        y_bot: f32,
-    },
-    /// A cap over the skull ellipse, cut at `y_cut`; with a fringe, the face above the fringe
-    /// line is hair too.
-    Cap {
-        rx: f32,
-        ry: f32,
-        y_cut: f32,
-        fringe: Option<Fringe>,
-    },
-}
-
-#[derive(Clone, Debug)]
-struct Fringe {
-    x_near: f32,
-    x_far: f32,
-    y_near: f32,
-    y_far: f32,
-}
-
-impl Fringe {
-    fn y(&self, x: f32) -> f32 {
-        self.y_near + (self.y_far - self.y_near) * smoothstep(self.x_near, self.x_far, x)
-    }
-}
-
-struct Scene {
-    w: f32,
-    h: f32,
-    /// Length unit: 1 at 512 px.
-    s: f32,
-    /// Face ellipse.
-    cx: f32,
-    cy: f32,
-    a: f32,
-    b: f32,
-    /// Head (skull) centre.
-    hx: f32,
-    hy: f32,
-    region: Region,
-    field: Field,
-    /// Whorl centre, kept clear of strokes.
-    singular: Option<[f32; 2]>,
-    // Looks.
-    skin: [f32; 3],
-    hair: [f32; 3],
-    iris: [f32; 3],
-    lips: [f32; 3],
-    cloth: [f32; 3],
-    bg_top: [f32; 3],
-    bg_bot: [f32; 3],
-    noise: Noise,
-    /// Strand lengths (min, max), px.
-    strand_len: (f32, f32),
-    /// No strand starts closer than this to an earlier one, px; neighbouring strands end up
-    /// one to two times this apart.
-    spacing: f32,
-}
-
-pub(crate) const SKINS: [[f32; 3]; 6] = [
-    [0.96, 0.80, 0.69],
-    [0.92, 0.74, 0.62],
-    [0.86, 0.66, 0.52],
-    [0.76, 0.55, 0.40],
-    [0.58, 0.40, 0.28],
-    [0.44, 0.30, 0.21],
-];
-pub(crate) const HAIRS: [[f32; 3]; 8] = [
-    [0.17, 0.14, 0.13],
-    [0.30, 0.20, 0.13],
-    [0.44, 0.29, 0.17],
-    [0.55, 0.26, 0.12],
-    [0.80, 0.64, 0.40],
-    [0.72, 0.40, 0.18],
-    [0.62, 0.60, 0.60],
-    [0.36, 0.26, 0.20],
-];
-pub(crate) const IRISES: [[f32; 3]; 4] = [
-    [0.36, 0.22, 0.12],
-    [0.25, 0.42, 0.62],
-    [0.30, 0.48, 0.30],
-    [0.50, 0.38, 0.20],
-];
-
-impl Scene {
-    fn new(p: &SynthParams, g: &mut Rng, look: &mut Rng) -> Scene {
-        let (w, h) = (p.width as f32, p.height as f32);
-        let s = w.min(h) / 512.0;
-        let a = 84.0 * s * (1.0 + 0.05 * g.range_f32(-1.0, 1.0));
-        let b = a * g.range_f32(1.25, 1.36);
-        let cx = w * 0.5 + g.range_f32(-0.025, 0.025) * w.min(h);
-        let cy = h * 0.5 + g.range_f32(0.0, 0.025) * h.min(w);
-        let (hx, hy) = (cx, cy - 0.3 * b);
-        let side = if g.next_f32() < 0.5 { -1.0 } else { 1.0 };
-
-        let (region, field, singular, strand_len, spacing) = match p.style {
-            Style::Long => {
-                let y_bot = cy + b * g.range_f32(2.25, 2.4);
-                let field = Field::Part {
-                    px: cx + g.range_f32(-0.06, 0.06) * a,
-                    hy,
-                    rx_l: a,
-                    rx_r: a,
-                    ry: b,
-                    amax_l: 0.8 * PI,
-                    amax_r: 0.8 * PI,
-                    wave_amp: g.range_f32(0.08, 0.16),
-                    wave_k: std::f32::consts::TAU / (g.range_f32(90.0, 140.0) * s),
-                    wave_phase: g.range_f32(0.0, std::f32::consts::TAU),
-                    flare: g.range_f32(0.05, 0.15),
-                    y_low: cy - 0.2 * b,
-                    y_bottom: y_bot,
-                };
-                let region = Region::Long {
-                    rx: a * g.range_f32(1.55, 1.62),
-                    ry: b * g.range_f32(1.28, 1.36),
-                    hw_bot: a * g.range_f32(2.3, 2.5),
-                    y_bot,
-                };
-                (region, field, None, (90.0 * s, 260.0 * s), 3.0 * s.max(0.5))
-            }
-            Style::SidePart => {
-                let px = cx + side * a * g.range_f32(0.38, 0.5);
-                // The big side sweeps flatter across the forehead.
-                let (big_rx, small_rx) = (a * g.range_f32(1.5, 1.8), a * 0.8);
-                let (rx_l, rx_r, amax_l, amax_r) = if side < 0.0 {
-                    (small_rx, big_rx, 0.8 * PI, PI)
-                } else {
-                    (big_rx, small_rx, PI, 0.8 * PI)
-                };
-                let field = Field::Part {
-                    px,
-                    hy,
-                    rx_l,
-                    rx_r,
-                    ry: 0.7 * b,
-                    amax_l,
-                    amax_r,
-                    wave_amp: 0.0,
-                    wave_k: 0.0,
-                    wave_phase: 0.0,
-                    flare: g.range_f32(0.0, 0.1),
-                    y_low: cy - 0.3 * b,
-                    y_bottom: cy + 0.4 * b,
-                };
-                let region = Region::Cap {
-                    rx: a * g.range_f32(1.3, 1.38),
-                    ry: b * g.range_f32(1.32, 1.4),
-                    y_cut: cy + g.range_f32(0.1, 0.25) * b,
-                    fringe: Some(Fringe {
-                        x_near: px + side * -0.2 * a,
-                        x_far: cx - side * 0.9 * a,
-                        y_near: cy - 1.0 * b,
-                        y_far: cy - g.range_f32(0.42, 0.5) * b,
-                    }),
-                };
-                (region, field, None, (40.0 * s, 130.0 * s), 3.0 * s.max(0.5))
-            }
-            Style::Whorl => {
-                let ry = b * g.range_f32(1.32, 1.4);
-                let wx = cx + g.range_f32(-0.3, 0.3) * a + 0.27;
-                let wy = hy - ry * g.range_f32(0.62, 0.72) + 0.31;
-                let field = Field::Whorl {
-                    wx,
-                    wy,
-                    twist: side * g.range_f32(0.8, 1.15),
-                    fall: g.range_f32(0.45, 0.6),
-                    r0: 0.25 * b,
-                    r1: 1.2 * b,
-                };
-                let region = Region::Cap {
-                    rx: a * g.range_f32(1.28, 1.36),
-                    ry,
-                    y_cut: cy - g.range_f32(0.05, 0.15) * b,
-                    fringe: None,
-                };
-                (
-                    region,
-                    field,
-                    Some([wx, wy]),
-                    (25.0 * s, 75.0 * s),
-                    3.0 * s.max(0.5),
-                )
-            }
-            Style::Short => {
-                let ry = b * g.range_f32(1.26, 1.32);
-                let field = Field::Radial {
-                    ox: cx + g.range_f32(-0.25, 0.25) * a,
-                    oy: hy - ry - g.range_f32(0.1, 0.2) * b,
-                    twist: side * g.range_f32(0.05, 0.2),
-                };
-                let region = Region::Cap {
-                    rx: a * g.range_f32(1.22, 1.3),
-                    ry,
-                    y_cut: cy - g.range_f32(0.1, 0.2) * b,
-                    fringe: None,
-                };
-                (region, field, None, (15.0 * s, 40.0 * s), 3.0 * s.max(0.5))
-            }
-        };
-
-        let bg_top = mix3(
-            [look.next_f32(), look.next_f32(), look.next_f32()],
-            [0.75, 0.75, 0.75],
-            0.55,
-        );
-        let bg_bot = scale3(bg_top, look.range_f32(0.55, 0.8));
-        Scene {
-            w,
-            h,
-            s,
-            cx,
-            cy,
-            a,
-            b,
-            hx,
-            hy,
-            region,
-            field,
-            singular,
-            skin: jitter3(pick(look, &SKINS), look, 0.04),
-            hair: jitter3(pick(look, &HAIRS), look, 0.08),
-            iris: jitter3(pick(look, &IRISES), look, 0.1),
-            lips: jitter3([0.72, 0.36, 0.36], look, 0.1),
-            cloth: mix3(
-                [look.next_f32(), look.next_f32(), look.next_f32()],
-                [0.3, 0.3, 0.3],
-                0.4,
-            ),
-            bg_top,
-            bg_bot,
-            noise: Noise::new(6, look),
-            strand_len,
-            spacing,
-        }
-    }
-
-    /// Signed distance (approximate, px) to the hair region; negative on hair.
-    fn hair_sdf(&self, x: f32, y: f32) -> f32 {
-        let (cx, cy, a, b) = (self.cx, self.cy, self.a, self.b);
-        let face = ellipse_sdf(x - cx, y - cy, a, b);
-        match &self.region {
-            Region::Long {
-                rx,
-                ry,
-                hw_bot,
-                y_bot,
-            } => {
-                let dx = (x - cx).abs();
-                let env = if y < self.hy {
-                    ellipse_sdf(x - self.hx, y - self.hy, *rx, *ry)
-                } else {
-                    let hw = rx + (hw_bot - rx) * smoothstep(self.hy, *y_bot, y);
-                    // Ends lowest in the middle of each side, like combed-down long hair.
-                    let mid = (dx - 1.3 * a) / (0.9 * a);
-                    let bottom = y_bot - 0.25 * b * mid * mid;
-                    (dx - hw).max(y - bottom)
-                };
-                env.max(-face).max(-self.body_band_sdf(x, y))
-            }
-            Region::Cap {
-                rx,
-                ry,
-                y_cut,
-                fringe,
-            } => {
-                let env = ellipse_sdf(x - self.hx, y - self.hy, *rx, *ry).max(y - y_cut);
-                let bare_face = match fringe {
-                    None => face,
-                    Some(f) => face.max(f.y(x) - y),
-                };
-                env.max(-bare_face)
-            }
-        }
-    }
-
-    /// The neck, and lower down the chest, which long hair leaves visible.
-    fn body_band_sdf(&self, x: f32, y: f32) -> f32 {
-        let (cy, a, b) = (self.cy, self.a, self.b);
-        let hw = 0.4 * a + 0.7 * a * smoothstep(cy + 1.5 * b, cy + 2.4 * b, y);
-        ((x - self.cx).abs() - hw).max(cy + 0.3 * b - y)
-    }
-
-    fn eye(&self, side: f32) -> [f32; 2] {
-        [self.cx + side * 0.4 * self.a, self.cy - 0.1 * self.b]
-    }
-    fn nose_tip(&self) -> [f32; 2] {
-        [self.cx, self.cy + 0.3 * self.b]
-    }
-    fn mouth(&self, side: f32) -> [f32; 2] {
-        [self.cx + side * 0.32 * self.a, self.cy + 0.56 * self.b]
-    }
-    fn chin(&self) -> [f32; 2] {
-        [self.cx, self.cy + self.b]
-    }
-
-    fn landmarks(&self) -> Landmarks {
-        let mut m = BTreeMap::new();
-        m.insert("left_eye".into(), self.eye(-1.0));
-        m.insert("right_eye".into(), self.eye(1.0));
-        m.insert("nose_tip".into(), self.nose_tip());
-        m.insert("mouth_left".into(), self.mouth(-1.0));
-        m.insert("mouth_right".into(), self.mouth(1.0));
-        m.insert("chin".into(), self.chin());
-        Landmarks::new(m)
-    }
-
-    /// Brightness factor for hair: a highlight ring on the crown, darker further down and
-    /// near the edges of the hair. Slowly varying, so it adds almost no gradient energy.
-    fn hair_shade(&self, x: f32, y: f32, sdf: f32) -> f32 {
-        let (rx, ry) = match &self.region {
-            Region::Long { rx, ry, .. } | Region::Cap { rx, ry, .. } => (*rx, *ry),
-        };
-        let q = ((x - self.hx) / rx).hypot((y - self.hy) / ry);
-        let upper = if y < self.hy {
-            1.0
-        } else {
-            (-((y - self.hy) / (0.5 * self.b)).powi(2)).exp()
-        };
-        let ring = (-((q - 0.72) / 0.13).powi(2)).exp() * upper;
-        let low = smoothstep(self.hy, self.hy + 2.5 * self.b, y);
-        let edge = 1.0 - smoothstep(0.0, 10.0 * self.s, -sdf);
-        0.85 + 0.4 * ring - 0.2 * low - 0.2 * edge
-    }
-
-    /// Everything but the strands: background, body, face and the base fill of the hair.
-    fn render_base(&self) -> Vec<[f32; 3]> {
-        let (w, h) = (self.w as usize, self.h as usize);
-        let mut out = vec![[0.0f32; 3]; w * h];
-        out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-            for (x, c) in row.iter_mut().enumerate() {
-                *c = self.base_pixel(x as f32 + 0.5, y as f32 + 0.5);
-            }
-        });
-        out
-    }
-
-    fn base_pixel(&self, x: f32, y: f32) -> [f32; 3] {
-        let (cx, cy, a, b, s) = (self.cx, self.cy, self.a, self.b, self.s);
-        let (u, v) = (x / self.w, y / self.h);
-        let mut c = mix3(self.bg_top, self.bg_bot, v);
-        let n = self.noise.sample(u, v) - 0.5;
-        let vig = (u - 0.5).powi(2) + (v - 0.45).powi(2);
-        c = scale3(c, (1.0 + 0.25 * n) * (1.0 - 0.35 * vig));
-
-        // Shoulders and neck.
-        let torso = ellipse_sdf(x - cx, y - (cy + 3.25 * b), 2.7 * a, 1.75 * b);
-        let shade = 0.8 + 0.2 * smoothstep(cy + 1.5 * b, cy + 2.4 * b, y);
-        blend(&mut c, scale3(self.cloth, shade), cov(torso));
-        let neck = ((x - cx).abs() - 0.4 * a).max(cy + 0.3 * b - y).max(-torso);
-        let neck_shade = 0.72 + 0.16 * smoothstep(cy + b, cy + 1.35 * b, y);
-        blend(&mut c, scale3(self.skin, neck_shade), cov(neck));
-        // Collar line where neck meets clothing.
-        blend(
-            &mut c,
-            scale3(self.cloth, 0.6),
-            cov(torso.abs() - 1.0 * s) * cov((x - cx).abs() - 0.55 * a),
-        );
-
-        // Ears, then the face.
-        for side in [-1.0f32, 1.0] {
-            let e = ellipse_sdf(
-                x - (cx + side * 0.97 * a),
-                y - (cy + 0.02 * b),
-                0.16 * a,
-                0.22 * b,
-            );
-            blend(&mut c, scale3(self.skin, 0.88), cov(e));
-        }
-        let face = ellipse_sdf(x - cx, y - cy, a, b);
-        if face < 1.0 {
-            let q2 = ((x - cx) / a).powi(2) + ((y - cy) / b).powi(2);
-            let mut fc = scale3(self.skin, 0.9 + 0.1 * (1.0 - q2).max(0.0));
-            for side in [-1.0f32, 1.0] {
-                let ch = ((x - (cx + side * 0.55 * a)) / (0.2 * a)).powi(2)
-                    + ((y - (cy + 0.3 * b)) / (0.12 * b)).powi(2);
-                blend(&mut fc, [0.9, 0.45, 0.45], 0.18 * (-ch).exp());
-            }
-            blend(&mut c, fc, cov(face));
-            self.features(&mut c, x, y);
-        }
-
-        // Dark base fill of the hair: strands go on top, and no background shows through gaps.
-        let hs = self.hair_sdf(x, y);
-        if hs < 1.0 {
-            let shade = self.hair_shade(x, y, hs);
-            blend(&mut c, scale3(self.hair, 0.4 * shade), cov(hs));
-        }
-        c
-    }
-
-    fn features(&self, c: &mut [f32; 3], x: f32, y: f32) {
-        let (cx, cy, a, b, s) = (self.cx, self.cy, self.a, self.b, self.s);
-        let p = [x, y];
-        let brow = scale3(self.hair, 0.6);
-        for side in [-1.0f32, 1.0] {
-            // Eyebrow: a thick arc.
-            let pts = [
-                [cx + side * 0.17 * a, cy - 0.29 * b],
-                [cx + side * 0.4 * a, cy - 0.35 * b],
-                [cx + side * 0.63 * a, cy - 0.29 * b],
-            ];
-            blend(c, brow, 0.9 * cov(poly_dist(p, &pts) - 0.035 * b));
-
-            // Eye: sclera, iris, pupil, glint and upper lid.
-            let [ex, ey] = self.eye(side);
-            let scl = ellipse_sdf(x - ex, y - ey, 0.18 * a, 0.075 * b);
-            blend(c, [0.95, 0.94, 0.92], cov(scl));
-            let iris = ((x - ex).hypot(y - ey) - 0.065 * b).max(scl);
-            blend(c, self.iris, cov(iris));
-            let pupil = (x - ex).hypot(y - ey) - 0.03 * b;
-            blend(c, [0.03, 0.03, 0.03], cov(pupil));
-            let glint = (x - ex - 0.02 * b).hypot(y - ey + 0.02 * b) - 0.012 * b;
-            blend(c, [1.0, 1.0, 1.0], 0.9 * cov(glint));
-            let lid = (scl.abs() - 0.9 * s).max(y - ey);
-            blend(c, [0.12, 0.08, 0.07], cov(lid));
-        }
-
-        // Nose: a soft side shadow and two nostrils.
-        let [nx, ny] = self.nose_tip();
-        let bridge = [
-            [cx + 0.07 * a, cy - 0.05 * b],
-            [nx + 0.09 * a, ny - 0.04 * b],
-        ];
-        blend(
-            c,
-            scale3(self.skin, 0.75),
-            0.5 * cov(poly_dist(p, &bridge) - 1.2 * s),
-        );
-        for side in [-1.0f32, 1.0] {
-            let nos = ellipse_sdf(
-                x - (nx + side * 0.09 * a),
-                y - (ny + 0.015 * b),
-                0.05 * a,
-                0.022 * b,
-            );
-            blend(c, scale3(self.skin, 0.5), cov(nos));
-        }
-
-        // Mouth: lips and the line between them, smiling slightly.
-        let [ml, my] = self.mouth(-1.0);
-        let mw = cx - ml;
-        let lips = ellipse_sdf(x - cx, y - (my + 0.01 * b), mw * 1.02, 0.065 * b);
-        blend(c, self.lips, cov(lips));
-        let line = [
-            [cx - mw, my],
-            [cx - 0.5 * mw, my + 0.02 * b],
-            [cx, my + 0.025 * b],
-            [cx + 0.5 * mw, my + 0.02 * b],
-            [cx + mw, my],
-        ];
-        blend(c, [0.3, 0.1, 0.1], cov(poly_dist(p, &line) - 0.7 * s));
-    }
-
-    // -----------------------------------------------------------------------------------------
-    // Strands.
-
-    /// Follows the field (sign +1) or against it (-1) from `start` for up to `len` px with
-    /// RK4 steps of `h`, stopping at the hair boundary and where the field jumps (a part) or
-    /// turns too fast (the whorl centre). Returns the points after `start`.
-    fn trace(&self, start: [f32; 2], sign: f32, len: f32, h: f32, keep_in: f32) -> Vec<[f32; 2]> {
-        let f = |p: [f32; 2]| {
-            let d = self.field.dir(p[0], p[1]);
-            [sign * d[0], sign * d[1]]
-        };
-        let dot = |a: [f32; 2], b: [f32; 2]| a[0] * b[0] + a[1] * b[1];
-        let mut out = Vec::new();
-        let mut p = start;
-        let mut prev = f(p);
-        let mut travelled = 0.0;
-        while travelled + 0.5 * h < len {
-            let k1 = f(p);
-            let k2 = f([p[0] + 0.5 * h * k1[0], p[1] + 0.5 * h * k1[1]]);
-            let k3 = f([p[0] + 0.5 * h * k2[0], p[1] + 0.5 * h * k2[1]]);
-            let k4 = f([p[0] + h * k3[0], p[1] + h * k3[1]]);
-            // Stages that disagree mean a discontinuity within the step: stop before it.
-            if dot(k1, k2) < 0.8 || dot(k1, k3) < 0.8 || dot(k1, k4) < 0.8 || dot(k1, prev) < 0.8 {
-                break;
-            }
-            let d = [
-                (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0]) / 6.0,
-                (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1]) / 6.0,
-            ];
-            let q = [p[0] + h * d[0], p[1] + h * d[1]];
-            let inside = q[0] >= keep_in
-                && q[1] >= keep_in
-                && q[0] < self.w - keep_in
-                && q[1] < self.h - keep_in
-                && self.hair_sdf(q[0], q[1]) < -keep_in;
-            if !inside {
-                break;
-            }
-            travelled += h * d[0].hypot(d[1]);
-            out.push(q);
-            p = q;
-            prev = k1;
-        }
-        out
-    }
-
-    /// Draws the strands over `rgb`: seeds at random over the hair, each accepted only where
-    /// no strand passes within `spacing` yet, so the hair is covered evenly.
-    fn draw_hair(&self, rgb: &mut [[f32; 3]], mask: &[u8], rng: &mut Rng) {
-        let (w, h) = (self.w as usize, self.h as usize);
-        // Candidate seeds: one jittered point per 2x2 cell, in random order.
-        let mut seeds = Vec::new();
-        for gy in (0..h).step_by(2) {
-            for gx in (0..w).step_by(2) {
-                let p = [
-                    gx as f32 + rng.range_f32(0.0, 2.0),
-                    gy as f32 + rng.range_f32(0.0, 2.0),
-                ];
-                let (ix, iy) = (p[0] as usize, p[1] as usize);
-                if ix < w && iy < h && mask[iy * w + ix] > 0 {
-                    seeds.push(p);
-                }
-            }
-        }
-        for i in (1..seeds.len()).rev() {
-            seeds.swap(i, rng.below(i as u32 + 1) as usize);
-        }
-
-        let mut occ = vec![false; w * h];
-        let mut canvas = StrandCanvas::new(w, h);
-        let step = 0.5;
-        let r_occ = self.spacing;
-        for seed in seeds {
-            let (ix, iy) = (seed[0] as usize, seed[1] as usize);
-            if occ[iy * w + ix] {
-                continue;
-            }
-            let len = rng.range_f32(self.strand_len.0, self.strand_len.1);
-            let back = len * rng.next_f32();
-            let mut pts = self.trace(seed, -1.0, back, step, 0.0);
-            pts.reverse();
-            pts.push(seed);
-            pts.extend(self.trace(seed, 1.0, len - back, step, 0.0));
-
-            // Keep the strand's neighbourhood from seeding parallel copies of it.
-            mark_disk(&mut occ, w, h, seed, r_occ);
-            for q in &pts {
-                mark_disk(&mut occ, w, h, *q, r_occ);
-            }
-            if pts.len() < 3 {
-                continue;
-            }
-            let bright = (1.0 + 0.4 * rng.normal_f32()).clamp(0.55, 1.6);
-            let tint = [
-                1.0 + 0.05 * rng.range_f32(-1.0, 1.0),
-                1.0 + 0.05 * rng.range_f32(-1.0, 1.0),
-                1.0 + 0.05 * rng.range_f32(-1.0, 1.0),
-            ];
-            // A grey sheen keeps dark hair's strands visible, as on real black hair.
-            let lum = 0.3 * self.hair[0] + 0.59 * self.hair[1] + 0.11 * self.hair[2];
-            let sheen = 0.16 * (1.0 - lum);
-            let col = [
-                (self.hair[0] + sheen) * bright * tint[0],
-                (self.hair[1] + sheen) * bright * tint[1],
-                (self.hair[2] + sheen) * bright * tint[2],
-            ];
-            let width = rng.range_f32(1.0, 1.5) * self.s.clamp(0.75, 1.5);
-            let alpha = rng.range_f32(0.6, 0.95);
-            canvas.draw(&pts, width, self.s);
-            canvas.composite(rgb, |x, y| {
-                let sd = self.hair_sdf(x, y);
-                (scale3(col, self.hair_shade(x, y, sd)), alpha)
-            });
-        }
-        self.draw_parting(rgb, mask);
-    }
-
-    /// A parting shows a thin line of scalp where the hair leaves it both ways; it is what
-    /// tells a viewer (and the 2D tracer) that the strands on either side are not one curve.
-    fn draw_parting(&self, rgb: &mut [[f32; 3]], mask: &[u8]) {
-        let Field::Part { px, hy, .. } = self.field else {
-            return;
-        };
-        let (w, h) = (self.w as usize, self.h as usize);
-        let half = 0.9 * self.s.max(0.75);
-        let scalp = scale3(self.skin, 0.8);
-        let x0 = ((px - half - 1.0).floor().max(0.0)) as usize;
-        let x1 = ((px + half + 1.0).ceil() as usize).min(w - 1);
-        for y in 0..(hy.max(0.0) as usize).min(h) {
-            for x in x0..=x1 {
-                let i = y * w + x;
-                if mask[i] == 0 {
-                    continue;
-                }
-                // Box-filtered coverage of the band |x - px| < half by the pixel.
-                let cover =
-                    ((x as f32 + 1.0).min(px + half) - (x as f32).max(px - half)).clamp(0.0, 1.0);
-                for c in 0..3 {
-                    rgb[i][c] += cover * (scalp[c] - rgb[i][c]);
-                }
-            }
-        }
-    }
-
-    // -----------------------------------------------------------------------------------------
-    // Strokes.
-
-    /// 4-6 direction strokes along the true field, well inside the hair, spread out; for
-    /// fields with a part at least one on each side.
-    fn make_strokes(&self, mask: &[u8], gt_dir: &[f32], rng: &mut Rng) -> Strokes {
-        let (w, h) = (self.w as usize, self.h as usize);
-        let s = self.s;
-        let want = 4 + rng.below(3) as usize;
-        let margin = 7.0 * s.max(0.6);
-        // Deep hair points, as candidate starting places.
-        let mut cands = Vec::new();
-        for _ in 0..4000 {
-            let p = [rng.range_f32(0.0, self.w), rng.range_f32(0.0, self.h)];
-            let (ix, iy) = (p[0] as usize, p[1] as usize);
-            if mask[iy * w + ix] == 0 || self.hair_sdf(p[0], p[1]) > -1.8 * margin {
-                continue;
-            }
-            if let Some(c) = self.singular {
-                if (p[0] - c[0]).hypot(p[1] - c[1]) < 20.0 * s {
-                    continue;
-                }
-            }
-            cands.push(p);
-        }
-        let mut strokes: Vec<Stroke> = Vec::new();
-        let mut used: Vec<[f32; 2]> = Vec::new();
-        let mut sides_needed: Vec<i32> = match self.field {
-            Field::Part { .. } => vec![-1, 1],
-            _ => vec![],
-        };
-        // Where a user starts a stroke on each side of a part: just beside the part line,
-        // near the top of the hair, drawn away from it. Both sides then have a stroke where
-        // their curves meet head-on, which is what decides the sign of curves near a part.
-        let part_anchor = |sd: i32| -> Option<[f32; 2]> {
-            let Field::Part { px, .. } = self.field else {
-                return None;
-            };
-            let x = px + sd as f32 * 14.0 * s;
-            let top = cands
-                .iter()
-                .filter(|p| (p[0] - x).abs() < 12.0 * s)
-                .map(|p| p[1])
-                .fold(f32::INFINITY, f32::min);
-            top.is_finite().then_some([x, top])
-        };
-        let anchors = [part_anchor(-1), part_anchor(1)];
-        let mut tries = 0;
-        while strokes.len() < want && !cands.is_empty() && tries < 200 {
-            tries += 1;
-            // Farthest from what is already drawn, restricted to a needed part side first.
-            let side = sides_needed.first().copied();
-            let anchor = side.and_then(|sd| anchors[(sd > 0) as usize]);
-            let best = cands
-                .iter()
-                .enumerate()
-                .filter(|(_, p)| side.is_none_or(|sd| self.field.side(p[0]) == sd))
-                .map(|(i, p)| {
-                    if let Some(a) = anchor {
-                        return (i, -(p[0] - a[0]).hypot(p[1] - a[1]));
-                    }
-                    let d = used
-                        .iter()
-                        .map(|q| (p[0] - q[0]).hypot(p[1] - q[1]))
-                        .fold(f32::INFINITY, f32::min);
-                    // A little randomness so seeds differ in where strokes go.
-                    (i, d * rng.range_f32(0.8, 1.0))
-                })
-                .max_by(|x, y| x.1.total_cmp(&y.1));
-            let Some((i, _)) = best else {
-                sides_needed.remove(0);
-                continue;
-            };
-            let start = cands.swap_remove(i);
-            let len = rng.range_f32(70.0, 150.0) * s.max(0.5);
-            let back = if anchor.is_some() {
-                0.0
-            } else {
-                len * rng.range_f32(0.3, 0.6)
-            };
-            // The narrow side of a part leaves little room: a user follows it closer to
-            // the edge there.
-            let keep_in = if anchor.is_some() {
-                0.35 * margin
-            } else {
-                margin
-            };
-            let mut path = self.trace(start, -1.0, back, 0.5, keep_in);
-            path.reverse();
-            path.push(start);
-            path.extend(self.trace(start, 1.0, len - back, 0.5, keep_in));
-            let pts = resample(&path, 10.0 * s.max(0.5));
-            let pts = self.checked_prefix(pts, mask, gt_dir, w, h);
-            let total: f32 = pts
-                .windows(2)
-                .map(|q| (q[1][0] - q[0][0]).hypot(q[1][1] - q[0][1]))
-                .sum();
-            if pts.len() < 2 || total < 40.0 * s.max(0.5) {
-                used.push(start);
-                continue;
-            }
-            if let Some(sd) = side {
-                // Accept for the needed side only if the whole stroke stays on it.
-                if pts.iter().all(|q| self.field.side(q[0]) == sd) {
-                    sides_needed.remove(0);
-                } else {
-                    continue;
-                }
-            }
-            used.extend(pts.iter().copied());
-            strokes.push(Stroke {
-                kind: StrokeKind::Direction,
-                points: pts,
-            });
-        }
-        Strokes::new(strokes)
-    }
-
-    /// The longest prefix of a stroke whose points are hair and whose segments agree with the
-    /// ground truth at their midpoints, so sampling on the pixel grid cannot contradict it.
-    fn checked_prefix(
-        &self,
-        pts: Vec<[f32; 2]>,
-        mask: &[u8],
-        gt_dir: &[f32],
-        w: usize,
-        h: usize,
-    ) -> Vec<[f32; 2]> {
-        let at = |p: [f32; 2]| -> Option<usize> {
-            let (ix, iy) = (p[0].floor() as i64, p[1].floor() as i64);
-            (ix >= 0 && iy >= 0 && (ix as usize) < w && (iy as usize) < h)
-                .then(|| iy as usize * w + ix as usize)
-                .filter(|&i| mask[i] > 0)
-        };
-        let mut out: Vec<[f32; 2]> = Vec::new();
-        for p in pts {
-            if at(p).is_none() {
-                break;
-            }
-            if let Some(&q) = out.last() {
-                let m = [(p[0] + q[0]) * 0.5, (p[1] + q[1]) * 0.5];
-                let Some(i) = at(m) else { break };
-                let seg = normalize([p[0] - q[0], p[1] - q[1]]);
-                let cosang = seg[0] * gt_dir[2 * i] + seg[1] * gt_dir[2 * i + 1];
-                if cosang < 12f32.to_radians().cos() {
-                    break;
-                }
-            }
-            out.push(p);
-        }
-        out
-    }
-}
-
-/// Points every `step` px of arc length along a dense path, plus its end.
-pub(crate) fn resample(path: &[[f32; 2]], step: f32) -> Vec<[f32; 2]> {
-    let mut out = Vec::new();
-    let Some(&first) = path.first() else {
-        return out;
-    };
-    out.push(first);
-    let mut since = 0.0;
-    for q in path.windows(2) {
-        since += (q[1][0] - q[0][0]).hypot(q[1][1] - q[0][1]);
-        if since >= step {
-            out.push(q[1]);
-            since = 0.0;
-        }
-    }
-    let last = *path.last().unwrap_or(&first);
-    // Finish at the path's end unless that would leave a stub of a segment.
-    if since > 0.4 * step {
-        out.push(last);
-    }
-    out
-}
-
-fn mark_disk(occ: &mut [bool], w: usize, h: usize, p: [f32; 2], r: f32) {
-    let (x0, x1) = (
-        (p[0] - r).floor().max(0.0) as usize,
-        ((p[0] + r).ceil() as usize).min(w),
-    );
-    let (y0, y1) = (
-        (p[1] - r).floor().max(0.0) as usize,
-        ((p[1] + r).ceil() as usize).min(h),
-    );
-    for y in y0..y1 {
-        for x in x0..x1 {
-            let (dx, dy) = (x as f32 + 0.5 - p[0], y as f32 + 0.5 - p[1]);
-            if dx * dx + dy * dy <= r * r {
-                occ[y * w + x] = true;
-            }
-        }
-    }
-}
-
-/// Per-strand coverage buffer: each pixel keeps the largest coverage of any segment of the
-/// current strand, so overlapping segments do not darken the strand's own pixels twice.
-struct StrandCanvas {
-    w: usize,
-    h: usize,
-    stamp: Vec<u32>,
-    cov: Vec<f32>,
-    touched: Vec<usize>,
-    id: u32,
-}
-
-impl StrandCanvas {
-    fn new(w: usize, h: usize) -> Self {
-        StrandCanvas {
-            w,
-            h,
-            stamp: vec![0; w * h],
-            cov: vec![0.0; w * h],
-            touched: Vec::new(),
-            id: 0,
-        }
-    }
-
-    /// Rasterises a polyline (root -> tip) of the given width, tapering at both ends.
-    fn draw(&mut self, pts: &[[f32; 2]], width: f32, s: f32) {
-        self.id += 1;
-        self.touched.clear();
-        let mut arc = Vec::with_capacity(pts.len());
-        let mut acc = 0.0f32;
-        arc.push(0.0);
-        for q in pts.windows(2) {
-            acc += (q[1][0] - q[0][0]).hypot(q[1][1] - q[0][1]);
-            arc.push(acc);
-        }
-        let total = acc;
-        // Short fades: longer ones leave more of the hair as flat base fill, which costs more
-        // orientation signal than the strand ends do.
-        let tip_taper = (4.0 * s).min(0.4 * total).max(1e-3);
-        let root_taper = (2.0 * s).min(0.35 * total).max(1e-3);
-        let half = 0.5 * width;
-        for (i, q) in pts.windows(2).enumerate() {
-            let (a, b) = (q[0], q[1]);
-            let mid_arc = 0.5 * (arc[i] + arc[i + 1]);
-            let taper =
-                smoothstep(0.0, root_taper, mid_arc) * smoothstep(0.0, tip_taper, total - mid_arc);
-            let pad = half + 1.0;
-            let x0 = (a[0].min(b[0]) - pad).floor().max(0.0) as usize;
-            let x1 = ((a[0].max(b[0]) + pad).ceil() as usize).min(self.w);
-            let y0 = (a[1].min(b[1]) - pad).floor().max(0.0) as usize;
-            let y1 = ((a[1].max(b[1]) + pad).ceil() as usize).min(self.h);
-            for y in y0..y1 {
-                for x in x0..x1 {
-                    let d = seg_dist([x as f32 + 0.5, y as f32 + 0.5], a, b);
-                    // Coverage of a pixel by a line of this width (box filter approximation).
-                    let c = (half + 0.5 - d).clamp(0.0, 1.0).min(width) * taper;
-                    if c <= 0.0 {
-                        continue;
-                    }
-                    let k = y * self.w + x;
-                    if self.stamp[k] != self.id {
-                        self.stamp[k] = self.id;
-                        self.cov[k] = c;
-                        self.touched.push(k);
-                    } else if c > self.cov[k] {
-                        self.cov[k] = c;
-                    }
-                }
-            }
-        }
-    }
-
-    /// Alpha-composites the last drawn strand; `paint(x, y)` gives colour and opacity.
-    fn composite(&self, rgb: &mut [[f32; 3]], paint: impl Fn(f32, f32) -> ([f32; 3], f32)) {
-        for &k in &self.touched {
-            let (x, y) = ((k % self.w) as f32 + 0.5, (k / self.w) as f32 + 0.5);
-            let (col, alpha) = paint(x, y);
-            blend(&mut rgb[k], col, alpha * self.cov[k]);
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::f32::consts::FRAC_PI_2;
 
     fn case(style: Style, seed: u64) -> SynthCase {
         synth(&SynthParams::new(style, seed))
@@ -1434,39 +352,56 @@ mod tests {
     /// 4-connected components of the mask.
     fn components(c: &SynthCase) -> usize {
         let (w, h) = (c.width as usize, c.height as usize);
-        let m = c.mask.as_raw();
-        let mut seen = vec![false; w * h];
+        let hair: Vec<bool> = c.mask.as_raw().iter().map(|&v| v > 0).collect();
         let mut count = 0;
-        for start in 0..w * h {
-            if m[start] == 0 || seen[start] {
-                continue;
-            }
-            count += 1;
-            let mut stack = vec![start];
-            seen[start] = true;
-            while let Some(k) = stack.pop() {
-                let (x, y) = (k % w, k / w);
-                let mut push = |j: usize| {
-                    if m[j] > 0 && !seen[j] {
-                        seen[j] = true;
-                        stack.push(j);
-                    }
-                };
-                if x > 0 {
-                    push(k - 1);
-                }
-                if x + 1 < w {
-                    push(k + 1);
-                }
-                if y > 0 {
-                    push(k - w);
-                }
-                if y + 1 < h {
-                    push(k + w);
-                }
-            }
-        }
+        crate::base::mask::for_each_component(&hair, w, h, true, false, |_, _| count += 1);
         count
+    }
+
+    #[test]
+    fn checked_prefix_stops_off_hair_and_against_the_field() {
+        let (w, h) = (10, 10);
+        let mut mask = vec![255u8; w * h];
+        mask[9 * w + 4] = 0;
+        let gt: Vec<f32> = (0..w * h).flat_map(|_| [1.0, 0.0]).collect();
+        let run = |pts: &[[f32; 2]], unit: fn([f32; 2]) -> [f32; 2]| {
+            checked_prefix(pts.to_vec(), &mask, &gt, w, h, unit).len()
+        };
+        let zero = |v: [f32; 2]| {
+            if v == [0.0; 2] {
+                v
+            } else {
+                field::normalize(v)
+            }
+        };
+        assert_eq!(
+            run(&[[0.5, 0.5], [2.5, 0.5], [4.5, 0.6]], field::normalize),
+            3
+        );
+        assert_eq!(
+            run(&[[0.5, 0.5], [2.5, 0.5], [2.5, 3.5]], field::normalize),
+            2
+        );
+        assert_eq!(run(&[[2.5, 9.5], [4.5, 9.5]], field::normalize), 1);
+        assert_eq!(run(&[[0.5, 0.5], [0.5, 0.5]], field::normalize), 2);
+        assert_eq!(run(&[[0.5, 0.5], [0.5, 0.5]], zero), 1);
+    }
+
+    #[test]
+    fn streams_are_distinct_and_reproducible() {
+        let p = SynthParams::new(Style::Long, 3);
+        let mut a = streams(&p, 1);
+        let mut b = streams(&p, 1);
+        let first: Vec<u32> = a.iter_mut().map(|r| r.next_u32()).collect();
+        assert_eq!(
+            first,
+            b.iter_mut().map(|r| r.next_u32()).collect::<Vec<_>>()
+        );
+        assert!(first
+            .iter()
+            .enumerate()
+            .all(|(i, x)| !first[..i].contains(x)));
+        assert_ne!(streams(&p, 2)[0].next_u32(), first[0]);
     }
 
     #[test]
@@ -1691,24 +626,7 @@ mod tests {
             .collect();
         let ks: f32 = k.iter().sum();
         let k: Vec<f32> = k.iter().map(|x| x / ks).collect();
-        let clampi = |i: i64, n: usize| i.clamp(0, n as i64 - 1) as usize;
-        let mut tmp = vec![0.0; w * h];
-        for y in 0..h {
-            for x in 0..w {
-                tmp[y * w + x] = (-r..=r)
-                    .map(|i| k[(i + r) as usize] * v[y * w + clampi(x as i64 + i, w)])
-                    .sum();
-            }
-        }
-        let mut out = vec![0.0; w * h];
-        for y in 0..h {
-            for x in 0..w {
-                out[y * w + x] = (-r..=r)
-                    .map(|i| k[(i + r) as usize] * tmp[clampi(y as i64 + i, h) * w + x])
-                    .sum();
-            }
-        }
-        out
+        sep_filter(v, w, h, &k, &k)
     }
 
     /// Test-only orientation estimate: structure tensor of the luma (central differences,
