@@ -11,6 +11,7 @@ use crate::hair::scene::Scene;
 use crate::io::{assets, ensure_dir, images, npy, strands, write_atomic};
 use crate::model::{self, ModelParams};
 use crate::render::{self, RenderParams};
+use crate::sim::{self, SimParams};
 use crate::synth::{self, synth3d, SynthParams};
 use anyhow::Context;
 use serde_json::json;
@@ -29,6 +30,7 @@ pub enum Job {
     Analyze(AnalyzeJob),
     Model(ModelJob),
     Render(RenderJob),
+    Simulate(SimulateJob),
     Export(ExportJob),
     Import(ImportJob),
     Convert(ConvertJob),
@@ -91,6 +93,14 @@ pub struct RenderJob {
     pub sixteen: bool,
 }
 
+/// A simulated sequence of a model folder (`coif simulate`).
+#[derive(Clone, Debug)]
+pub struct SimulateJob {
+    pub model: PathBuf,
+    pub out: PathBuf,
+    pub params: SimParams,
+}
+
 /// A model folder's strands as a strand file (`coif export`).
 #[derive(Clone, Debug)]
 pub struct ExportJob {
@@ -126,7 +136,7 @@ impl Job {
     pub fn needs_engine(&self) -> bool {
         matches!(
             self,
-            Job::Orient(_) | Job::Analyze(_) | Job::Model(_) | Job::Render(_)
+            Job::Orient(_) | Job::Analyze(_) | Job::Model(_) | Job::Render(_) | Job::Simulate(_)
         )
     }
 
@@ -139,6 +149,7 @@ impl Job {
             Job::Analyze(j) => ("analyze", &j.out),
             Job::Model(j) => ("model", &j.out),
             Job::Render(j) => ("render", &j.out),
+            Job::Simulate(j) => ("simulate", &j.out),
             Job::Export(j) => ("export", &j.to),
             Job::Import(j) => ("import", &j.out),
             Job::Convert(j) => ("convert", &j.output),
@@ -156,6 +167,7 @@ pub fn run(engine: &Engine, job: &Job) -> anyhow::Result<Report> {
         Job::Analyze(j) => run_analyze(engine, j),
         Job::Model(j) => run_model(engine, j),
         Job::Render(j) => run_render(engine, j),
+        Job::Simulate(j) => run_simulate(engine, j),
         Job::Export(j) => run_export(j),
         Job::Import(j) => run_import(j),
         Job::Convert(j) => run_convert(j),
@@ -182,7 +194,7 @@ pub fn run_all(engine: &Engine, jobs: &[Job]) -> anyhow::Result<Vec<Report>> {
 
 /// The main job on the embedded inputs: a synthetic case with ground truth and the astronaut
 /// photo, each through orientation, directed hair, 3D strands and three renders (the
-/// original view, a novel view and a recolouring).
+/// original view, a novel view and a recolouring); then a short wind clip of the photo.
 pub fn demo(out: &Path) -> Vec<Job> {
     let case = out.join("synth-long");
     let astro = out.join("astronaut");
@@ -259,6 +271,23 @@ pub fn demo(out: &Path) -> Vec<Job> {
             }));
         }
     }
+    // A short wind clip of the photo's hair, every frame rendered into the photo.
+    let wind = out.join("sim-astronaut-wind");
+    jobs.push(Job::Simulate(SimulateJob {
+        model: out.join("model-astronaut"),
+        out: wind.clone(),
+        params: SimParams {
+            frames: 10,
+            wind: 0.6,
+            ..Default::default()
+        },
+    }));
+    jobs.push(Job::Render(RenderJob {
+        model: wind.clone(),
+        out: wind.join("render"),
+        params: RenderParams::default(),
+        sixteen: false,
+    }));
     jobs
 }
 
@@ -434,6 +463,9 @@ fn run_render(engine: &Engine, j: &RenderJob) -> anyhow::Result<Report> {
     let p = &j.params;
     let t = Instant::now();
     let scene = Scene::load(&j.model)?;
+    if scene.animation.is_some() && j.out.extension().is_none() {
+        return render_frames(engine, &scene, j);
+    }
     let r = render::render(engine, &scene, p)
         .with_context(|| format!("rendering {}", j.model.display()))?;
     let side = render::write(&j.out, &r, p, j.sixteen)?;
@@ -458,8 +490,118 @@ fn run_render(engine: &Engine, j: &RenderJob) -> anyhow::Result<Report> {
     })
 }
 
+/// Every frame of an animated scene into the folder `j.out` (`NNNN.png`): the frame's
+/// strands taken back to the head's rest pose and drawn from a view turned by the head's
+/// yaw, pitch and roll, so head and hair move together over the inpainted background. The
+/// head's translation is not drawn (the background would have to move with it).
+fn render_frames(engine: &Engine, scene: &Scene, j: &RenderJob) -> anyhow::Result<Report> {
+    let a = scene.animation.as_ref().expect("checked by the caller");
+    let t = Instant::now();
+    ensure_dir(&j.out)?;
+    let bar = indicatif::ProgressBar::new(a.frames.len() as u64).with_style(
+        indicatif::ProgressStyle::with_template("render {bar:30} {pos}/{len} frames {eta}")
+            .expect("static template"),
+    );
+    for (k, pose) in a.head.iter().enumerate() {
+        let m = sim::track::pose_transform(pose);
+        let mut s = scene.clone();
+        s.strands = scene.frame(k)?;
+        for q in &mut s.strands.points {
+            *q = sim::track::apply_inv(&m, *q);
+        }
+        let mut p = j.params.clone();
+        p.yaw_deg += pose[0];
+        p.pitch_deg += pose[1];
+        p.roll_deg += pose[2];
+        let r = render::render(engine, &s, &p)
+            .with_context(|| format!("rendering frame {k} of {}", j.model.display()))?;
+        render::write(&j.out.join(format!("{k:04}.png")), &r, &p, j.sixteen)?;
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    Ok(Report {
+        summary: format!(
+            "render: {} frames -> {} ({:.2} s on {})",
+            a.frames.len(),
+            j.out.display(),
+            t.elapsed().as_secs_f64(),
+            engine.describe()
+        ),
+        ..Default::default()
+    })
+}
+
+fn run_simulate(engine: &Engine, j: &SimulateJob) -> anyhow::Result<Report> {
+    let scene = Scene::load(&j.model)?;
+    let r = sim::run::run(engine, &scene, &j.params, true)
+        .with_context(|| format!("simulating {}", j.model.display()))?;
+    sim::run::write(&j.out, &scene, &r, &j.params)?;
+    let worst = |f: fn(&sim::SimFigures) -> f64| r.figures.iter().map(f).fold(0.0, f64::max);
+    Ok(Report {
+        summary: format!(
+            "simulate: {} strands x {} vertices, {} frames of {} steps -> {} ({:.2} s on {})",
+            r.rest.len(),
+            j.params.n_verts,
+            j.params.frames,
+            j.params.substeps,
+            j.out.display(),
+            r.seconds,
+            r.backend
+        ),
+        details: vec![
+            format!("stretch p99      {:.3} %", 100.0 * worst(|f| f.stretch_p99)),
+            format!(
+                "strand length    {:.3} % at most",
+                100.0 * worst(|f| f.length_max)
+            ),
+            format!(
+                "roots            {:.1e} m from the head's motion at most",
+                worst(|f| f.root_error_max)
+            ),
+            format!(
+                "head distance    {:.2} mm at least",
+                1e3 * r
+                    .figures
+                    .iter()
+                    .map(|f| f.min_head_distance)
+                    .fold(f32::INFINITY, f32::min)
+            ),
+        ],
+        warnings: Vec::new(),
+    })
+}
+
 fn run_export(j: &ExportJob) -> anyhow::Result<Report> {
-    strands::Format::from_path(&j.to)?;
+    let format = strands::Format::from_path(&j.to)?;
+    if format == strands::Format::Usda {
+        let scene = Scene::load(&j.model)?;
+        if let Some(a) = &scene.animation {
+            let frames = (0..a.frames.len())
+                .map(|k| scene.frame(k))
+                .collect::<crate::error::Result<Vec<_>>>()?;
+            let head: Vec<[f32; 12]> = a
+                .head
+                .iter()
+                .map(|p| sim::track::pack(&sim::track::pose_transform(p)))
+                .collect();
+            strands::write_usda_animated(
+                &j.to,
+                &frames,
+                &head,
+                a.fps,
+                &strands::UsdOptions::default(),
+            )?;
+            return Ok(Report {
+                summary: format!(
+                    "export: {} frames of {} strands (time samples, head transform) -> {}",
+                    frames.len(),
+                    frames[0].len(),
+                    j.to.display()
+                ),
+                ..Default::default()
+            });
+        }
+    }
     let src = j.model.join("strands.hair");
     let s = strands::read(&src)?;
     strands::write(&j.to, &s)?;

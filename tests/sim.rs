@@ -178,3 +178,166 @@ fn sim_step_parity() {
 fn s_first(sim: &Sim) -> Vec<f32> {
     sim.rest.points.iter().flatten().copied().collect()
 }
+
+fn coif(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_coif"))
+        .args(args)
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .output()
+        .expect("coif runs")
+}
+
+/// A model folder (strands, head, camera, photo) from the 3D ground-truth synth.
+fn model_folder(dir: &std::path::Path, n: usize) {
+    let c = synth3d_with(
+        &SynthParams {
+            style: Style::Long,
+            seed: 2,
+            width: 128,
+            height: 128,
+        },
+        &Synth3dOptions {
+            strands: n,
+            max_yaw_deg: 0.0,
+        },
+    );
+    let scene = coif::hair::scene::Scene {
+        dir: dir.to_path_buf(),
+        strands: c.gt,
+        camera: Some(c.camera),
+        head: Some(c.head),
+        photo: Some(c.case.image.clone()),
+        mask: None,
+        width: 128,
+        height: 128,
+        animation: None,
+    };
+    scene.save(dir, serde_json::json!({})).unwrap();
+}
+
+#[test]
+fn simulate_writes_frames_that_render_and_export_as_usd() {
+    let t = tempfile::tempdir().unwrap();
+    let p = |s: &str| t.path().join(s).display().to_string();
+    model_folder(&t.path().join("model"), 150);
+    let o = coif(&[
+        "simulate",
+        "--backend",
+        "cpu",
+        "--model",
+        &p("model"),
+        "--frames",
+        "4",
+        "--wind",
+        "1",
+        "--head-yaw",
+        "0:0,4:5",
+        "--out",
+        &p("wind"),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    let out = String::from_utf8_lossy(&o.stdout);
+    println!("{out}");
+    assert!(out.contains("stretch p99"), "{out}");
+    for k in 0..5 {
+        assert!(t.path().join(format!("wind/frames/{k:04}.hair")).is_file());
+    }
+    for f in [
+        "sim.json",
+        "preview.gif",
+        "model.json",
+        "strands.hair",
+        "photo.png",
+    ] {
+        assert!(t.path().join("wind").join(f).is_file(), "{f}");
+    }
+    // Every frame rendered into a folder.
+    let o = coif(&[
+        "render",
+        "--backend",
+        "cpu",
+        "--model",
+        &p("wind"),
+        "--out",
+        &p("frames"),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for k in 0..5 {
+        let f = t.path().join(format!("frames/{k:04}.png"));
+        let img = image::open(&f).unwrap();
+        assert_eq!(img.width(), 128);
+    }
+    // Animated USD: points as time samples, the head as an animated transform.
+    let usda = p("wind.usda");
+    let o = coif(&["export", "--model", &p("wind"), "--to", &usda]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = std::fs::read_to_string(&usda).unwrap();
+    assert!(text.contains("points.timeSamples") && text.contains("xformOp:transform.timeSamples"));
+    let check = std::process::Command::new("python3")
+        .args([
+            "-c",
+            "import sys\nfrom pxr import Usd, UsdGeom\ns = Usd.Stage.Open(sys.argv[1])\nc = UsdGeom.BasisCurves(s.GetPrimAtPath('/hair'))\nts = c.GetPointsAttr().GetTimeSamples()\nassert len(ts) == 5, ts\nassert len(c.GetPointsAttr().Get(4)) == sum(c.GetCurveVertexCountsAttr().Get())\nx = UsdGeom.Xformable(s.GetPrimAtPath('/head'))\nassert len(x.GetTimeSamples()) == 5\nprint('usd ok', s.GetEndTimeCode())",
+            &usda,
+        ])
+        .output()
+        .expect("python3 runs");
+    assert!(
+        check.status.success(),
+        "usd-core rejects the animated stage: {}",
+        String::from_utf8_lossy(&check.stderr)
+    );
+}
+
+#[test]
+fn simulate_refuses_bad_input_and_writes_nothing() {
+    let t = tempfile::tempdir().unwrap();
+    let p = |s: &str| t.path().join(s).display().to_string();
+    model_folder(&t.path().join("model"), 60);
+    let cases: &[(&[&str], i32, &str)] = &[
+        (&["--wind", "nan"], 64, "--wind must be finite"),
+        (&["--fps", "inf"], 64, "--fps must be finite"),
+        (
+            &["--substeps", "1", "--head-yaw", "0:0,1:90"],
+            64,
+            "too large to stay stable",
+        ),
+        (
+            &["--substeps", "2", "--strain-limit", "0", "--wind", "4"],
+            64,
+            "too large to stay stable",
+        ),
+        (&["--verts", "200"], 64, "--verts must be in"),
+    ];
+    for (extra, code, needle) in cases {
+        let mut args = vec!["simulate", "--backend", "cpu", "--model"];
+        let model = p("model");
+        let out = p("out");
+        args.extend([model.as_str(), "--frames", "6", "--out", out.as_str()]);
+        args.extend(extra.iter());
+        let o = coif(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(*code), "{extra:?}: {err}");
+        assert!(err.contains(needle), "{extra:?}: {err}");
+        assert!(!t.path().join("out").exists(), "{extra:?} wrote output");
+    }
+    // Strands without a head (an imported file): nothing to collide with or carry roots.
+    let o = coif(&["import", &p("model/strands.hair"), "--out", &p("bare")]);
+    assert!(o.status.success());
+    let o = coif(&[
+        "simulate",
+        "--backend",
+        "cpu",
+        "--model",
+        &p("bare"),
+        "--out",
+        &p("out"),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(65), "{err}");
+    assert!(
+        err.contains("model.json") && err.contains("no head"),
+        "{err}"
+    );
+    assert!(!t.path().join("out").exists());
+}

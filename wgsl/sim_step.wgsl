@@ -276,6 +276,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         // Alternating projections: outside the head, within the limit of the parent.
         for (var k = 0u; k < PROJECTIONS; k++) {
             c = collide(m0, m1, xi, vi, 0.5 * cfg.margin);
+            if all(c.x == xi) {
+                break;
+            }
             xi = limit(cfg.strain_limit, rest[base + 3u * (i - 1u)], parent, c.x);
             vi = c.v;
         }

@@ -27,6 +27,20 @@ pub struct Scene {
     pub mask: Option<Vec<u8>>,
     pub width: u32,
     pub height: u32,
+    /// A simulated or edited sequence: per-frame strand files and head poses.
+    pub animation: Option<Animation>,
+}
+
+/// Frames of a scene that moves (`model.json` key `animation`): `frames/NNNN.hair` in model
+/// space with the head at its pose, one pose per frame.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Animation {
+    pub fps: f32,
+    /// Strand files relative to the scene folder, one per frame.
+    pub frames: Vec<String>,
+    /// Head pose per frame: yaw, pitch, roll (degrees) and translation (metres), as
+    /// `crate::sim::HeadTrack` keys them.
+    pub head: Vec<[f32; 6]>,
 }
 
 fn bad(path: &Path, msg: impl Into<String>) -> Error {
@@ -101,6 +115,29 @@ impl Scene {
             )?),
             _ => None,
         };
+        let animation = match meta.get("animation") {
+            None | Some(serde_json::Value::Null) => None,
+            Some(a) => {
+                let a: Animation = serde_json::from_value(a.clone())
+                    .map_err(|e| bad(&meta_path, format!("animation: {e}")))?;
+                if a.frames.is_empty()
+                    || a.head.len() != a.frames.len()
+                    || a.fps.is_nan()
+                    || a.fps <= 0.0
+                {
+                    return Err(bad(
+                        &meta_path,
+                        format!(
+                            "animation: {} frames, {} head poses, fps {}",
+                            a.frames.len(),
+                            a.head.len(),
+                            a.fps
+                        ),
+                    ));
+                }
+                Some(a)
+            }
+        };
         Ok(Scene {
             dir: dir.to_path_buf(),
             strands,
@@ -110,6 +147,7 @@ impl Scene {
             mask,
             width,
             height,
+            animation,
         })
     }
 }
@@ -127,6 +165,7 @@ impl Scene {
             mask: None,
             width: 0,
             height: 0,
+            animation: None,
         })
     }
 }
@@ -166,6 +205,18 @@ fn check_strands(s: &StrandSet, path: &Path) -> Result<()> {
 }
 
 impl Scene {
+    /// The strands of animation frame `k` (model space, head at that frame's pose).
+    pub fn frame(&self, k: usize) -> Result<StrandSet> {
+        let a = self
+            .animation
+            .as_ref()
+            .ok_or_else(|| bad(&self.dir.join("model.json"), "the scene has no animation"))?;
+        let path = self.dir.join(&a.frames[k]);
+        let s = crate::io::strands::read(&path)?;
+        check_strands(&s, &path)?;
+        Ok(s)
+    }
+
     /// Writes the scene to `dir` (created): `strands.hair`, `photo.png` and `mask.png` when
     /// present, and `model.json` with the scene's keys deep-merged with `extra` (what the
     /// producing pipeline records: parameters, figures, timings). Every file is written to a
@@ -210,6 +261,9 @@ impl Scene {
         }
         if let Some(head) = &self.head {
             merge(&mut meta, json!({ "head": { "params": head.params() } }));
+        }
+        if let Some(a) = &self.animation {
+            merge(&mut meta, json!({ "animation": a }));
         }
         merge(&mut meta, extra);
         let text = serde_json::to_string_pretty(&meta)

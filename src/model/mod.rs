@@ -124,6 +124,7 @@ impl Model {
             mask: Some(self.analysis.mask.clone()),
             width: photo.width(),
             height: photo.height(),
+            animation: None,
         }
     }
 }

@@ -10,6 +10,7 @@
 
 pub mod head_sdf;
 pub mod noise;
+pub mod run;
 pub mod track;
 
 use crate::error::{Error, Result};
@@ -236,6 +237,13 @@ pub fn resample(s: &StrandSet, n: usize) -> (StrandSet, Vec<usize>) {
     (out, dropped)
 }
 
+/// Whether vertex `g` of a set whose strands all have the same count is a root.
+fn rest_is_root(counts: &[u32], g: usize) -> bool {
+    counts
+        .first()
+        .is_some_and(|&n| g.is_multiple_of(n as usize))
+}
+
 /// Rest lengths of the three spring families at every vertex (0 past the tip).
 pub fn rest_lengths(s: &StrandSet, n: usize) -> Vec<f32> {
     let mut rest = vec![0.0f32; 3 * s.points.len()];
@@ -278,7 +286,20 @@ impl Sim {
                 "--verts must be in 2..={MAX_VERTS}, got {n}"
             )));
         }
-        let (rest, _dropped) = resample(strands, n);
+        let (mut rest, _dropped) = resample(strands, n);
+        // Chords of a strand that hugs the scalp cut into the head: the rest shape is moved
+        // out to the margin first, so that it is a state the simulation can rest in.
+        for (g, q) in rest.points.iter_mut().enumerate() {
+            if rest_is_root(&rest.counts, g) {
+                continue;
+            }
+            let p = glam::Vec3::from_array(*q);
+            let d = head.sdf(p);
+            if d < params.margin {
+                let nrm = head.sdf_grad(p).normalize_or_zero();
+                *q = (p + nrm * (params.margin - d)).to_array();
+            }
+        }
         if rest.is_empty() {
             return Err(Error::Invalid(
                 "no strand has two distinct vertices to simulate".into(),

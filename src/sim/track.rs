@@ -98,17 +98,21 @@ impl HeadTrack {
         .all(|k| k.iter().all(|&(_, v)| v == k[0].1))
     }
 
-    /// The head transform at `frame` (fractional frames between keys).
-    pub fn transform(&self, frame: f32) -> Rigid {
-        let r = Mat3::from_rotation_y(eval(&self.yaw, frame).to_radians())
-            * Mat3::from_rotation_x(-eval(&self.pitch, frame).to_radians())
-            * Mat3::from_rotation_z(eval(&self.roll, frame).to_radians());
-        let t = Vec3::new(
+    /// Yaw, pitch, roll (degrees) and translation (metres) at `frame`.
+    pub fn pose(&self, frame: f32) -> [f32; 6] {
+        [
+            eval(&self.yaw, frame),
+            eval(&self.pitch, frame),
+            eval(&self.roll, frame),
             eval(&self.tx, frame),
             eval(&self.ty, frame),
             eval(&self.tz, frame),
-        );
-        (r, t)
+        ]
+    }
+
+    /// The head transform at `frame` (fractional frames between keys).
+    pub fn transform(&self, frame: f32) -> Rigid {
+        pose_transform(&self.pose(frame))
     }
 
     /// A bound on the speed of a point within 0.5 m of the head centre (m/s).
@@ -142,6 +146,14 @@ impl HeadTrack {
         }
         Ok(())
     }
+}
+
+/// The rigid transform of a pose (yaw, pitch, roll in degrees; translation).
+pub fn pose_transform(p: &[f32; 6]) -> Rigid {
+    let r = Mat3::from_rotation_y(p[0].to_radians())
+        * Mat3::from_rotation_x(-p[1].to_radians())
+        * Mat3::from_rotation_z(p[2].to_radians());
+    (r, Vec3::new(p[3], p[4], p[5]))
 }
 
 pub fn apply(m: &Rigid, p: [f32; 3]) -> [f32; 3] {

@@ -188,9 +188,9 @@ pub fn step_strand(
             vi[1] + dt * (cfg.drag * u[1] - cfg.gravity),
             vi[2] + dt * cfg.drag * u[2],
         ];
-        for c in 0..3 {
+        for (c, fc) in f.iter().enumerate() {
             let r = 3 * (i - 1) + c;
-            rhs[r] = f[c];
+            rhs[r] = *fc;
             l[r * B1] = diag;
         }
     }
@@ -289,8 +289,12 @@ pub fn step_strand(
         // of the parent" converge to a point in both when there is one; the limit has the
         // last word, so no edge ever stretches past it.
         for _ in 0..PROJECTIONS {
-            (xi, vi) = collide(head, &m, xi, vi, 0.5 * cfg.margin);
-            xi = limit(cfg.strain_limit, rest[3 * (i - 1)], parent, xi);
+            let pushed = collide(head, &m, xi, vi, 0.5 * cfg.margin);
+            if pushed.0 == xi {
+                break;
+            }
+            vi = pushed.1;
+            xi = limit(cfg.strain_limit, rest[3 * (i - 1)], parent, pushed.0);
         }
         let d = sub(xi, before);
         if i > 1 {

@@ -20,7 +20,7 @@ use hair::{decode_hair, encode_hair};
 use obj::{decode_obj, encode_obj};
 use ply::{decode_ply, encode_ply_ascii, encode_ply_binary};
 use std::path::Path;
-use usda::encode_usda;
+use usda::{encode_usda, encode_usda_animated};
 
 /// The strand file formats, chosen by extension.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -213,4 +213,19 @@ impl<'a> Reader<'a> {
 /// True when every value has the same bits, so it can be stored once.
 fn uniform(v: &[f32]) -> bool {
     v.iter().all(|x| x.to_bits() == v[0].to_bits())
+}
+
+/// Writes a sequence (same strands in every frame) as an animated USD stage, atomically; see
+/// `usda::encode_usda_animated`. `head` holds one rigid transform per frame (row-major
+/// rotation, then translation).
+pub fn write_usda_animated(
+    path: &Path,
+    frames: &[StrandSet],
+    head: &[[f32; 12]],
+    fps: f32,
+    opts: &UsdOptions,
+) -> Result<()> {
+    let bytes =
+        encode_usda_animated(frames, head, fps, opts).map_err(|msg| Error::bad_file(path, msg))?;
+    write_atomic(path, &bytes)
 }

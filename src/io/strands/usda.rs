@@ -91,3 +91,80 @@ pub(super) fn encode_usda(s: &StrandSet, o: &UsdOptions) -> Msg<Vec<u8>> {
     t.push_str("}\n");
     Ok(t.into_bytes())
 }
+
+/// A sequence as one USD stage: the BasisCurves' points as time samples (one per frame, the
+/// topology of frame 0 for all) and an Xform `head` whose transform follows the head's pose
+/// (`head[k]`: row-major rotation and translation, p' = R p + t). Time codes are frames.
+pub(super) fn encode_usda_animated(
+    frames: &[StrandSet],
+    head: &[[f32; 12]],
+    fps: f32,
+    o: &UsdOptions,
+) -> Msg<Vec<u8>> {
+    let first = frames.first().ok_or("no frames")?;
+    if head.len() != frames.len() {
+        return Err(format!(
+            "{} head poses for {} frames",
+            head.len(),
+            frames.len()
+        ));
+    }
+    if !(fps.is_finite() && fps > 0.0) {
+        return Err(format!("frame rate {fps} must be positive"));
+    }
+    for (k, f) in frames.iter().enumerate() {
+        f.check().map_err(|m| format!("frame {k}: {m}"))?;
+        if f.counts != first.counts {
+            return Err(format!("frame {k} has other strands than frame 0"));
+        }
+    }
+    // Frame 0's stage with the union of all frames' bounds as its extent.
+    let mut bound = first.clone();
+    for f in frames {
+        let (lo, hi) = f.bounds();
+        bound.points.push(lo);
+        bound.points.push(hi);
+    }
+    let (lo, hi) = bound.bounds();
+    let mut base = first.clone();
+    base.points[0] = lo;
+    if base.points.len() > 1 {
+        base.points[1] = hi;
+    }
+    let text = String::from_utf8(encode_usda(&base, o)?).expect("USD text is UTF-8");
+    let start = text.find("    point3f[] points = ").ok_or("no points")?;
+    let end = start + text[start..].find('\n').ok_or("no points")?;
+    let mut t = String::with_capacity(text.len() * frames.len());
+    let header_end = text.find("\n)\n").ok_or("no stage header")?;
+    t.push_str(&text[..header_end]);
+    let _ = write!(
+        t,
+        "\n    startTimeCode = 0\n    endTimeCode = {}\n    timeCodesPerSecond = {fps}\n    framesPerSecond = {fps}",
+        frames.len() - 1
+    );
+    t.push_str(&text[header_end..start]);
+    t.push_str("    point3f[] points.timeSamples = {\n");
+    for (k, f) in frames.iter().enumerate() {
+        let _ = write!(t, "        {k}: [");
+        for (i, [x, y, z]) in f.points.iter().enumerate() {
+            if i > 0 {
+                t.push_str(", ");
+            }
+            let _ = write!(t, "({x}, {y}, {z})");
+        }
+        t.push_str("],\n");
+    }
+    t.push_str("    }");
+    t.push_str(&text[end..]);
+    t.push_str("\ndef Xform \"head\"\n{\n    uniform token[] xformOpOrder = [\"xformOp:transform\"]\n    matrix4d xformOp:transform.timeSamples = {\n");
+    for (k, m) in head.iter().enumerate() {
+        // USD multiplies row vectors: the rotation goes in transposed, the translation last.
+        let _ = writeln!(
+            t,
+            "        {k}: (({}, {}, {}, 0), ({}, {}, {}, 0), ({}, {}, {}, 0), ({}, {}, {}, 1)),",
+            m[0], m[3], m[6], m[1], m[4], m[7], m[2], m[5], m[8], m[9], m[10], m[11]
+        );
+    }
+    t.push_str("    }\n}\n");
+    Ok(t.into_bytes())
+}
