@@ -338,6 +338,16 @@ impl Sim {
         self.rest.len()
     }
 
+    /// Rest lengths of the springs i–i+1, i–i+2, i–i+3 at every vertex (what the pass reads).
+    pub fn rest_lengths(&self) -> &[f32] {
+        &self.rest_len
+    }
+
+    /// Rest root of every strand (model space).
+    pub fn roots(&self) -> &[f32] {
+        &self.roots
+    }
+
     fn config(&self, step: u32, n_strands: u32) -> Config {
         let p = &self.params;
         let dt = p.dt();
