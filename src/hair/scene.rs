@@ -212,8 +212,14 @@ impl Scene {
             .as_ref()
             .ok_or_else(|| bad(&self.dir.join("model.json"), "the scene has no animation"))?;
         let path = self.dir.join(&a.frames[k]);
-        let s = crate::io::strands::read(&path)?;
+        let mut s = crate::io::strands::read(&path)?;
         check_strands(&s, &path)?;
+        // Frames carry positions; the attributes are the scene's when the strands match.
+        if s.counts == self.strands.counts {
+            s.colors = s.colors.or_else(|| self.strands.colors.clone());
+            s.transparency = s.transparency.or_else(|| self.strands.transparency.clone());
+            s.thickness = s.thickness.or_else(|| self.strands.thickness.clone());
+        }
         Ok(s)
     }
 

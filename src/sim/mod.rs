@@ -11,6 +11,7 @@
 pub mod head_sdf;
 pub mod noise;
 pub mod run;
+pub mod skin;
 pub mod track;
 
 use crate::error::{Error, Result};
@@ -272,6 +273,8 @@ pub struct Sim {
     roots: Vec<f32>,
     head: Vec<f32>,
     perm: Vec<u32>,
+    /// How the modelled strands follow the guides.
+    skin: skin::Skin,
     /// Steps taken so far.
     pub steps: u32,
 }
@@ -286,7 +289,7 @@ impl Sim {
                 "--verts must be in 2..={MAX_VERTS}, got {n}"
             )));
         }
-        let (mut rest, _dropped) = resample(strands, n);
+        let (mut rest, dropped) = resample(strands, n);
         // Chords of a strand that hugs the scalp cut into the head: the rest shape is moved
         // out to the margin first, so that it is a state the simulation can rest in.
         for (g, q) in rest.points.iter_mut().enumerate() {
@@ -321,8 +324,10 @@ impl Sim {
             .iter()
             .flat_map(|p| track::apply(&m, *p))
             .collect();
+        let skin = skin::Skin::new(strands, &rest, n, &dropped);
         Ok(Sim {
             params: params.clone(),
+            skin,
             v: vec![0.0; x.len()],
             x,
             rest_len,
@@ -470,11 +475,18 @@ impl Sim {
         worst
     }
 
-    /// The current strands (model space) with the rest set's attributes.
-    pub fn strands(&self) -> StrandSet {
+    /// The simulated guides now (model space), with the rest guides' attributes.
+    pub fn guides(&self) -> StrandSet {
         let mut s = self.rest.clone();
         s.points = self.x.chunks(3).map(|c| [c[0], c[1], c[2]]).collect();
         s
+    }
+
+    /// The modelled strands now, following their guides ([`skin::Skin`]).
+    pub fn strands(&self) -> StrandSet {
+        let p = &self.params;
+        let m = p.track.transform(self.steps as f32 / p.substeps as f32);
+        self.skin.apply(&self.x, &m)
     }
 
     /// Kinetic plus spring energy (unit masses).

@@ -1,6 +1,7 @@
 //! `coif simulate`: a scene's strands through a simulation, frame by frame, and the files a
-//! simulated sequence is: the scene (the rest strands, resampled), `frames/NNNN.hair` (model
-//! space, the head at that frame's pose), `sim.json` (settings and per-frame figures) and
+//! simulated sequence is: the scene (the modelled strands at rest), `frames/NNNN.hair` (their
+//! positions in every frame, model space, the head at that frame's pose; colours stay in the
+//! scene), `sim.json` (settings and per-frame figures of the simulated guides) and
 //! `preview.gif` (the strands drawn over the photo, frame by frame).
 
 use crate::error::{Error, Result};
@@ -15,9 +16,10 @@ use std::time::Instant;
 
 /// A simulated sequence in memory.
 pub struct SimRun {
-    /// The resampled rest strands with their colours (frame 0 before any step).
+    /// The simulated guides at rest (resampled strands, frame 0 before any step).
     pub rest: StrandSet,
-    /// Strands of every frame, model space (frame 0 is the rest state at the first pose).
+    /// The modelled strands of every frame following their guides, model space (frame 0 is
+    /// the rest state at the first pose).
     pub frames: Vec<StrandSet>,
     /// Head pose per frame (yaw, pitch, roll in degrees; translation in metres).
     pub poses: Vec<[f32; 6]>,
@@ -74,7 +76,9 @@ pub fn write(out: &Path, scene: &Scene, r: &SimRun, p: &SimParams) -> Result<()>
     let mut names = Vec::with_capacity(r.frames.len());
     for (k, s) in r.frames.iter().enumerate() {
         let name = format!("frames/{k:04}.hair");
-        crate::io::strands::write(&out.join(&name), s)?;
+        // Positions only: colours and transparency are the scene's, the same every frame.
+        let points = StrandSet::new(s.points.clone(), s.counts.clone());
+        crate::io::strands::write(&out.join(&name), &points)?;
         names.push(name);
     }
     let worst = |f: fn(&SimFigures) -> f64| r.figures.iter().map(f).fold(0.0, f64::max);
@@ -104,7 +108,6 @@ pub fn write(out: &Path, scene: &Scene, r: &SimRun, p: &SimParams) -> Result<()>
     }
     let mut s = scene.clone();
     s.dir = out.to_path_buf();
-    s.strands = r.rest.clone();
     s.animation = Some(Animation {
         fps: p.fps,
         frames: names,
