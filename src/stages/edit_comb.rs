@@ -152,3 +152,47 @@ pub fn edit_comb_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
             comb_strand(&cfg, segs, x);
         });
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::stages::edit_stroke::pack_segments;
+
+    /// A strand hanging straight down the image, combed by a stroke drawn left to right
+    /// across it: the part past the stroke turns to point right (+x image), keeps its
+    /// segment lengths and depths, and the root stays put.
+    #[test]
+    fn a_hanging_strand_turns_to_the_stroke_direction() {
+        let cfg = Config {
+            n_strands: 1,
+            n_segs: 1,
+            radius: 8.0,
+            s: 100.0,
+            r00: 1.0,
+            r11: 1.0,
+            r22: 1.0,
+            tx: 50.0,
+            ty: 50.0,
+            ..Default::default()
+        };
+        let segs = pack_segments(&[vec![[0.0, 60.0], [200.0, 60.0]]]);
+        // Image y = 50 − 100·y: y from 0 down to −0.3 crosses the stroke at image y 60.
+        let n = 31;
+        let mut x: Vec<f32> = (0..n)
+            .flat_map(|i| [0.0, -0.01 * i as f32, 0.002 * i as f32])
+            .collect();
+        let x0 = x.clone();
+        assert!(comb_strand(&cfg, &segs, &mut x));
+        assert_eq!(x[..3], x0[..3]);
+        for i in 0..n - 1 {
+            let e: Vec<f32> = (0..3).map(|c| x[3 * i + 3 + c] - x[3 * i + c]).collect();
+            let l = (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt();
+            assert!((l - (0.0001f32 + 0.000004).sqrt()).abs() < 1e-6, "{l}");
+            assert!((e[2] - 0.002).abs() < 1e-7);
+        }
+        // The last segment is inside the band and points right in the image.
+        let k = 3 * (n - 2);
+        let (ex, ey) = (x[k + 3] - x[k], x[k + 4] - x[k + 1]);
+        assert!(ex > 0.0 && ey.abs() < 0.05 * ex, "{ex} {ey}");
+    }
+}
