@@ -409,6 +409,12 @@ fn edit_cli_writes_a_model_and_refuses_bad_input() {
     }])
     .save(&t.path().join("off.json"))
     .unwrap();
+    Strokes::new(vec![Stroke {
+        kind: StrokeKind::Cut,
+        points: vec![[10.0, 10.0], [10.0, 10.0]],
+    }])
+    .save(&t.path().join("dot.json"))
+    .unwrap();
     for (tool, file, extra) in [
         ("--comb", "comb.json", vec![]),
         ("--cut", "cut.json", vec!["--radius", "0"]),
@@ -443,6 +449,7 @@ fn edit_cli_writes_a_model_and_refuses_bad_input() {
         (&["--cut", "comb.json"], "comb.json"),
         (&["--comb", "off.json"], "off.json"),
         (&["--comb", "missing.json"], "missing.json"),
+        (&["--cut", "dot.json"], "dot.json"),
     ];
     for (extra, needle) in cases {
         let (model, out) = (p("model"), p("bad"));
@@ -463,6 +470,30 @@ fn edit_cli_writes_a_model_and_refuses_bad_input() {
         assert!(!o.status.success());
         assert!(err.contains(needle), "{extra:?}: {err}");
         assert!(!t.path().join("bad").exists(), "{extra:?} wrote output");
+    }
+    for radius in ["nan", "-1"] {
+        let o = coif(&[
+            "edit",
+            "--backend",
+            "cpu",
+            "--model",
+            &p("model"),
+            "--comb",
+            &p("comb.json"),
+            "--radius",
+            radius,
+            "--out",
+            &p("bad"),
+        ]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        println!(
+            "--radius {radius}: exit {:?}: {}",
+            o.status.code(),
+            err.trim()
+        );
+        assert_eq!(o.status.code(), Some(64), "{err}");
+        assert!(err.contains("--radius"), "{err}");
+        assert!(!t.path().join("bad").exists());
     }
     // A missing model folder, and a model without a camera (imported strands).
     let o = coif(&[

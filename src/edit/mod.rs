@@ -91,6 +91,7 @@ pub fn load_strokes(scene: &Scene, path: &Path, kind: StrokeKind) -> Result<Stro
             ),
         ));
     }
+    polylines(&s, kind).map_err(|e| Error::bad_file(path, e.to_string()))?;
     Ok(s)
 }
 
@@ -111,6 +112,12 @@ fn polylines(strokes: &Strokes, kind: StrokeKind) -> Result<Vec<Vec<[f32; 2]>>> 
         .find(|p| !p.iter().all(|c| c.is_finite()))
     {
         return Err(Error::Invalid(format!("stroke point {p:?} is not finite")));
+    }
+    // A stroke that stays on one point has no direction and crosses nothing.
+    if let Some(i) = v.iter().position(|s| s.iter().all(|p| *p == s[0])) {
+        return Err(Error::Invalid(format!(
+            "{kind} stroke {i} has no two distinct points"
+        )));
     }
     Ok(v)
 }

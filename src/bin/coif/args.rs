@@ -364,7 +364,7 @@ pub struct EditArgs {
     #[arg(long)]
     cut: Option<PathBuf>,
     /// Radius of influence, image px (a cut with 0 is clean, at the first crossing).
-    #[arg(long, default_value_t = coif::edit::DEFAULT_RADIUS)]
+    #[arg(long, default_value_t = coif::edit::DEFAULT_RADIUS, allow_negative_numbers = true)]
     radius: f32,
     /// Seed of the cut's random choice of vertex.
     #[arg(long, default_value_t = 1)]
