@@ -403,6 +403,10 @@ fn edit_cli_writes_a_model_and_refuses_bad_input() {
     across(&sc, StrokeKind::Cut, 0.5)
         .save(&t.path().join("cut.json"))
         .unwrap();
+    // Near the roots: with R 32 some strands are drawn at their root and keep only it.
+    across(&sc, StrokeKind::Cut, 0.0)
+        .save(&t.path().join("top.json"))
+        .unwrap();
     Strokes::new(vec![Stroke {
         kind: StrokeKind::Comb,
         points: vec![[10.0, 10.0], [500.0, 10.0]],
@@ -418,8 +422,9 @@ fn edit_cli_writes_a_model_and_refuses_bad_input() {
     for (tool, file, extra) in [
         ("--comb", "comb.json", vec![]),
         ("--cut", "cut.json", vec!["--radius", "0"]),
+        ("--cut", "top.json", vec!["--radius", "32"]),
     ] {
-        let out = p(&format!("out-{}", &tool[2..]));
+        let out = p(&format!("out-{}", &file[..file.len() - 5]));
         let mut args = vec!["edit", "--backend", "cpu", "--model"];
         let (model, f) = (p("model"), p(file));
         args.extend([model.as_str(), tool, f.as_str(), "--out", out.as_str()]);
@@ -432,6 +437,8 @@ fn edit_cli_writes_a_model_and_refuses_bad_input() {
                 .unwrap();
         assert_eq!(meta["edit"]["tool"], &tool[2..]);
         let back = Scene::load(std::path::Path::new(&out)).unwrap();
+        let roots_only = back.strands.counts.iter().filter(|&&c| c == 1).count();
+        println!("{out}: {roots_only} strands keep only their root");
         assert!(back.camera.is_some() && back.head.is_some());
         let o = coif(&[
             "render",
