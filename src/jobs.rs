@@ -4,6 +4,7 @@
 
 use crate::analyze::orient::OrientParams;
 use crate::analyze::{self, AnalyzeParams};
+use crate::edit;
 use crate::error::Error;
 use crate::eval::metrics::orientation_error;
 use crate::gpu::engine::Engine;
@@ -31,6 +32,7 @@ pub enum Job {
     Model(ModelJob),
     Render(RenderJob),
     Simulate(SimulateJob),
+    Edit(EditJob),
     Export(ExportJob),
     Import(ImportJob),
     Convert(ConvertJob),
@@ -101,6 +103,23 @@ pub struct SimulateJob {
     pub params: SimParams,
 }
 
+/// A comb or a cut of a model folder's strands (`coif edit`).
+#[derive(Clone, Debug)]
+pub struct EditJob {
+    pub model: PathBuf,
+    pub out: PathBuf,
+    pub tool: EditTool,
+    /// Radius of influence, image px (C13: 32; a cut with 0 is clean).
+    pub radius: f32,
+}
+
+/// Which edit, with its strokes file (`strokes.json` schema, strokes of that kind).
+#[derive(Clone, Debug)]
+pub enum EditTool {
+    Comb { strokes: PathBuf },
+    Cut { strokes: PathBuf, seed: u64 },
+}
+
 /// A model folder's strands as a strand file (`coif export`).
 #[derive(Clone, Debug)]
 pub struct ExportJob {
@@ -136,7 +155,12 @@ impl Job {
     pub fn needs_engine(&self) -> bool {
         matches!(
             self,
-            Job::Orient(_) | Job::Analyze(_) | Job::Model(_) | Job::Render(_) | Job::Simulate(_)
+            Job::Orient(_)
+                | Job::Analyze(_)
+                | Job::Model(_)
+                | Job::Render(_)
+                | Job::Simulate(_)
+                | Job::Edit(_)
         )
     }
 
@@ -150,6 +174,7 @@ impl Job {
             Job::Model(j) => ("model", &j.out),
             Job::Render(j) => ("render", &j.out),
             Job::Simulate(j) => ("simulate", &j.out),
+            Job::Edit(j) => ("edit", &j.out),
             Job::Export(j) => ("export", &j.to),
             Job::Import(j) => ("import", &j.out),
             Job::Convert(j) => ("convert", &j.output),
@@ -168,6 +193,7 @@ pub fn run(engine: &Engine, job: &Job) -> anyhow::Result<Report> {
         Job::Model(j) => run_model(engine, j),
         Job::Render(j) => run_render(engine, j),
         Job::Simulate(j) => run_simulate(engine, j),
+        Job::Edit(j) => run_edit(engine, j),
         Job::Export(j) => run_export(j),
         Job::Import(j) => run_import(j),
         Job::Convert(j) => run_convert(j),
@@ -568,6 +594,80 @@ fn run_simulate(engine: &Engine, j: &SimulateJob) -> anyhow::Result<Report> {
             ),
         ],
         warnings: Vec::new(),
+    })
+}
+
+fn run_edit(engine: &Engine, j: &EditJob) -> anyhow::Result<Report> {
+    use crate::io::annot::StrokeKind;
+    let scene = Scene::load(&j.model)?;
+    // Everything is read, checked and computed before the first file is written.
+    let (strands, meta, summary, details) = match &j.tool {
+        EditTool::Comb { strokes } => {
+            let s = edit::load_strokes(&scene, strokes, StrokeKind::Comb)?;
+            let (out, r) = edit::comb(engine, &scene, &s, j.radius)?;
+            let details = vec![
+                format!("strands changed  {} of {}", r.strands_changed, r.strands),
+                format!("vertices moved   {}", r.vertices_moved),
+                format!(
+                    "segment length   {:.1e} relative at most",
+                    r.length_error_max
+                ),
+                format!("depth            {:.1e} m at most", r.depth_error_max),
+            ];
+            let summary = format!(
+                "edit: comb {} stroke(s), R {} px -> {} ({:.2} s on {})",
+                r.strokes,
+                r.radius,
+                j.out.display(),
+                r.seconds,
+                r.backend
+            );
+            let meta = json!({"tool": "comb", "strokes": strokes, "report": r});
+            (out, meta, summary, details)
+        }
+        EditTool::Cut { strokes, seed } => {
+            let s = edit::load_strokes(&scene, strokes, StrokeKind::Cut)?;
+            let (out, r) = edit::cut(engine, &scene, &s, j.radius, *seed)?;
+            let mut details = vec![
+                format!("strands cut      {} of {}", r.strands_cut, r.strands),
+                format!(
+                    "vertices         {} -> {}",
+                    r.vertices_before, r.vertices_after
+                ),
+            ];
+            if let Some(m) = r.mean_r_over_radius {
+                details.push(format!("mean r/R         {m:.3} over {} draws", r.drawn));
+            }
+            let summary = format!(
+                "edit: cut {} stroke(s), R {} px -> {} ({:.2} s on {})",
+                r.strokes,
+                r.radius,
+                j.out.display(),
+                r.seconds,
+                r.backend
+            );
+            let meta = json!({"tool": "cut", "strokes": strokes, "seed": seed, "report": r});
+            (out, meta, summary, details)
+        }
+    };
+    let mut warnings = Vec::new();
+    if scene.animation.is_some() {
+        warnings.push(
+            "the model's animation is not carried over: the edit changes its rest strands"
+                .to_string(),
+        );
+    }
+    let edited = Scene {
+        dir: j.out.clone(),
+        strands,
+        animation: None,
+        ..scene
+    };
+    edited.save(&j.out, json!({ "edit": meta }))?;
+    Ok(Report {
+        summary,
+        details,
+        warnings,
     })
 }
 

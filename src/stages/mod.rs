@@ -7,6 +7,9 @@
 pub mod density_splat;
 pub mod depth_raster;
 pub mod dir_diffuse;
+pub mod edit_comb;
+pub mod edit_cut;
+pub mod edit_stroke;
 pub mod field_cfg;
 pub mod field_coarse_rhs;
 pub mod field_dense;
@@ -52,6 +55,8 @@ pub const ALL: &[&StageDef] = &[
     &pm_search::STAGE,
     &pm_vote::STAGE,
     &sim_step::STAGE,
+    &edit_comb::STAGE,
+    &edit_cut::STAGE,
 ];
 
 /// Every registered render pass; the host is `crate::render::raster`.

@@ -6,8 +6,8 @@ use coif::analyze::orient::OrientParams;
 use coif::analyze::AnalyzeParams;
 use coif::gpu::engine::BackendChoice;
 use coif::jobs::{
-    AnalyzeJob, ConvertJob, ExportJob, ImportJob, Job, ModelJob, OrientJob, RenderJob, SimulateJob,
-    SynthJob,
+    AnalyzeJob, ConvertJob, EditJob, EditTool, ExportJob, ImportJob, Job, ModelJob, OrientJob,
+    RenderJob, SimulateJob, SynthJob,
 };
 use coif::render::shade::{Light, ShadingModel};
 use coif::sim::{HeadKey, HeadTrack, SimParams};
@@ -59,6 +59,9 @@ pub enum Command {
     /// Simulates a model's hair (C13 §4 after Selle et al. 2008): mass-spring strands, wind
     /// from Perlin noise, head collisions, roots carried by a keyframed head motion.
     Simulate(SimulateArgs),
+    /// Edits a model's strands with strokes on its photo (C13 appendix A): --comb turns
+    /// strands toward the stroke direction, --cut shortens the strands that reach a stroke.
+    Edit(EditArgs),
 }
 
 #[derive(Args)]
@@ -346,6 +349,51 @@ impl SimulateArgs {
 }
 
 #[derive(Args)]
+#[command(group = clap::ArgGroup::new("tool").required(true).args(["comb", "cut"]))]
+pub struct EditArgs {
+    /// Model folder written by `coif model` (it needs the camera).
+    #[arg(long)]
+    model: PathBuf,
+    /// Output folder (created): the edited model, which `coif render` draws.
+    #[arg(long)]
+    out: PathBuf,
+    /// Strokes file (strokes.json schema) with strokes of kind "comb", image px.
+    #[arg(long)]
+    comb: Option<PathBuf>,
+    /// Strokes file (strokes.json schema) with strokes of kind "cut", image px.
+    #[arg(long)]
+    cut: Option<PathBuf>,
+    /// Radius of influence, image px (a cut with 0 is clean, at the first crossing).
+    #[arg(long, default_value_t = coif::edit::DEFAULT_RADIUS, allow_negative_numbers = true)]
+    radius: f32,
+    /// Seed of the cut's random choice of vertex.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    #[command(flatten)]
+    backend: BackendArgs,
+}
+
+impl EditArgs {
+    fn job(self) -> EditJob {
+        let tool = match (self.comb, self.cut) {
+            (Some(strokes), _) => EditTool::Comb { strokes },
+            (None, Some(strokes)) => EditTool::Cut {
+                strokes,
+                seed: self.seed,
+            },
+            // The argument group requires exactly one of them.
+            (None, None) => unreachable!("clap requires --comb or --cut"),
+        };
+        EditJob {
+            model: self.model,
+            out: self.out,
+            tool,
+            radius: self.radius,
+        }
+    }
+}
+
+#[derive(Args)]
 pub struct ExportArgs {
     /// Model folder written by `coif model` or `coif import`.
     #[arg(long)]
@@ -615,6 +663,10 @@ impl Command {
             Command::Simulate(a) => {
                 let backend = a.backend.backend;
                 Request::one(Job::Simulate(a.job()), backend)
+            }
+            Command::Edit(a) => {
+                let backend = a.backend.backend;
+                Request::one(Job::Edit(a.job()), backend)
             }
             Command::Render(a) => {
                 let backend = a.backend.backend;
