@@ -220,7 +220,8 @@ pub fn run_all(engine: &Engine, jobs: &[Job]) -> anyhow::Result<Vec<Report>> {
 
 /// The main job on the embedded inputs: a synthetic case with ground truth and the astronaut
 /// photo, each through orientation, directed hair, 3D strands and three renders (the
-/// original view, a novel view and a recolouring); then a short wind clip of the photo.
+/// original view, a novel view and a recolouring); then a comb, a cut and a short wind clip
+/// of the photo's hair.
 pub fn demo(out: &Path) -> Vec<Job> {
     let case = out.join("synth-long");
     let astro = out.join("astronaut");
@@ -297,6 +298,38 @@ pub fn demo(out: &Path) -> Vec<Job> {
             }));
         }
     }
+    // A comb and a cut of the photo's hair, each rendered into the photo.
+    for (name, tool, radius) in [
+        (
+            "comb",
+            EditTool::Comb {
+                strokes: astro.join("comb.json"),
+            },
+            32.0,
+        ),
+        (
+            "cut",
+            EditTool::Cut {
+                strokes: astro.join("cut.json"),
+                seed: 1,
+            },
+            32.0,
+        ),
+    ] {
+        let dir = out.join(format!("edit-astronaut-{name}"));
+        jobs.push(Job::Edit(EditJob {
+            model: out.join("model-astronaut"),
+            out: dir.clone(),
+            tool,
+            radius,
+        }));
+        jobs.push(Job::Render(RenderJob {
+            model: dir.clone(),
+            out: dir.join("render.png"),
+            params: RenderParams::default(),
+            sixteen: false,
+        }));
+    }
     // A short wind clip of the photo's hair, every frame rendered into the photo.
     let wind = out.join("sim-astronaut-wind");
     jobs.push(Job::Simulate(SimulateJob {
@@ -356,9 +389,11 @@ fn run_unpack(j: &UnpackJob) -> anyhow::Result<Report> {
         &j.out.join("strokes.json"),
         assets::ASTRONAUT_STROKES.as_bytes(),
     )?;
+    write_atomic(&j.out.join("comb.json"), assets::ASTRONAUT_COMB.as_bytes())?;
+    write_atomic(&j.out.join("cut.json"), assets::ASTRONAUT_CUT.as_bytes())?;
     Ok(Report {
         summary: format!(
-            "unpack: the astronaut photo and its strokes -> {}",
+            "unpack: the astronaut photo, its strokes and comb and cut strokes -> {}",
             j.out.display()
         ),
         ..Default::default()

@@ -89,8 +89,7 @@ impl Skin {
         let nv = self.rest_dir.len();
         let mut frame = vec![m.0; nv];
         let mut q = m.0;
-        for g in 0..nv {
-            let d0 = self.rest_dir[g];
+        for (g, (fr, &d0)) in frame.iter_mut().zip(&self.rest_dir).enumerate() {
             if d0 == Vec3::ZERO {
                 // The guide's last vertex: the next guide starts at the head's frame again.
                 q = m.0;
@@ -98,7 +97,7 @@ impl Skin {
             }
             let now = (xp(g + 1) - xp(g)).normalize_or_zero();
             q = turn((q * d0).normalize_or_zero(), now) * q;
-            frame[g] = q;
+            *fr = q;
         }
         let mut out = self.rest.clone();
         for (v, p) in out.points.iter_mut().enumerate() {
