@@ -1,5 +1,6 @@
 //! Comb and cut (issue 14, C13 appendix A): figures on strands grown on the parametric head
-//! and drawn through its camera, the passes on lavapipe against their CPU mirrors, and the
+//! and drawn through its camera, the passes (`edit_comb`, `edit_cut`, with the stroke
+//! geometry of `shared/edit_stroke.wgsl`) on lavapipe against their CPU mirrors, and the
 //! command line's refusals.
 
 use coif::edit::{self, DEFAULT_RADIUS};
@@ -225,7 +226,7 @@ fn comb_keeps_lengths_depths_roots_and_aligns_with_the_stroke() {
 }
 
 #[test]
-fn comb_parity_on_lavapipe() {
+fn edit_comb_parity_on_lavapipe() {
     let sc = scene_yaw(1200, 256, 40.0);
     let strokes = across(&sc, StrokeKind::Comb, 0.5);
     let (a, _) = edit::comb(&Engine::cpu(), &sc, &strokes, DEFAULT_RADIUS).unwrap();
@@ -327,7 +328,7 @@ fn clean_cut_ends_at_the_crossing() {
 }
 
 #[test]
-fn wide_cut_draws_one_third_and_both_backends_agree() {
+fn wide_cut_draws_one_third_and_edit_cut_agrees_on_both_backends() {
     let sc = scene(4000, 256);
     let strokes = across(&sc, StrokeKind::Cut, 0.5);
     let r = DEFAULT_RADIUS;

@@ -1,5 +1,6 @@
 //! Simulation (issue 14): figures on real strands grown on the parametric head, and the
-//! sim_step pass against its CPU mirror on lavapipe.
+//! sim_step pass (with `shared/noise.wgsl` and `shared/head_sdf.wgsl`) against its CPU
+//! mirror on lavapipe.
 
 use coif::gpu::engine::Engine;
 use coif::hair::head::Head;
