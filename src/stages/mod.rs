@@ -20,6 +20,7 @@ pub mod field_smooth;
 pub mod gabor;
 pub mod grow_rk2;
 pub mod mesh_raster;
+pub mod noise_eval;
 pub mod orient_resolve;
 pub mod pm_common;
 pub mod pm_cost;
@@ -55,6 +56,7 @@ pub const ALL: &[&StageDef] = &[
     &pm_search::STAGE,
     &pm_vote::STAGE,
     &sim_step::STAGE,
+    &noise_eval::STAGE,
     &edit_comb::STAGE,
     &edit_cut::STAGE,
 ];
