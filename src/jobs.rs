@@ -111,6 +111,8 @@ pub struct EditJob {
     pub tool: EditTool,
     /// Radius of influence, image px (C13: 32; a cut with 0 is clean).
     pub radius: f32,
+    /// Level of the strand hierarchy the strokes act on (0: the strands).
+    pub level: usize,
 }
 
 /// Which edit, with its strokes file (`strokes.json` schema, strokes of that kind).
@@ -322,6 +324,7 @@ pub fn demo(out: &Path) -> Vec<Job> {
             out: dir.clone(),
             tool,
             radius,
+            level: 0,
         }));
         jobs.push(Job::Render(RenderJob {
             model: dir.clone(),
@@ -634,7 +637,26 @@ fn run_simulate(engine: &Engine, j: &SimulateJob) -> anyhow::Result<Report> {
 
 fn run_edit(engine: &Engine, j: &EditJob) -> anyhow::Result<Report> {
     use crate::io::annot::StrokeKind;
-    let scene = Scene::load(&j.model)?;
+    let full = Scene::load(&j.model)?;
+    // At a level above the strands, the strokes act on the cluster centres and the strands
+    // are rebuilt from them with their residuals.
+    let hierarchy = if j.level > 0 {
+        let h = edit::hierarchy::Hierarchy::build(
+            &full.strands,
+            &edit::hierarchy::HierarchyParams::default(),
+        )?;
+        let centres = h.centres(j.level)?.clone();
+        Some((h, centres))
+    } else {
+        None
+    };
+    let scene = match &hierarchy {
+        Some((_, centres)) => Scene {
+            strands: centres.clone(),
+            ..full.clone()
+        },
+        None => full.clone(),
+    };
     // Everything is read, checked and computed before the first file is written.
     let (strands, meta, summary, details) = match &j.tool {
         EditTool::Comb { strokes } => {
@@ -692,13 +714,28 @@ fn run_edit(engine: &Engine, j: &EditJob) -> anyhow::Result<Report> {
                 .to_string(),
         );
     }
+    let (strands, details) = match &hierarchy {
+        Some((h, centres)) => {
+            let rebuilt = h.rebuild(j.level, &strands, &full.strands)?;
+            let mut d = details;
+            d.push(format!(
+                "hierarchy        level {} of {} ({} centres); {} strands rebuilt",
+                j.level,
+                h.levels.len(),
+                centres.len(),
+                rebuilt.len()
+            ));
+            (rebuilt, d)
+        }
+        None => (strands, details),
+    };
     let edited = Scene {
         dir: j.out.clone(),
         strands,
         animation: None,
-        ..scene
+        ..full
     };
-    edited.save(&j.out, json!({ "edit": meta }))?;
+    edited.save(&j.out, json!({ "edit": meta, "level": j.level }))?;
     Ok(Report {
         summary,
         details,

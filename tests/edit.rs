@@ -540,3 +540,129 @@ fn edit_cli_writes_a_model_and_refuses_bad_input() {
     );
     assert!(!t.path().join("bad").exists());
 }
+
+/// The strand hierarchy: centres plus residuals give back every strand at every level, and a
+/// comb at level 2 moves the members with their residuals unchanged.
+#[test]
+fn hierarchy_rebuilds_strands_and_a_level_2_comb_keeps_residuals() {
+    use coif::edit::hierarchy::{Hierarchy, HierarchyParams};
+    let sc = scene(3000, 256);
+    let t = std::time::Instant::now();
+    let h = Hierarchy::build(&sc.strands, &HierarchyParams::default()).unwrap();
+    let sizes: Vec<usize> = h.levels.iter().map(|l| l.centres.len()).collect();
+    println!(
+        "hierarchy of {} strands: clusters per level {sizes:?} ({:.2} s)",
+        sc.strands.len(),
+        t.elapsed().as_secs_f64()
+    );
+    assert!(h.levels.len() >= 2, "{sizes:?}");
+    for level in 1..=h.levels.len() {
+        let same = h
+            .rebuild(level, h.centres(level).unwrap(), &sc.strands)
+            .unwrap();
+        assert_eq!(same.counts, sc.strands.counts);
+        let worst = same
+            .points
+            .iter()
+            .zip(&sc.strands.points)
+            .map(|(a, b)| (Vec3::from_array(*a) - Vec3::from_array(*b)).length())
+            .fold(0.0f32, f32::max);
+        println!("  level {level}: rebuilt within {worst:.2e} m");
+        assert!(worst <= 1e-5, "level {level}: {worst} m");
+    }
+    // Comb the level-2 centres, then rebuild.
+    let centres = h.centres(2).unwrap().clone();
+    let csc = Scene {
+        strands: centres.clone(),
+        ..sc.clone()
+    };
+    let (combed, rep) = edit::comb(
+        &Engine::cpu(),
+        &csc,
+        &down(&sc, StrokeKind::Comb),
+        DEFAULT_RADIUS,
+    )
+    .unwrap();
+    assert!(
+        rep.strands_changed > 0,
+        "the comb should move some level-2 centres"
+    );
+    let (out, levels) = h.rebuild_levels(2, &combed, &sc.strands).unwrap();
+    assert_eq!(out.counts, sc.strands.counts);
+    assert!(
+        out.strands()
+            .zip(sc.strands.strands())
+            .all(|(a, b)| a[0] == b[0]),
+        "roots moved"
+    );
+    // The level-1 centres are the members of level 2: re-derive their residuals.
+    let lv = &h.levels[1];
+    let rest: Vec<&[[f32; 3]]> = centres.strands().collect();
+    let now: Vec<&[[f32; 3]]> = combed.strands().collect();
+    let mut worst = 0.0f32;
+    for (i, member) in levels[0].iter().enumerate() {
+        let c = lv.parent[i] as usize;
+        let r = &lv.residuals[i];
+        let again = Hierarchy::offsets_on(r, rest[c], now[c], member);
+        for (a, b) in again.iter().zip(&r.offset).skip(1) {
+            worst = worst.max((Vec3::from_array(*a) - Vec3::from_array(*b)).length());
+        }
+    }
+    let moved = out
+        .points
+        .iter()
+        .zip(&sc.strands.points)
+        .filter(|(a, b)| a != b)
+        .count();
+    println!(
+        "comb at level 2: {} of {} centres changed, {moved} strand vertices moved; level-1 \
+         residuals re-derived within {worst:.2e} m",
+        rep.strands_changed,
+        centres.len()
+    );
+    assert!(moved > 0);
+    assert!(worst <= 1e-5, "{worst} m");
+}
+
+/// `coif edit --level L`: the strokes act on cluster centres and the strands follow; a
+/// level the hierarchy does not have is refused, writing nothing.
+#[test]
+fn edit_cli_at_a_hierarchy_level() {
+    let t = tempfile::tempdir().unwrap();
+    let p = |s: &str| t.path().join(s).display().to_string();
+    let mut sc = scene(1200, 256);
+    sc.dir = t.path().join("model");
+    sc.save(&sc.dir, serde_json::json!({})).unwrap();
+    across(&sc, StrokeKind::Comb, 0.5)
+        .save(&t.path().join("comb.json"))
+        .unwrap();
+    let run = |level: &str, out: &str| {
+        let (model, comb, out) = (p("model"), p("comb.json"), p(out));
+        coif(&[
+            "edit",
+            "--backend",
+            "cpu",
+            "--model",
+            &model,
+            "--comb",
+            &comb,
+            "--level",
+            level,
+            "--out",
+            &out,
+        ])
+    };
+    let o = run("1", "l1");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = String::from_utf8_lossy(&o.stdout);
+    println!("{out}");
+    assert!(out.contains("hierarchy        level 1"), "{out}");
+    let back = Scene::load(&t.path().join("l1")).unwrap();
+    assert_eq!(back.strands.counts, sc.strands.counts);
+    assert_ne!(back.strands.points, sc.strands.points);
+    let o = run("9", "l9");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(64), "{err}");
+    assert!(err.contains("--level 9"), "{err}");
+    assert!(!t.path().join("l9").exists());
+}

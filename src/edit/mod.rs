@@ -5,6 +5,8 @@
 //! an offsets buffer, each tile under the engine's binding limit) and measures the result.
 //! Dropping the cut tips and compacting the strand arrays is plain Rust on the CPU.
 
+pub mod hierarchy;
+
 use crate::error::{Error, Result};
 use crate::gpu::engine::{Engine, Recording};
 use crate::hair::head::WeakPerspective;

@@ -369,6 +369,10 @@ pub struct EditArgs {
     /// Seed of the cut's random choice of vertex.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Level of the strand hierarchy to edit (0: the strands; 1, 2, ...: cluster centres,
+    /// about 16 members each, whose members follow with their detail).
+    #[arg(long, default_value_t = 0)]
+    level: usize,
     #[command(flatten)]
     backend: BackendArgs,
 }
@@ -389,6 +393,7 @@ impl EditArgs {
             out: self.out,
             tool,
             radius: self.radius,
+            level: self.level,
         }
     }
 }

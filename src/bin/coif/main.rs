@@ -6,6 +6,7 @@ use args::{Cli, Request};
 use clap::Parser;
 use coif::gpu::engine::Engine;
 use coif::Error;
+use std::io::Write;
 use std::path::Path;
 
 fn main() {
@@ -58,13 +59,15 @@ fn run(req: Request) -> anyhow::Result<()> {
     };
     // Stage timings only for a single job: a list reads better as one line per job.
     let single = reports.len() == 1;
+    // A closed pipe (`coif ... | head`) is not an error of the run: the files are written.
+    let mut out = std::io::stdout().lock();
     for r in reports {
         for w in &r.warnings {
             eprintln!("coif: warning: {w}");
         }
-        println!("{}", r.summary);
+        let _ = writeln!(out, "{}", r.summary);
         for d in r.details.iter().filter(|_| single) {
-            println!("  {d}");
+            let _ = writeln!(out, "  {d}");
         }
     }
     Ok(())
