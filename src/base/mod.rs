@@ -8,3 +8,4 @@ pub mod rng;
 pub mod sdf;
 pub mod sentinel;
 pub mod stats;
+pub mod turn;

@@ -13,6 +13,7 @@
 //! work and stays on the CPU (rayon).
 
 use crate::base::rng::Rng;
+use crate::base::turn::turn;
 use crate::error::{Error, Result};
 use crate::hair::strands::StrandSet;
 use glam::{Mat3, Vec3};
@@ -132,20 +133,6 @@ fn frames(rest: &[[f32; 3]], now: &[[f32; 3]]) -> Vec<Mat3> {
         out.push(q);
     }
     out
-}
-
-fn turn(a: Vec3, b: Vec3) -> Mat3 {
-    let v = a.cross(b);
-    let c = a.dot(b);
-    if a == Vec3::ZERO || c <= -0.999_999 {
-        return Mat3::IDENTITY;
-    }
-    let k = Mat3::from_cols(
-        Vec3::new(0.0, v.z, -v.y),
-        Vec3::new(-v.z, 0.0, v.x),
-        Vec3::new(v.y, -v.x, 0.0),
-    );
-    Mat3::IDENTITY + k + k * k * (1.0 / (1.0 + c))
 }
 
 /// A member's residual to a centre (both at rest).

@@ -7,9 +7,10 @@
 //! detail (its curls between guide vertices) turns with the hair, and a strand too short to
 //! simulate is carried rigidly by the head.
 
+use crate::base::turn::turn;
 use crate::hair::strands::StrandSet;
 use crate::sim::track::{self, Rigid};
-use glam::{Mat3, Vec3};
+use glam::Vec3;
 
 /// Where every vertex of the full strands hangs on the guides.
 pub struct Skin {
@@ -114,34 +115,11 @@ impl Skin {
     }
 }
 
-/// The smallest rotation taking unit `a` to unit `b` (Rodrigues); identity when either is
-/// zero or they are opposite (no smallest rotation then; a segment does not flip in a step).
-fn turn(a: Vec3, b: Vec3) -> Mat3 {
-    let v = a.cross(b);
-    let c = a.dot(b);
-    if a == Vec3::ZERO || b == Vec3::ZERO || c <= -0.999_999 {
-        return Mat3::IDENTITY;
-    }
-    let k = Mat3::from_cols(
-        Vec3::new(0.0, v.z, -v.y),
-        Vec3::new(-v.z, 0.0, v.x),
-        Vec3::new(v.y, -v.x, 0.0),
-    );
-    Mat3::IDENTITY + k + k * k * (1.0 / (1.0 + c))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::sim::resample;
-
-    #[test]
-    fn turn_takes_a_to_b() {
-        let a = Vec3::new(1.0, 0.0, 0.0);
-        let b = Vec3::new(0.6, 0.8, 0.0);
-        assert!((turn(a, b) * a - b).length() < 1e-6);
-        assert!((turn(a, a) * Vec3::Y - Vec3::Y).length() < 1e-6);
-    }
+    use glam::Mat3;
 
     /// At rest the skin gives back the modelled strands; a rigid motion of the guides moves
     /// the full strands by the same motion.
