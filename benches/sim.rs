@@ -75,12 +75,20 @@ fn main() {
     write_f32(&dir.path().join("roots.f32"), sim.roots());
     let cpu = Engine::new(BackendChoice::Cpu).unwrap();
     let cpu_ms = ms_per_step(&cpu, &mut sim, 10, 3);
-    println!("  {}: {cpu_ms:.1} ms per step", cpu.describe());
+    println!(
+        "  {}: {cpu_ms:.1} ms per step ({:.2} steps/s)",
+        cpu.describe(),
+        1e3 / cpu_ms
+    );
     match Engine::new(BackendChoice::Gpu) {
         Ok(gpu) => {
             let mut g = Sim::new(&c.gt, &c.head, &p).unwrap();
             let ms = ms_per_step(&gpu, &mut g, 1, 1);
-            println!("  {}: {ms:.1} ms per step", gpu.describe());
+            println!(
+                "  {}: {ms:.1} ms per step ({:.2} steps/s)",
+                gpu.describe(),
+                1e3 / ms
+            );
         }
         Err(e) => println!("  gpu: not measured ({e})"),
     }
@@ -100,8 +108,9 @@ fn main() {
             let v: serde_json::Value = serde_json::from_str(line.trim()).unwrap();
             let peer_ms = v["ms_per_step"].as_f64().unwrap();
             println!(
-                "  numba peer ({} threads): {peer_ms:.1} ms per step; coif cpu / numba = {:.2}",
+                "  numba peer ({} threads): {peer_ms:.1} ms per step ({:.2} steps/s); coif cpu time / numba time = {:.2}",
                 rayon::current_num_threads(),
+                1e3 / peer_ms,
                 cpu_ms / peer_ms
             );
         }
