@@ -1,5 +1,6 @@
 //! Tests of the 3D direction field (C13 Eq. 3): WGSL/CPU parity of every stage on lavapipe,
-//! multigrid against an f64 CG reference, sweep counts against plain Jacobi, bad input.
+//! multigrid against an f64 CG reference, sweep counts against plain Jacobi, bad input. The
+//! field passes share `shared/field_cfg.wgsl` and `shared/field_uv_nb.wgsl`, exercised here.
 //!
 //! Run: `XDG_RUNTIME_DIR=/tmp CARGO_TARGET_DIR=/work/target-h cargo test --release -- --nocapture`
 

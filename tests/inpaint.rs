@@ -1,4 +1,5 @@
-//! PatchMatch inpainting and the head texture (issue 5 item 2).
+//! PatchMatch inpainting and the head texture (issue 5 item 2). The four passes share
+//! `shared/pm_common.wgsl`, `shared/pm_rand.wgsl` and `shared/pm_ssd.wgsl`, exercised here.
 //!
 //! Parity: the matching stages work on integers (packed 10-bit sqrt-encoded colours, exact
 //! u32 SSD, integer hash RNG), so `pm_init`, `pm_cost` and `pm_search` must agree with their

@@ -1,5 +1,6 @@
 //! The strand rasteriser: lavapipe against the CPU mirror on small scenes, coverage and
 //! anti-aliasing rules checked pixel by pixel on both paths, bad input, determinism, limits.
+//! Both render passes include `shared/raster_common.wgsl` (mirror: `stages::raster_common`).
 //! Run with `--release` (shaders on lavapipe).
 
 use coif::base::colour::to_rgba8;
