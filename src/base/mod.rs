@@ -4,6 +4,7 @@
 pub mod colour;
 pub mod grid;
 pub mod mask;
+pub mod polyline;
 pub mod rng;
 pub mod sdf;
 pub mod sentinel;

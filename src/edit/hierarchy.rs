@@ -74,11 +74,7 @@ pub struct Hierarchy {
 
 /// Arc fractions of a polyline's vertices (0 at the root, 1 at the tip; 0 for a point).
 fn fractions(p: &[[f32; 3]]) -> Vec<f32> {
-    let mut acc = vec![0.0f64];
-    for w in p.windows(2) {
-        let d: f64 = (0..3).map(|k| ((w[1][k] - w[0][k]) as f64).powi(2)).sum();
-        acc.push(acc[acc.len() - 1] + d.sqrt());
-    }
+    let acc = crate::base::polyline::arc_lengths(p);
     let total = acc[acc.len() - 1];
     acc.iter()
         .map(|&a| if total > 0.0 { (a / total) as f32 } else { 0.0 })
@@ -334,16 +330,7 @@ impl Hierarchy {
         for l in (0..level).rev() {
             let lv = &self.levels[l];
             let rest_c: Vec<&[[f32; 3]]> = lv.centres.strands().collect();
-            let fr: Vec<Vec<Mat3>> = rest_c
-                .iter()
-                .zip(&now)
-                .map(|(r, n)| {
-                    let mut n = n.clone();
-                    // A cut centre keeps its rest shape past the cut for the frames.
-                    n.extend_from_slice(&r[n.len()..]);
-                    frames(r, &n)
-                })
-                .collect();
+            // A cut centre keeps its rest shape past the cut, for its frames.
             let full_now: Vec<Vec<[f32; 3]>> = rest_c
                 .iter()
                 .zip(&now)
@@ -352,6 +339,11 @@ impl Hierarchy {
                     n.extend_from_slice(&r[n.len()..]);
                     n
                 })
+                .collect();
+            let fr: Vec<Vec<Mat3>> = rest_c
+                .iter()
+                .zip(&full_now)
+                .map(|(r, n)| frames(r, n))
                 .collect();
             let (members, kept): (Vec<Vec<[f32; 3]>>, Vec<f32>) = lv
                 .residuals

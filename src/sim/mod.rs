@@ -190,11 +190,7 @@ pub fn resample(s: &StrandSet, n: usize) -> (StrandSet, Vec<usize>) {
     let off = s.offsets();
     for i in 0..s.len() {
         let pts = &s.points[off[i]..off[i + 1]];
-        let mut acc = vec![0.0f64];
-        for w in pts.windows(2) {
-            let d: f64 = (0..3).map(|k| ((w[1][k] - w[0][k]) as f64).powi(2)).sum();
-            acc.push(acc[acc.len() - 1] + d.sqrt());
-        }
+        let acc = crate::base::polyline::arc_lengths(pts);
         let total = acc[acc.len() - 1];
         if pts.len() < 2 || total <= 0.0 {
             dropped.push(i);

@@ -53,11 +53,7 @@ impl Skin {
                 continue;
             }
             // Arc length of every vertex, as resample measured it.
-            let mut acc = vec![0.0f64];
-            for w in st.windows(2) {
-                let d: f64 = (0..3).map(|k| ((w[1][k] - w[0][k]) as f64).powi(2)).sum();
-                acc.push(acc[acc.len() - 1] + d.sqrt());
-            }
+            let acc = crate::base::polyline::arc_lengths(st);
             let total = acc[acc.len() - 1];
             let base = guide * n;
             for (j, p) in st.iter().enumerate() {
