@@ -32,6 +32,10 @@ pub const SHARED: &[(&str, &str)] = &[
         include_str!("../../wgsl/shared/field_cfg.wgsl"),
     ),
     (
+        "shared/field_sample.wgsl",
+        include_str!("../../wgsl/shared/field_sample.wgsl"),
+    ),
+    (
         "shared/head_sdf.wgsl",
         include_str!("../../wgsl/shared/head_sdf.wgsl"),
     ),

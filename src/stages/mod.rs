@@ -32,6 +32,8 @@ pub mod sep_blur;
 pub mod sim_step;
 pub mod strand_raster;
 pub mod strand_shade;
+pub mod strand_warp;
+pub mod warp_compose;
 
 use crate::gpu::engine::{RenderStageDef, StageDef};
 
@@ -59,6 +61,8 @@ pub const ALL: &[&StageDef] = &[
     &noise_eval::STAGE,
     &edit_comb::STAGE,
     &edit_cut::STAGE,
+    &warp_compose::STAGE,
+    &strand_warp::STAGE,
 ];
 
 /// Every registered render pass; the host is `crate::render::raster`.

@@ -1,0 +1,6 @@
+//! Hair through a video (C13 §3–4): a strand model built on a reference frame r is carried
+//! through the clip, S_i = T_i(S_r), by the head's rigid motion M_i and a 2D warp W*_i that
+//! blends tracked features (W†_i) with orientation-field flow (V_i) by Eq. (6); Eq. (7)
+//! moves each vertex.
+
+pub mod warp;
