@@ -554,10 +554,11 @@ fn run_render(engine: &Engine, j: &RenderJob) -> anyhow::Result<Report> {
     })
 }
 
-/// Every frame of an animated scene into the folder `j.out` (`NNNN.png`): the frame's
-/// strands taken back to the head's rest pose and drawn from a view turned by the head's
-/// yaw, pitch and roll, so head and hair move together over the inpainted background. The
-/// head's translation is not drawn (the background would have to move with it).
+/// Every frame of an animated scene into the folder `j.out` (`NNNN.png`). A tracked video
+/// draws each frame's strands into that frame's photo with its camera. A simulation takes the
+/// frame's strands back to the head's rest pose and draws them from a view turned by the
+/// head's yaw, pitch and roll, so head and hair move together over the inpainted
+/// background; the head's translation is not drawn (the background would have to move).
 fn render_frames(engine: &Engine, scene: &Scene, j: &RenderJob) -> anyhow::Result<Report> {
     let a = scene.animation.as_ref().expect("checked by the caller");
     let t = Instant::now();
@@ -567,16 +568,23 @@ fn render_frames(engine: &Engine, scene: &Scene, j: &RenderJob) -> anyhow::Resul
             .expect("static template"),
     );
     for (k, pose) in a.head.iter().enumerate() {
-        let m = sim::track::pose_transform(pose);
-        let mut s = scene.clone();
-        s.strands = scene.frame(k)?;
-        for q in &mut s.strands.points {
-            *q = sim::track::apply_inv(&m, *q);
-        }
         let mut p = j.params.clone();
-        p.yaw_deg += pose[0];
-        p.pitch_deg += pose[1];
-        p.roll_deg += pose[2];
+        // A tracked video: each frame over its own photo, seen by its own camera.
+        let s = match scene.footage_frame(k)? {
+            Some(s) => s,
+            None => {
+                let m = sim::track::pose_transform(pose);
+                let mut s = scene.clone();
+                s.strands = scene.frame(k)?;
+                for q in &mut s.strands.points {
+                    *q = sim::track::apply_inv(&m, *q);
+                }
+                p.yaw_deg += pose[0];
+                p.pitch_deg += pose[1];
+                p.roll_deg += pose[2];
+                s
+            }
+        };
         let r = render::render(engine, &s, &p)
             .with_context(|| format!("rendering frame {k} of {}", j.model.display()))?;
         render::write(&j.out.join(format!("{k:04}.png")), &r, &p, j.sixteen)?;

@@ -1,6 +1,7 @@
 // Eq. (6) of C13, one invocation per pixel of the reference frame; see
 // `src/stages/warp_compose.rs`. W*_i(p) = a·W†_i(p) + (1 − a)·[W*_{i−1}(p) + V_i(p + W*_{i−1}(p))]
-// with a = ½ in the paper; a = 0 gives flow alone, a = 1 features alone.
+// with a = ½ in the paper; a = 0 gives flow alone, a = 1 features alone. A W† of 1e30 or
+// more is unknown (no feature reaches the pixel).
 
 struct Config {
     width: u32,
@@ -27,7 +28,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let dag = vec2<f32>(wdag[2u * i], wdag[2u * i + 1u]);
     let q = vec2<f32>(f32(gid.x), f32(gid.y)) + prev;
     let flowed = prev + sample2(q);
-    let o = cfg.alpha * dag + (1.0 - cfg.alpha) * flowed;
+    // No feature reaches the pixel: the flow alone carries it.
+    var o = flowed;
+    if abs(dag.x) < 1e30 {
+        o = cfg.alpha * dag + (1.0 - cfg.alpha) * flowed;
+    }
     wout[2u * i] = o.x;
     wout[2u * i + 1u] = o.y;
 }

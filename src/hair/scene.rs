@@ -41,6 +41,19 @@ pub struct Animation {
     /// Head pose per frame: yaw, pitch, roll (degrees) and translation (metres), as
     /// `crate::sim::HeadTrack` keys them.
     pub head: Vec<[f32; 6]>,
+    /// Footage per frame, for a scene tracked through a video (`coif video`): the frame's
+    /// photo, hair mask (files relative to the scene folder) and the camera that sees the
+    /// frame's strands in it. Absent for simulations, which play over the scene's photo.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub footage: Option<Footage>,
+}
+
+/// Per-frame photos, masks and cameras of a tracked video (see [`Animation::footage`]).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Footage {
+    pub photos: Vec<String>,
+    pub masks: Vec<String>,
+    pub cameras: Vec<WeakPerspective>,
 }
 
 fn bad(path: &Path, msg: impl Into<String>) -> Error {
@@ -120,18 +133,30 @@ impl Scene {
             Some(a) => {
                 let a: Animation = serde_json::from_value(a.clone())
                     .map_err(|e| bad(&meta_path, format!("animation: {e}")))?;
+                let footage_ok = a.footage.as_ref().is_none_or(|f| {
+                    [f.photos.len(), f.masks.len(), f.cameras.len()]
+                        .iter()
+                        .all(|&n| n == a.frames.len())
+                });
                 if a.frames.is_empty()
                     || a.head.len() != a.frames.len()
                     || a.fps.is_nan()
                     || a.fps <= 0.0
+                    || !footage_ok
                 {
                     return Err(bad(
                         &meta_path,
                         format!(
-                            "animation: {} frames, {} head poses, fps {}",
+                            "animation: {} frames, {} head poses, fps {}{}",
                             a.frames.len(),
                             a.head.len(),
-                            a.fps
+                            a.fps,
+                            a.footage.as_ref().map_or(String::new(), |f| format!(
+                                ", footage of {} photos, {} masks, {} cameras",
+                                f.photos.len(),
+                                f.masks.len(),
+                                f.cameras.len()
+                            ))
                         ),
                     ));
                 }
@@ -221,6 +246,28 @@ impl Scene {
             s.thickness = s.thickness.or_else(|| self.strands.thickness.clone());
         }
         Ok(s)
+    }
+
+    /// Frame `k` of a tracked video as a still scene: the frame's strands, photo, hair mask
+    /// and camera. None when the animation has no footage.
+    pub fn footage_frame(&self, k: usize) -> Result<Option<Scene>> {
+        let Some(f) = self.animation.as_ref().and_then(|a| a.footage.as_ref()) else {
+            return Ok(None);
+        };
+        let photo_path = self.dir.join(&f.photos[k]);
+        let photo = crate::io::images::load_rgb(&photo_path)?;
+        let (w, h) = photo.dimensions();
+        let mask_path = self.dir.join(&f.masks[k]);
+        let mask = crate::io::images::load_mask(&mask_path, w, h, &photo_path)?;
+        let mut s = self.clone();
+        s.strands = self.frame(k)?;
+        s.photo = Some(photo);
+        s.mask = Some(mask);
+        s.camera = Some(f.cameras[k]);
+        s.width = w;
+        s.height = h;
+        s.animation = None;
+        Ok(Some(s))
     }
 
     /// Writes the scene to `dir` (created): `strands.hair`, `photo.png` and `mask.png` when

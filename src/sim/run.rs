@@ -112,6 +112,7 @@ pub fn write(out: &Path, scene: &Scene, r: &SimRun, p: &SimParams) -> Result<()>
         fps: p.fps,
         frames: names,
         head: r.poses.clone(),
+        footage: None,
     });
     s.save(out, json!({ "simulation": "sim.json" }))
 }
@@ -124,16 +125,35 @@ pub fn preview_gif(
     frames: &[StrandSet],
     fps: f32,
 ) -> Result<Vec<u8>> {
-    use image::codecs::gif::{GifEncoder, Repeat};
     let back = vis::dimmed(photo, 0.35);
+    preview_gif_with(frames.len(), fps, |k| {
+        Ok((back.clone(), *cam, frames[k].clone()))
+    })
+}
+
+/// An animated GIF of `n` frames at `fps`: frame k's strands (a subset, nearest last,
+/// coloured by direction) projected by its camera over its backdrop, all three from
+/// `frame(k)`, so a long clip is never held in memory whole.
+pub fn preview_gif_with(
+    n: usize,
+    fps: f32,
+    mut frame: impl FnMut(
+        usize,
+    ) -> Result<(
+        image::RgbImage,
+        crate::hair::head::WeakPerspective,
+        StrandSet,
+    )>,
+) -> Result<Vec<u8>> {
+    use image::codecs::gif::{GifEncoder, Repeat};
     let mut bytes = Vec::new();
     {
         let mut enc = GifEncoder::new_with_speed(&mut bytes, 20);
         enc.set_repeat(Repeat::Infinite)
             .map_err(|e| Error::Invalid(format!("GIF: {e}")))?;
         let delay = image::Delay::from_numer_denom_ms(1000, fps.max(1.0).round() as u32);
-        for s in frames {
-            let mut pic = back.clone();
+        for k in 0..n {
+            let (mut pic, cam, s) = frame(k)?;
             let every = (s.len() / 3000).max(1);
             let mut order: Vec<(f32, Vec<[f32; 2]>)> = s
                 .strands()

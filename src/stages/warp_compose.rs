@@ -4,6 +4,7 @@
 //! W*_i(p) = a·W†_i(p) + (1 − a)·[W*_{i−1}(p) + V_i(p + W*_{i−1}(p))]: the feature warp and
 //! the previous warp carried one frame further by the flow, averaged (a = ½ in the paper;
 //! a = 0 is flow alone, a = 1 features alone, the two baselines the paper's Fig. 3 shows).
+//! Where no feature reaches a pixel (W† ≥ [`UNKNOWN`]) the flow alone carries it.
 
 use crate::gpu::engine::{Bind, CpuBinding, StageDef};
 use rayon::prelude::*;
@@ -29,6 +30,10 @@ pub struct Config {
     pub alpha: f32,
     pub _pad0: u32,
 }
+
+/// A W† component of this magnitude or more marks a pixel no feature reaches: there the
+/// flow alone carries the warp.
+pub const UNKNOWN: f32 = 1e30;
 
 pub fn workgroups(cfg: &Config) -> [u32; 3] {
     [
@@ -81,9 +86,14 @@ fn warp_compose_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
                     x as f32 + prev[0],
                     y as f32 + prev[1],
                 );
+                let known = dag[0].abs() < UNKNOWN;
                 for k in 0..2 {
                     let flowed = prev[k] + v[k];
-                    row[2 * x + k] = cfg.alpha * dag[k] + (1.0 - cfg.alpha) * flowed;
+                    row[2 * x + k] = if known {
+                        cfg.alpha * dag[k] + (1.0 - cfg.alpha) * flowed
+                    } else {
+                        flowed
+                    };
                 }
             }
         });

@@ -3,4 +3,7 @@
 //! blends tracked features (W†_i) with orientation-field flow (V_i) by Eq. (6); Eq. (7)
 //! moves each vertex.
 
+pub mod head;
+pub mod run;
+pub mod track;
 pub mod warp;

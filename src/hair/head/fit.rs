@@ -3,7 +3,7 @@
 use super::{Head, WeakPerspective};
 use crate::error::{Error, Result};
 use crate::io::annot::{Landmarks, REQUIRED_LANDMARKS};
-use glam::{DMat3, DVec2, DVec3, Vec2};
+use glam::{DMat3, DVec2, DVec3, Vec2, Vec3};
 use serde::{Deserialize, Serialize};
 
 /// How a camera was obtained.
@@ -66,13 +66,64 @@ pub fn fit_landmarks(
     }
     debug_assert!(names.len() >= REQUIRED_LANDMARKS.len());
     check_spread(&image, w.max(h) as f64)?;
+    let (out, rms, max, iterations) = fit_cam(&model, &image)?;
+    Ok((
+        out,
+        FitReport {
+            method: FitMethod::Landmarks,
+            points: names,
+            rms_px: Some(rms as f32),
+            max_px: Some(max as f32),
+            iterations,
+        },
+    ))
+}
 
+/// Fits a weak-perspective camera to any model points and their image positions (at least
+/// four, not coplanar in the model, spread in the image), the method of [`fit_landmarks`].
+/// Returns the camera and the per-point reprojection errors (px). Used by video tracking,
+/// where the points are features on the face back-projected onto the head.
+pub fn fit_points(
+    model: &[Vec3],
+    image: &[Vec2],
+    size: (u32, u32),
+) -> Result<(WeakPerspective, Vec<f32>)> {
+    if model.len() != image.len() || model.len() < 4 {
+        return Err(Error::Invalid(format!(
+            "camera fit: {} model points and {} image points (at least 4 pairs needed)",
+            model.len(),
+            image.len()
+        )));
+    }
+    if model.iter().any(|p| !p.is_finite()) || image.iter().any(|q| !q.is_finite()) {
+        return Err(Error::Invalid(
+            "camera fit: a point is NaN or infinite".into(),
+        ));
+    }
+    let model: Vec<DVec3> = model.iter().map(|p| p.as_dvec3()).collect();
+    let image: Vec<DVec2> = image.iter().map(|q| q.as_dvec2()).collect();
+    check_spread(&image, size.0.max(size.1) as f64)?;
+    let (cam, _, _, _) = fit_cam(&model, &image)?;
+    let res = model
+        .iter()
+        .zip(&image)
+        .map(|(p, q)| {
+            let r = cam.project(p.as_vec3());
+            (Vec2::new(r.x, r.y) - q.as_vec2()).length()
+        })
+        .collect();
+    Ok((cam, res))
+}
+
+/// Linear affine fit, nearest scaled rotation, then Levenberg-Marquardt; returns the camera,
+/// the RMS and largest reprojection error and the iterations.
+fn fit_cam(model: &[DVec3], image: &[DVec2]) -> Result<(WeakPerspective, f64, f64, u32)> {
     // Affine camera by linear least squares, centred for conditioning.
     let pm = model.iter().sum::<DVec3>() / model.len() as f64;
     let qm = image.iter().sum::<DVec2>() / image.len() as f64;
     let mut m = DMat3::ZERO;
     let (mut bx, mut by) = (DVec3::ZERO, DVec3::ZERO);
-    for (p, q) in model.iter().zip(&image) {
+    for (p, q) in model.iter().zip(image) {
         let (p, q) = (*p - pm, *q - qm);
         m += DMat3::from_cols(p * p.x, p * p.y, p * p.z);
         bx += p * q.x;
@@ -95,11 +146,11 @@ pub fn fit_landmarks(
         r,
         t: DVec2::ZERO,
     };
-    cam.t = optimal_t(&cam, &model, &image);
-    let iterations = refine(&mut cam, &model, &image);
+    cam.t = optimal_t(&cam, model, image);
+    let iterations = refine(&mut cam, model, image);
     let res: Vec<f64> = model
         .iter()
-        .zip(&image)
+        .zip(image)
         .map(|(p, q)| (cam.project(*p) - *q).length())
         .collect();
     let rms = (res.iter().map(|e| e * e).sum::<f64>() / res.len() as f64).sqrt();
@@ -110,16 +161,7 @@ pub fn fit_landmarks(
             "landmark fit did not converge to a valid camera".into(),
         ));
     }
-    Ok((
-        out,
-        FitReport {
-            method: FitMethod::Landmarks,
-            points: names,
-            rms_px: Some(rms as f32),
-            max_px: Some(max as f32),
-            iterations,
-        },
-    ))
+    Ok((out, rms, max, iterations))
 }
 
 /// Hair thickness assumed beside the skull by [`fit_default`], metres per side.

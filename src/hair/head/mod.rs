@@ -21,7 +21,8 @@ pub mod texture;
 
 pub use camera::WeakPerspective;
 pub use fit::{
-    fit_default, fit_landmarks, FitMethod, FitReport, DEFAULT_HAIR_SIDE_M, DEFAULT_HAIR_TOP_M,
+    fit_default, fit_landmarks, fit_points, FitMethod, FitReport, DEFAULT_HAIR_SIDE_M,
+    DEFAULT_HAIR_TOP_M,
 };
 
 use crate::base::rng::Rng;

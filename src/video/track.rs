@@ -1,0 +1,306 @@
+//! The tracking core of C13 §3, in memory: given the clip's frames and the model built on
+//! the reference frame, the per-frame motion inputs (flow V_i on orientation fields,
+//! features tracked from the reference), the warps W*_i of Eq. (6), the head cameras M_i
+//! and the strands of Eq. (7). [`crate::video::run`] adds files, resuming and progress.
+//!
+//! Frames after the reference run forward (V_i from frame i−1 to i); frames before it run
+//! backward the same way (V_i from frame i+1 to i, W*_{i+1} in place of W*_{i−1}): the
+//! paper writes only i > r, and this is its mirror image.
+
+use crate::analyze::orient::{orient, GrayImage, OrientParams};
+use crate::error::{Error, Result};
+use crate::gpu::engine::Engine;
+use crate::hair::head::{fit_landmarks, Head, WeakPerspective};
+use crate::hair::strands::StrandSet;
+use crate::io::annot::Landmarks;
+use crate::video::diffuse::{spread, DiffuseParams, Guide};
+use crate::video::features::{detect, track, KltParams, Tracks, UserPoints};
+use crate::video::flow::{flow, orient_features, FlowParams};
+use crate::video::head::{back_project, fit_features, FramePose, HeadFitParams, PoseSource};
+use crate::video::warp::{beta, compose, warp_strands, PAPER_ALPHA};
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+use serde::Serialize;
+use std::collections::BTreeMap;
+
+/// Everything `coif video` can tune, with the defaults the issue-15 note measured.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct TrackParams {
+    /// Weight of the feature warp in Eq. (6); ½ in the paper, 0 flow alone, 1 features alone.
+    pub alpha: f32,
+    /// Arc length (m) over which β of Eq. (7) rises from 0 at the root to 1.
+    pub beta_ramp_m: f32,
+    pub orient: OrientParams,
+    pub flow: FlowParams,
+    pub klt: KltParams,
+    pub diffuse: DiffuseParams,
+    pub head_fit: HeadFitParams,
+    /// Pixels the reference hair mask grows by to take hair features and, after the warp,
+    /// to cover the hair of a frame.
+    pub mask_margin_px: u32,
+}
+
+impl Default for TrackParams {
+    fn default() -> Self {
+        TrackParams {
+            alpha: PAPER_ALPHA,
+            beta_ramp_m: 0.03,
+            orient: OrientParams::default(),
+            flow: FlowParams::default(),
+            klt: KltParams::default(),
+            diffuse: DiffuseParams::default(),
+            head_fit: HeadFitParams::default(),
+            mask_margin_px: 2,
+        }
+    }
+}
+
+/// What the reference frame's model gives the tracker.
+#[derive(Clone, Debug)]
+pub struct Reference {
+    pub index: usize,
+    /// Head model space strands.
+    pub strands: StrandSet,
+    pub camera: WeakPerspective,
+    pub head: Head,
+    /// Hair mask of the reference frame (nonzero = hair).
+    pub mask: Vec<u8>,
+}
+
+/// The order frames are processed in: the reference, then forward to the end, then backward
+/// to the start; each with the frame its recursion comes from.
+pub fn order(frames: usize, r: usize) -> Vec<(usize, Option<usize>)> {
+    let mut o = vec![(r, None)];
+    o.extend((r + 1..frames).map(|i| (i, Some(i - 1))));
+    o.extend((0..r).rev().map(|i| (i, Some(i + 1))));
+    o
+}
+
+/// The matched feature image of every frame: orientation on the whole frame (hair moves out
+/// of the reference mask), w·(cos 2θ, sin 2θ).
+pub fn orientation_features(
+    engine: &Engine,
+    gray: &GrayImage,
+    p: &OrientParams,
+) -> Result<Vec<[f32; 2]>> {
+    Ok(orient_features(&orient(engine, gray, None, p)?))
+}
+
+/// Pixels of the reference frame on the head's face: the head is hit and the pixel is not
+/// hair (the hair mask grown by `margin`).
+pub fn face_mask(r: &Reference, width: u32, height: u32, margin: u32) -> Vec<u8> {
+    let hair = crate::base::mask::dilate(&r.mask, width as usize, height as usize, margin as usize);
+    (0..(width * height) as usize)
+        .into_par_iter()
+        .map(|i| {
+            let p = [(i % width as usize) as f32, (i / width as usize) as f32];
+            (hair[i] == 0 && back_project(&r.head, &r.camera, p).is_some()) as u8
+        })
+        .collect()
+}
+
+/// Features detected on the reference frame's hair and face, tracked through the clip.
+pub struct Features {
+    pub tracks: Tracks,
+    /// Model points under the face features (index into `tracks`), for the head fit.
+    pub face: Vec<(usize, Vec3)>,
+    pub hair_count: usize,
+}
+
+/// Detects features on the hair (grown mask) and on the face separately, so neither crowds
+/// the other out of the strongest-first budget, and tracks them all.
+pub fn features(
+    engine: &Engine,
+    gray: &[GrayImage],
+    r: &Reference,
+    user: &UserPoints,
+    p: &TrackParams,
+) -> Result<Features> {
+    let g = &gray[r.index];
+    let (w, h) = (g.width, g.height);
+    let hair =
+        crate::base::mask::dilate(&r.mask, w as usize, h as usize, p.mask_margin_px as usize);
+    let face = face_mask(r, w, h, p.mask_margin_px);
+    let mut pts = detect(engine, g, Some(&hair), &p.klt)?;
+    let hair_count = pts.len();
+    pts.extend(detect(engine, g, Some(&face), &p.klt)?);
+    let tracks = track(engine, gray, r.index, &pts, user, &p.klt)?;
+    let mut face_pts = Vec::new();
+    for (k, f) in tracks.points.iter().enumerate() {
+        let Some(q) = f[r.index] else { continue };
+        let i = (q[1].round() as usize).min(h as usize - 1) * w as usize
+            + (q[0].round() as usize).min(w as usize - 1);
+        if face[i] != 0 {
+            if let Some(x) = back_project(&r.head, &r.camera, q) {
+                face_pts.push((k, x));
+            }
+        }
+    }
+    Ok(Features {
+        tracks,
+        face: face_pts,
+        hair_count,
+    })
+}
+
+/// W†_i: every feature known on the reference and on frame i, spread edge-aware over the
+/// reference frame. Pixels no feature reaches are marked unknown for Eq. (6) (≥ 1e30), where
+/// the flow alone carries the warp.
+pub fn feature_warp(
+    engine: &Engine,
+    guide: &Guide,
+    tracks: &Tracks,
+    i: usize,
+    p: &DiffuseParams,
+) -> Result<Vec<[f32; 2]>> {
+    let samples = tracks.samples(i);
+    let mut f = spread(engine, guide, &samples, p)?;
+    for v in &mut f {
+        if !(v[0].is_finite() && v[1].is_finite()) {
+            *v = [crate::stages::warp_compose::UNKNOWN; 2];
+        }
+    }
+    Ok(f)
+}
+
+/// Frame i's camera: the user's landmarks for that frame when given, else the face features.
+#[allow(clippy::too_many_arguments)]
+pub fn frame_camera(
+    r: &Reference,
+    i: usize,
+    size: (u32, u32),
+    landmarks: &BTreeMap<usize, Landmarks>,
+    feats: &Features,
+    prev: &FramePose,
+    p: &HeadFitParams,
+) -> Result<FramePose> {
+    if i == r.index && !landmarks.contains_key(&i) {
+        return Ok(FramePose {
+            camera: r.camera,
+            source: PoseSource::Reference,
+            points: 0,
+            rms_px: 0.0,
+        });
+    }
+    if let Some(lm) = landmarks.get(&i) {
+        let (camera, rep) = fit_landmarks(&r.head, lm, size)
+            .map_err(|e| Error::Invalid(format!("landmarks of frame {i}: {e}")))?;
+        return Ok(FramePose {
+            camera,
+            source: PoseSource::Landmarks,
+            points: rep.points.len(),
+            rms_px: rep.rms_px.unwrap_or(0.0),
+        });
+    }
+    let (mut anchors, mut seen) = (Vec::new(), Vec::new());
+    for &(k, x) in &feats.face {
+        if let Some(q) = feats.tracks.points[k][i] {
+            anchors.push(x);
+            seen.push(Vec2::from_array(q));
+        }
+    }
+    Ok(match fit_features(&anchors, &seen, size, p) {
+        Some((camera, points, rms_px)) => FramePose {
+            camera,
+            source: PoseSource::Features,
+            points,
+            rms_px,
+        },
+        None => FramePose {
+            source: PoseSource::Held,
+            points: anchors.len(),
+            ..*prev
+        },
+    })
+}
+
+/// The hair mask of frame i: the reference mask carried by W*_i (forward splat), closed and
+/// grown by `margin` px.
+pub fn warp_mask(mask: &[u8], wstar: &[[f32; 2]], width: u32, height: u32, margin: u32) -> Vec<u8> {
+    let (w, h) = (width as usize, height as usize);
+    let mut out = vec![0u8; w * h];
+    for (i, &m) in mask.iter().enumerate() {
+        if m == 0 {
+            continue;
+        }
+        let d = wstar[i];
+        if !(d[0].is_finite() && d[1].is_finite()) || d[0].abs() >= 1e29 {
+            continue;
+        }
+        let x = (i % w) as f32 + d[0];
+        let y = (i / w) as f32 + d[1];
+        let (xi, yi) = (x.round(), y.round());
+        if xi >= 0.0 && yi >= 0.0 && (xi as usize) < w && (yi as usize) < h {
+            out[yi as usize * w + xi as usize] = 255;
+        }
+    }
+    // The splat leaves holes where the motion stretches; a grow by one more pixel closes them.
+    let grown = crate::base::mask::dilate(&out, w, h, margin as usize + 1);
+    grown
+        .into_iter()
+        .map(|v| if v != 0 { 255 } else { 0 })
+        .collect()
+}
+
+/// One frame's result.
+pub struct FrameResult {
+    pub wstar: Vec<[f32; 2]>,
+    pub pose: FramePose,
+    /// Head model space.
+    pub strands: StrandSet,
+    pub mask: Vec<u8>,
+}
+
+/// Frame i from its recursion source: Eq. (6) then Eq. (7). `prev` is W*_j of the frame the
+/// recursion comes from (j = i ∓ 1), `flow_ji` the flow from frame j to frame i.
+#[allow(clippy::too_many_arguments)]
+pub fn step(
+    engine: &Engine,
+    r: &Reference,
+    wdag: &[[f32; 2]],
+    prev: Option<(&[[f32; 2]], &[[f32; 2]])>,
+    pose: FramePose,
+    beta_v: &[f32],
+    size: (u32, u32),
+    p: &TrackParams,
+) -> Result<FrameResult> {
+    let (w, h) = size;
+    let wstar = match prev {
+        // W*_r = 0 (the paper's boundary condition).
+        None => vec![[0.0f32; 2]; (w * h) as usize],
+        Some((wprev, v)) => compose(engine, wdag, wprev, v, w, h, p.alpha)?,
+    };
+    let strands = warp_strands(
+        engine,
+        &r.strands,
+        beta_v,
+        &wstar,
+        w,
+        h,
+        &r.camera,
+        &pose.camera,
+    )?;
+    let mask = warp_mask(&r.mask, &wstar, w, h, p.mask_margin_px);
+    Ok(FrameResult {
+        wstar,
+        pose,
+        strands,
+        mask,
+    })
+}
+
+/// Flow from frame j to frame i on their orientation features.
+pub fn flow_between(
+    engine: &Engine,
+    feat_j: &[[f32; 2]],
+    feat_i: &[[f32; 2]],
+    size: (u32, u32),
+    p: &FlowParams,
+) -> Result<Vec<[f32; 2]>> {
+    flow(engine, feat_j, feat_i, size.0, size.1, p)
+}
+
+/// β of Eq. (7) for the reference strands.
+pub fn beta_of(r: &Reference, p: &TrackParams) -> Vec<f32> {
+    beta(&r.strands, p.beta_ramp_m)
+}
