@@ -408,3 +408,68 @@ fn real_clip_opens() {
     println!("frame 0 to 1 mean abs difference {mad:.2} levels");
     assert!(mad > 0.1 && mad < 40.0, "{mad}");
 }
+
+/// The OpenCV flow peer's output reads back with coif's npy reader in coif's convention
+/// (H x W x 2, channel 0 = x): on a known sub-pixel shift, the end-point error recomputed
+/// here equals the one the peer prints, and is small against the shift (a swapped or negated
+/// convention would give an error about twice the shift's length).
+#[test]
+fn opencv_peer_flow_reads_back() {
+    let has_cv2 = Command::new("python3")
+        .args(["-c", "import cv2, numpy"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !has_cv2 {
+        println!(
+            "skipped: python3 with opencv-python-headless is not installed (scripts/setup.sh)"
+        );
+        return;
+    }
+    let peer = Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/peers/flow_opencv.py");
+    let dir = tempfile::tempdir().unwrap();
+    let clip = dir.path().join("shift");
+    let (dx, dy) = (2.5f32, -1.25f32);
+    let run = |args: &[&std::ffi::OsStr]| {
+        let o = Command::new("python3")
+            .arg(&peer)
+            .args(args)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    run(&[
+        "--make-shift".as_ref(),
+        clip.as_os_str(),
+        dx.to_string().as_ref(),
+        dy.to_string().as_ref(),
+    ]);
+    let out = dir.path().join("peer");
+    let text = run(&[clip.as_os_str(), "--write".as_ref(), out.as_os_str()]);
+    println!("{}", text.trim());
+    let row: serde_json::Value = serde_json::from_str(text.lines().next().unwrap()).unwrap();
+
+    let (gshape, truth) = coif::io::npy::read_f32(&clip.join("flow/0001.npy")).unwrap();
+    for method in ["dis_medium", "farneback"] {
+        let (shape, flow) = coif::io::npy::read_f32(&out.join(method).join("0001.npy")).unwrap();
+        assert_eq!(shape, vec![48, 64, 2]);
+        assert_eq!(shape, gshape);
+        let (mut sum, mut n) = (0.0f64, 0usize);
+        for (f, t) in flow.chunks_exact(2).zip(truth.chunks_exact(2)) {
+            if t[0].is_finite() && t[1].is_finite() {
+                sum += (((f[0] - t[0]).powi(2) + (f[1] - t[1]).powi(2)) as f64).sqrt();
+                n += 1;
+            }
+        }
+        let epe = sum / n as f64;
+        let printed = row[method]["epe"].as_f64().unwrap();
+        println!("{method}: EPE {epe:.4} px over {n} px (peer printed {printed:.4})");
+        assert_eq!(n as u64, row[method]["pixels"].as_u64().unwrap());
+        assert!((epe - printed).abs() < 1e-4, "{epe} vs {printed}");
+        let shift = (dx * dx + dy * dy).sqrt() as f64;
+        assert!(
+            epe < 0.25 * shift,
+            "{method}: EPE {epe} for a {shift} px shift"
+        );
+    }
+}
