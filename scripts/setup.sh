@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs what coif's tests need on Debian/Ubuntu: a Vulkan driver (Mesa lavapipe, the
 # software GPU the parity and golden tests run on) when none is present, numpy (the .npy
-# interoperability test) and usd-core (the .usda export test).
+# interoperability test), usd-core (the .usda export test), ffmpeg (video decoding and the
+# real clip) and opencv-python-headless (the OpenCV flow peers).
 # Safe to run again; does nothing when all is there.
 set -euo pipefail
 
@@ -10,8 +11,10 @@ as_root() {
     echo "setup: need root for: $*" >&2; return 1; fi
 }
 
+# Either folder may hold the driver manifests (ls of both fails when one is empty).
 have_vulkan_icd() {
-  ls /usr/share/vulkan/icd.d/*.json /etc/vulkan/icd.d/*.json >/dev/null 2>&1
+  compgen -G '/usr/share/vulkan/icd.d/*.json' >/dev/null ||
+    compgen -G '/etc/vulkan/icd.d/*.json' >/dev/null
 }
 
 apt_updated=0
@@ -28,7 +31,8 @@ if ! command -v cargo >/dev/null; then
   exit 1
 fi
 
-if ! have_vulkan_icd || ! ldconfig -p | grep -q 'libvulkan\.so\.1'; then
+# No grep -q: it stops reading early, and ldconfig's SIGPIPE fails the pipe under pipefail.
+if ! have_vulkan_icd || ! ldconfig -p | grep 'libvulkan\.so\.1' >/dev/null; then
   echo "setup: installing Mesa's software Vulkan driver (lavapipe)"
   apt_install mesa-vulkan-drivers libvulkan1
 fi
@@ -43,4 +47,19 @@ if ! python3 -c 'from pxr import Usd, UsdGeom' >/dev/null 2>&1; then
   echo "setup: installing usd-core"
   python3 -m pip install -q usd-core 2>/dev/null ||
     python3 -m pip install -q --break-system-packages usd-core
+fi
+
+# Video input is decoded with the ffmpeg program (about 30 s to install, 93 packages).
+if ! command -v ffmpeg >/dev/null || ! command -v ffprobe >/dev/null; then
+  echo "setup: installing ffmpeg"
+  apt_install ffmpeg
+fi
+
+# OpenCV's DIS and Farneback flow are the peers of coif's video flow (benches/peers). The
+# pip wheel (headless: no GUI libraries) installs in seconds; Debian's python3-opencv pulls
+# about 170 packages and only serves the system python.
+if ! python3 -c 'import cv2; cv2.DISOpticalFlow_create' >/dev/null 2>&1; then
+  echo "setup: installing opencv-python-headless"
+  python3 -m pip install -q opencv-python-headless 2>/dev/null ||
+    python3 -m pip install -q --break-system-packages opencv-python-headless
 fi
