@@ -1,0 +1,4 @@
+//! Hair through a video (C13 §3–4).
+
+pub mod diffuse;
+pub mod features;
