@@ -7,6 +7,7 @@
 pub mod density_splat;
 pub mod depth_raster;
 pub mod dir_diffuse;
+pub mod dt_filter;
 pub mod edit_comb;
 pub mod edit_cut;
 pub mod edit_stroke;
@@ -19,6 +20,9 @@ pub mod field_restrict;
 pub mod field_smooth;
 pub mod gabor;
 pub mod grow_rk2;
+pub mod klt_pyr_down;
+pub mod klt_score;
+pub mod klt_track;
 pub mod mesh_raster;
 pub mod noise_eval;
 pub mod orient_resolve;
@@ -63,6 +67,10 @@ pub const ALL: &[&StageDef] = &[
     &edit_cut::STAGE,
     &warp_compose::STAGE,
     &strand_warp::STAGE,
+    &klt_score::STAGE,
+    &klt_pyr_down::STAGE,
+    &klt_track::STAGE,
+    &dt_filter::STAGE,
 ];
 
 /// Every registered render pass; the host is `crate::render::raster`.

@@ -7,6 +7,9 @@
 //! sparse points and `diffuse` spreads them into W†_i, `warp` holds Eq. (6) and (7),
 //! `head` the head's motion, `track` the per-frame recursion and `run` the command.
 
+pub mod diffuse;
+pub mod features;
+pub mod flow;
 pub mod frames;
 pub mod head;
 pub mod run;
