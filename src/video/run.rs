@@ -188,7 +188,7 @@ pub fn run(
     let scene = if done.contains(&inp.reference) {
         Scene::load(out).context("resuming: the reference model")?
     } else {
-        let (rgb, m) = crate::model::write::run(
+        let (rgb, m) = crate::model::run(
             engine,
             &ref_png,
             &inp.strokes,
@@ -196,7 +196,7 @@ pub fn run(
             inp.landmarks.as_deref(),
             mp,
         )?;
-        crate::model::write::write(out, &ref_png, &rgb, &m, mp, &engine.describe())?;
+        crate::model::write(out, &ref_png, &rgb, &m, mp, &engine.describe())?;
         Scene::load(out)?
     };
     let r = Reference {
