@@ -17,6 +17,7 @@ pub mod sim;
 pub mod stages;
 pub mod synth;
 pub mod testing;
+pub mod video;
 
 pub use error::{Error, Result};
 pub use gpu::engine::{BackendChoice, Engine};

@@ -17,6 +17,10 @@ pub mod field_prolong;
 pub mod field_resid;
 pub mod field_restrict;
 pub mod field_smooth;
+pub mod flow_down;
+pub mod flow_solve;
+pub mod flow_up;
+pub mod flow_warp;
 pub mod gabor;
 pub mod grow_rk2;
 pub mod mesh_raster;
@@ -59,6 +63,10 @@ pub const ALL: &[&StageDef] = &[
     &noise_eval::STAGE,
     &edit_comb::STAGE,
     &edit_cut::STAGE,
+    &flow_down::STAGE,
+    &flow_warp::STAGE,
+    &flow_solve::STAGE,
+    &flow_up::STAGE,
 ];
 
 /// Every registered render pass; the host is `crate::render::raster`.

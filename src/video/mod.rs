@@ -1,0 +1,3 @@
+//! Hair through a video (C13 §3–4).
+
+pub mod flow;
