@@ -18,6 +18,10 @@ pub mod field_prolong;
 pub mod field_resid;
 pub mod field_restrict;
 pub mod field_smooth;
+pub mod flow_down;
+pub mod flow_solve;
+pub mod flow_up;
+pub mod flow_warp;
 pub mod gabor;
 pub mod grow_rk2;
 pub mod klt_pyr_down;
@@ -71,6 +75,10 @@ pub const ALL: &[&StageDef] = &[
     &klt_pyr_down::STAGE,
     &klt_track::STAGE,
     &dt_filter::STAGE,
+    &flow_down::STAGE,
+    &flow_warp::STAGE,
+    &flow_solve::STAGE,
+    &flow_up::STAGE,
 ];
 
 /// Every registered render pass; the host is `crate::render::raster`.
