@@ -36,6 +36,40 @@ pub enum Job {
     Export(ExportJob),
     Import(ImportJob),
     Convert(ConvertJob),
+    Video(VideoJob),
+    Transfer(TransferJob),
+}
+
+/// Where a clip comes from (`coif video --frames DIR` or `--video FILE`).
+#[derive(Clone, Debug)]
+pub enum ClipSource {
+    Frames(PathBuf),
+    /// Decoded with ffmpeg into `<out>/decoded/` first.
+    Video(PathBuf),
+}
+
+/// A hair model tracked through a clip (`coif video`, C13 §3).
+#[derive(Clone, Debug)]
+pub struct VideoJob {
+    pub source: ClipSource,
+    pub reference: usize,
+    pub strokes: PathBuf,
+    pub mask: Option<PathBuf>,
+    pub landmarks: Option<PathBuf>,
+    pub landmark_dir: Option<PathBuf>,
+    pub points: Option<PathBuf>,
+    pub out: PathBuf,
+    pub model: ModelParams,
+    pub track: crate::video::track::TrackParams,
+}
+
+/// Another model's hair carried through a tracked clip (`coif transfer`, C13 §4).
+#[derive(Clone, Debug)]
+pub struct TransferJob {
+    pub video_model: PathBuf,
+    pub model: PathBuf,
+    pub out: PathBuf,
+    pub render: RenderParams,
 }
 
 /// A synthetic portrait with its ground truth (`coif synth`).
@@ -163,6 +197,8 @@ impl Job {
                 | Job::Render(_)
                 | Job::Simulate(_)
                 | Job::Edit(_)
+                | Job::Video(_)
+                | Job::Transfer(_)
         )
     }
 
@@ -180,6 +216,8 @@ impl Job {
             Job::Export(j) => ("export", &j.to),
             Job::Import(j) => ("import", &j.out),
             Job::Convert(j) => ("convert", &j.output),
+            Job::Video(j) => ("video", &j.out),
+            Job::Transfer(j) => ("transfer", &j.out),
         };
         format!("{what} {}", path.display())
     }
@@ -198,6 +236,8 @@ pub fn run(engine: &Engine, job: &Job) -> anyhow::Result<Report> {
         Job::Edit(j) => run_edit(engine, j),
         Job::Export(j) => run_export(j),
         Job::Import(j) => run_import(j),
+        Job::Video(j) => run_video(engine, j),
+        Job::Transfer(j) => run_transfer(engine, j),
         Job::Convert(j) => run_convert(j),
     }
 }
@@ -596,6 +636,108 @@ fn render_frames(engine: &Engine, scene: &Scene, j: &RenderJob) -> anyhow::Resul
             "render: {} frames -> {} ({:.2} s on {})",
             a.frames.len(),
             j.out.display(),
+            t.elapsed().as_secs_f64(),
+            engine.describe()
+        ),
+        ..Default::default()
+    })
+}
+
+fn run_video(engine: &Engine, j: &VideoJob) -> anyhow::Result<Report> {
+    use crate::video::frames;
+    let clip = match &j.source {
+        ClipSource::Frames(d) => frames::open_frames_dir(d)?,
+        ClipSource::Video(v) => frames::decode_video(v, &j.out.join("decoded"))?,
+    };
+    let inp = crate::video::run::VideoInputs {
+        clip,
+        reference: j.reference,
+        strokes: j.strokes.clone(),
+        mask: j.mask.clone(),
+        landmarks: j.landmarks.clone(),
+        landmark_dir: j.landmark_dir.clone(),
+        points: j.points.clone(),
+    };
+    let r = crate::video::run::run(engine, &inp, &j.model, &j.track, &j.out, true)?;
+    let fb: Vec<f32> = r
+        .per_frame
+        .iter()
+        .map(|f| f.fb_median_px)
+        .filter(|v| v.is_finite())
+        .collect();
+    let held = r
+        .per_frame
+        .iter()
+        .filter(|f| f.pose.source == crate::video::head::PoseSource::Held)
+        .count();
+    let mut warnings = Vec::new();
+    if held > 0 {
+        warnings.push(format!(
+            "{held} frames kept the previous head pose: too few face features survived (add landmark files for them with --landmark-dir)"
+        ));
+    }
+    let yaw =
+        |f: fn(f32, f32) -> f32, init: f32| r.per_frame.iter().map(|p| p.yaw_deg).fold(init, f);
+    Ok(Report {
+        summary: format!(
+            "video: {} frames (reference {}{}) -> {} ({:.1} s, {:.2} s/frame on {})",
+            r.frames,
+            j.reference,
+            if r.resumed > 0 {
+                format!(", {} resumed", r.resumed)
+            } else {
+                String::new()
+            },
+            j.out.display(),
+            r.seconds,
+            r.seconds / (r.frames - r.resumed).max(1) as f64,
+            r.backend
+        ),
+        details: vec![
+            format!(
+                "features         {} to {} per frame, median forward-backward error {:.2} px",
+                r.per_frame.iter().map(|f| f.features).min().unwrap_or(0),
+                r.per_frame.iter().map(|f| f.features).max().unwrap_or(0),
+                crate::base::stats::percentile(&fb, 0.5)
+            ),
+            format!(
+                "head yaw         {:.1}° to {:.1}° from the reference",
+                yaw(f32::min, f32::INFINITY),
+                yaw(f32::max, f32::NEG_INFINITY)
+            ),
+        ],
+        warnings,
+    })
+}
+
+fn run_transfer(engine: &Engine, j: &TransferJob) -> anyhow::Result<Report> {
+    let t = Instant::now();
+    let video = Scene::load(&j.video_model)?;
+    let new = Scene::load(&j.model)?;
+    let s = crate::video::transfer::transfer(&video, &new, &j.out).with_context(|| {
+        format!(
+            "carrying {} through {}",
+            j.model.display(),
+            j.video_model.display()
+        )
+    })?;
+    s.save(&j.out, serde_json::json!({ "transfer": { "video": j.video_model.display().to_string(), "model": j.model.display().to_string() } }))?;
+    let gif = crate::video::run::preview(&s)?;
+    crate::io::write_atomic(&j.out.join("preview.gif"), &gif)?;
+    let rj = RenderJob {
+        model: j.out.clone(),
+        out: j.out.join("render"),
+        params: j.render.clone(),
+        sixteen: false,
+    };
+    render_frames(engine, &s, &rj)?;
+    Ok(Report {
+        summary: format!(
+            "transfer: {} strands through {} frames -> {} (renders in {}, {:.1} s on {})",
+            s.strands.len(),
+            s.animation.as_ref().map_or(0, |a| a.frames.len()),
+            j.out.display(),
+            rj.out.display(),
             t.elapsed().as_secs_f64(),
             engine.describe()
         ),

@@ -14,4 +14,5 @@ pub mod frames;
 pub mod head;
 pub mod run;
 pub mod track;
+pub mod transfer;
 pub mod warp;

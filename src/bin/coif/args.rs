@@ -6,8 +6,8 @@ use coif::analyze::orient::OrientParams;
 use coif::analyze::AnalyzeParams;
 use coif::gpu::engine::BackendChoice;
 use coif::jobs::{
-    AnalyzeJob, ConvertJob, EditJob, EditTool, ExportJob, ImportJob, Job, ModelJob, OrientJob,
-    RenderJob, SimulateJob, SynthJob,
+    AnalyzeJob, ClipSource, ConvertJob, EditJob, EditTool, ExportJob, ImportJob, Job, ModelJob,
+    OrientJob, RenderJob, SimulateJob, SynthJob, TransferJob, VideoJob,
 };
 use coif::render::shade::{Light, ShadingModel};
 use coif::sim::{HeadKey, HeadTrack, SimParams};
@@ -62,6 +62,78 @@ pub enum Command {
     /// Edits a model's strands with strokes on its photo (C13 appendix A): --comb turns
     /// strands toward the stroke direction, --cut shortens the strands that reach a stroke.
     Edit(EditArgs),
+    /// Tracks a hair model through a clip (C13 §3): a model on the reference frame, carried
+    /// through every frame by the head's motion and a warp that blends tracked features
+    /// with orientation-field flow (Eq. 6-7). The output is a model folder with an
+    /// animation that `render`, `export` and `transfer` read; a stopped run resumes.
+    Video(VideoArgs),
+    /// Hair replacement (C13 §4): another model's strands carried through a tracked clip
+    /// (each follows its nearest tracked strand) and rendered into every frame.
+    Transfer(TransferArgs),
+}
+
+#[derive(Args)]
+#[command(group(clap::ArgGroup::new("clip").required(true).args(["frames", "video"])))]
+pub struct VideoArgs {
+    /// Folder of numbered frames (PNG or JPEG: 0000.png, frame_1.png, ...).
+    #[arg(long)]
+    frames: Option<PathBuf>,
+    /// A video file, decoded with ffmpeg (when installed) into <out>/decoded/.
+    #[arg(long)]
+    video: Option<PathBuf>,
+    /// Index of the reference frame (from 0) the model is built on.
+    #[arg(long, default_value_t = 0)]
+    reference: usize,
+    /// Direction strokes on the reference frame (strokes.json).
+    #[arg(long)]
+    strokes: PathBuf,
+    /// Hair mask of the reference frame (else segmented from the strokes).
+    #[arg(long)]
+    mask: Option<PathBuf>,
+    /// Face landmarks of the reference frame.
+    #[arg(long)]
+    landmarks: Option<PathBuf>,
+    /// Folder of landmark files named by frame (NNNN.json) for any frames; the others
+    /// take the head's motion from features tracked on the face.
+    #[arg(long)]
+    landmark_dir: Option<PathBuf>,
+    /// Feature points to add or correct in any frame (JSON: {"points": [{"id", "frame",
+    /// "x", "y"}]}).
+    #[arg(long)]
+    points: Option<PathBuf>,
+    /// Output folder (created; a run of the same inputs stopped half-way resumes).
+    #[arg(long)]
+    out: PathBuf,
+    /// Weight of the feature warp in Eq. (6): 0.5 in the paper; 0 flow alone, 1 features alone.
+    #[arg(long, default_value_t = coif::video::track::TrackParams::default().alpha)]
+    alpha: f32,
+    /// Arc length (m) over which the hair's own motion rises from 0 at the root (β of Eq. 7).
+    #[arg(long, default_value_t = coif::video::track::TrackParams::default().beta_ramp_m)]
+    beta_ramp: f32,
+    /// Seed of the model's random choices.
+    #[arg(long, default_value_t = coif::model::ModelParams::default().seed)]
+    seed: u64,
+    /// Scalp roots drawn for the reference model.
+    #[arg(long, default_value_t = coif::model::ModelParams::default().roots)]
+    roots: usize,
+    #[command(flatten)]
+    backend: BackendArgs,
+}
+
+#[derive(Args)]
+pub struct TransferArgs {
+    /// A tracked clip written by `coif video`.
+    #[arg(long)]
+    video_model: PathBuf,
+    /// The hair to put in: a model folder written by `coif model` (same parametric head).
+    #[arg(long)]
+    model: PathBuf,
+    /// Output folder: the new hair's scene with the clip's frames, render/NNNN.png and
+    /// preview.gif.
+    #[arg(long)]
+    out: PathBuf,
+    #[command(flatten)]
+    backend: BackendArgs,
 }
 
 #[derive(Args)]
@@ -677,6 +749,47 @@ impl Command {
                 let backend = a.backend.backend;
                 Request::one(Job::Render(a.job()?), backend)
             }
+            Command::Video(a) => {
+                let source = match (a.frames, a.video) {
+                    (Some(d), _) => ClipSource::Frames(d),
+                    (None, Some(v)) => ClipSource::Video(v),
+                    (None, None) => unreachable!("clap requires one of --frames and --video"),
+                };
+                let model = coif::model::ModelParams {
+                    seed: a.seed,
+                    roots: a.roots,
+                    ..Default::default()
+                };
+                let track = coif::video::track::TrackParams {
+                    alpha: a.alpha,
+                    beta_ramp_m: a.beta_ramp,
+                    ..Default::default()
+                };
+                Request::one(
+                    Job::Video(VideoJob {
+                        source,
+                        reference: a.reference,
+                        strokes: a.strokes,
+                        mask: a.mask,
+                        landmarks: a.landmarks,
+                        landmark_dir: a.landmark_dir,
+                        points: a.points,
+                        out: a.out,
+                        model,
+                        track,
+                    }),
+                    a.backend.backend,
+                )
+            }
+            Command::Transfer(a) => Request::one(
+                Job::Transfer(TransferJob {
+                    video_model: a.video_model,
+                    model: a.model,
+                    out: a.out,
+                    render: Default::default(),
+                }),
+                a.backend.backend,
+            ),
         })
     }
 }
