@@ -13,6 +13,7 @@ mod draw;
 mod field;
 mod scene;
 pub mod synth3d;
+pub mod video;
 
 // Drawing helpers and looks shared with `synth3d`.
 pub(crate) use draw::*;

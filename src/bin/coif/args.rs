@@ -7,7 +7,7 @@ use coif::analyze::AnalyzeParams;
 use coif::gpu::engine::BackendChoice;
 use coif::jobs::{
     AnalyzeJob, ClipSource, ConvertJob, EditJob, EditTool, ExportJob, ImportJob, Job, ModelJob,
-    OrientJob, RenderJob, SimulateJob, SynthJob, TransferJob, VideoJob,
+    OrientJob, RenderJob, SimulateJob, SynthJob, SynthVideoJob, TransferJob, VideoJob,
 };
 use coif::render::shade::{Light, ShadingModel};
 use coif::sim::{HeadKey, HeadTrack, SimParams};
@@ -32,6 +32,11 @@ pub struct Cli {
 pub enum Command {
     /// Synthetic portrait with exact ground truth (orientation, growth direction, mask, strokes).
     Synth(SynthArgs),
+    /// Synthetic clip with exact ground truth: the 3D synthetic portrait under a known head
+    /// motion (yaw/pitch within ±10°, a shift) and hair motion (strands turned about the view
+    /// axis, roots and lengths kept): frames, masks, landmarks, per-frame strands, cameras,
+    /// true flow and track.
+    SynthVideo(SynthVideoArgs),
     /// Orientation and confidence maps of the hair (C13 §2.1).
     Orient(OrientArgs),
     /// The main job on the embedded default inputs: a synthetic case and the embedded
@@ -515,6 +520,29 @@ pub struct SynthArgs {
     gt3d: bool,
 }
 
+#[derive(Args)]
+pub struct SynthVideoArgs {
+    /// Output folder (created).
+    #[arg(long)]
+    out: PathBuf,
+    #[arg(long, default_value = "long")]
+    style: synth::Style,
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Number of frames (2..=10000).
+    #[arg(long, default_value_t = 60)]
+    frames: usize,
+    /// Image width and height in pixels.
+    #[arg(long, default_value_t = 256)]
+    size: u32,
+    /// Ground-truth strands.
+    #[arg(long, default_value_t = synth::synth3d::Synth3dOptions::default().strands)]
+    strands: usize,
+    /// Frames per second (the motion's periods are in seconds).
+    #[arg(long, default_value_t = synth::video::VideoParams::DEFAULT_FPS)]
+    fps: f32,
+}
+
 #[derive(Args, Clone)]
 pub struct BackendArgs {
     /// auto: a hardware GPU if present, else cpu. gpu: wgpu on any adapter (lavapipe too).
@@ -663,6 +691,12 @@ impl Command {
                 }),
                 cpu,
             ),
+            Command::SynthVideo(a) => {
+                let mut params = synth::video::VideoParams::new(a.style, a.seed, a.size, a.frames);
+                params.strands = a.strands;
+                params.fps = a.fps;
+                Request::one(Job::SynthVideo(SynthVideoJob { out: a.out, params }), cpu)
+            }
             Command::Orient(a) => Request::Jobs {
                 jobs: vec![Job::Orient(OrientJob {
                     image: a.image,

@@ -36,7 +36,7 @@ use crate::hair::strands::StrandSet;
 use crate::io::annot::Landmarks;
 use crate::synth::{streams, theta_of, to_image, Look, Style, SynthCase, SynthParams};
 use glam::{Mat3, Vec2, Vec3};
-use image::GrayImage;
+use image::{GrayImage, RgbImage};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -130,137 +130,270 @@ pub fn synth3d(p: &SynthParams) -> Synth3dCase {
 /// Generates the portrait and its ground truth; deterministic for (params, options).
 /// Panics if a side is below [`SynthParams::MIN_SIZE`].
 pub fn synth3d_with(p: &SynthParams, o: &Synth3dOptions) -> Synth3dCase {
-    let [mut geo, mut look_rng, mut strand_rng, mut stroke_rng] = streams(p, style_salt(p.style));
+    Synth3dScene::new(p, o).still()
+}
 
-    let head = Head::default();
-    let body = Body::new(head.clone());
-    let (w, h) = (p.width as usize, p.height as usize);
-    let sc = p.width.min(p.height) as f32 / 512.0;
+/// Everything of a synthetic portrait that does not depend on where the camera is: the head
+/// and shoulders, the look, the grown strands with their per-strand variation, and the
+/// still's camera. [`Synth3dScene::render`] draws it through any camera with any positions
+/// of the same strands (a video frame); [`Synth3dScene::still`] is [`synth3d_with`].
+pub struct Synth3dScene {
+    pub params: SynthParams,
+    pub head: Head,
+    /// The still's camera.
+    pub camera: WeakPerspective,
+    /// Yaw of the still's camera, degrees (rotation about model y).
+    pub yaw_deg: f32,
+    /// Ground-truth strands at rest, model space metres, root first.
+    pub strands: Vec<Vec<Vec3>>,
+    body: Body,
+    look: Look,
+    spec: StyleSpec,
+    vars: Vec<StrandVar>,
+    /// The strokes stream as the scene left it: only the still draws strokes.
+    stroke_rng: crate::base::rng::Rng,
+}
 
-    // Camera: the synth face layout (face centre near the image centre, slightly low).
-    let b_m = head.params().landmark_b;
-    let s = 1000.0 * sc * (1.0 + 0.05 * geo.range_f32(-1.0, 1.0));
-    let yaw_deg = o.max_yaw_deg.abs() * geo.range_f32(-1.0, 1.0);
-    let cx = p.width as f32 * 0.5 + geo.range_f32(-0.025, 0.025) * w.min(h) as f32;
-    let cy = p.height as f32 * 0.5 + geo.range_f32(0.0, 0.025) * w.min(h) as f32;
-    let camera = WeakPerspective::new(
-        s,
-        Mat3::from_rotation_y(yaw_deg.to_radians()),
-        Vec2::new(cx, cy - 0.3 * b_m * s),
-    );
-    let spec = StyleSpec::new(p.style, &head, &mut geo);
-    let look = Look::new(&mut look_rng);
+/// The front-most visible strand at a pixel: the material point at parameter `t` of segment
+/// `segment` (vertices `segment` and `segment + 1`) of strand `strand`, `t` being the pixel
+/// centre's closest point on the projected segment.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StrandHit {
+    pub strand: u32,
+    pub segment: u32,
+    pub t: f32,
+}
 
-    // Ground-truth strands.
-    let roots = head.sample_roots(o.strands, strand_rng.next_u32() as u64);
-    let vars: Vec<StrandVar> = roots
-        .iter()
-        .map(|r| StrandVar::new(r, &spec, &mut strand_rng))
-        .collect();
-    let strands: Vec<Vec<Vec3>> = roots
-        .par_iter()
-        .zip(vars.par_iter())
-        .map(|(r, v)| grow_strand(&body, &spec, r, v))
-        .collect();
+/// One rendering of a [`Synth3dScene`] through a camera, with its image-space ground truth.
+#[derive(Clone, Debug)]
+pub struct Synth3dFrame {
+    pub image: RgbImage,
+    /// 255 = hair, 0 otherwise.
+    pub mask: GrayImage,
+    /// H*W*2: unit projected growth direction of the front-most strand; NaN off hair.
+    pub gt_dir: Vec<f32>,
+    /// H*W: orientation in [0, pi) of `gt_dir`; NaN off hair.
+    pub gt_theta: Vec<f32>,
+    /// The head's landmarks projected through the camera.
+    pub landmarks: Landmarks,
+    /// As [`Synth3dCase::body_depth`].
+    pub body_depth: Vec<f32>,
+    /// As [`Synth3dCase::hair_depth`].
+    pub hair_depth: Vec<f32>,
+    /// H*W: the front-most visible strand's material point at each pixel its footprint
+    /// covers (where `hair_depth` is finite), `None` elsewhere, also on mask pixels the
+    /// closing added.
+    pub hits: Vec<Option<StrandHit>>,
+    /// Per-vertex colours the strands were drawn with (linear, not clamped).
+    pub colors: Vec<Vec<[f32; 3]>>,
+    /// The strands projected (image x, image y, depth), as drawn.
+    pub proj: Vec<Vec<Vec3>>,
+}
 
-    // Body render and depth.
-    let bodypix = render_body(&body, &camera, w, h);
-    let body_depth: Vec<f32> = bodypix.iter().map(|b| b.depth).collect();
-    let mut rgb = render_base(&look, &camera, &head, &bodypix, w, h, s);
+impl Synth3dScene {
+    /// Grows the scene; deterministic for (params, options). Panics if a side is below
+    /// [`SynthParams::MIN_SIZE`].
+    pub fn new(p: &SynthParams, o: &Synth3dOptions) -> Synth3dScene {
+        let [mut geo, mut look_rng, mut strand_rng, stroke_rng] = streams(p, style_salt(p.style));
 
-    // Per-vertex hair colours (model space shading) and the projection.
-    let view = camera.r.row(2);
-    let colors: Vec<Vec<[f32; 3]>> = strands
-        .iter()
-        .zip(&vars)
-        .map(|(st, v)| shade_strand(st, v, &look, view))
-        .collect();
-    let proj: Vec<Vec<Vec3>> = strands
-        .iter()
-        .map(|st| st.iter().map(|&q| camera.project(q)).collect())
-        .collect();
-    let tol = 0.002 * s;
+        let head = Head::default();
+        let body = Body::new(head.clone());
+        let (w, h) = (p.width as usize, p.height as usize);
+        let sc = p.width.min(p.height) as f32 / 512.0;
 
-    // Image-space ground truth: front-most visible strand at each pixel.
-    let fp = Footprint::new(&proj, &body_depth, w, h, 0.75f32.max(0.6 * sc), tol);
-    let mask = close_mask(&fp.covered(), w, h, (2.0 * sc).max(1.5));
-    let (gt_dir, mask) = fill_dir(&fp, mask, w, h);
-    let gt_theta: Vec<f32> = (0..w * h)
-        .map(|k| {
-            let d = [gt_dir[2 * k], gt_dir[2 * k + 1]];
-            if d[0].is_nan() {
-                f32::NAN
-            } else {
-                theta_of(d)
-            }
-        })
-        .collect();
+        // Camera: the synth face layout (face centre near the image centre, slightly low).
+        let b_m = head.params().landmark_b;
+        let s = 1000.0 * sc * (1.0 + 0.05 * geo.range_f32(-1.0, 1.0));
+        let yaw_deg = o.max_yaw_deg.abs() * geo.range_f32(-1.0, 1.0);
+        let cx = p.width as f32 * 0.5 + geo.range_f32(-0.025, 0.025) * w.min(h) as f32;
+        let cy = p.height as f32 * 0.5 + geo.range_f32(0.0, 0.025) * w.min(h) as f32;
+        let camera = WeakPerspective::new(
+            s,
+            Mat3::from_rotation_y(yaw_deg.to_radians()),
+            Vec2::new(cx, cy - 0.3 * b_m * s),
+        );
+        let spec = StyleSpec::new(p.style, &head, &mut geo);
+        let look = Look::new(&mut look_rng);
 
-    // Hair: dark base under the mask, then the strands back to front.
-    base_fill(&mut rgb, &mask, &look, w, h);
-    draw_strands(&mut rgb, &proj, &colors, &vars, &body_depth, tol, sc, w, h);
-
-    let mask_img = GrayImage::from_raw(p.width, p.height, mask).expect("mask size");
-    // Where a user starts a stroke on each side of a parting: on the hair just beside it,
-    // near the top of the head.
-    let anchors = match spec.rule {
-        Rule::Part { px, .. } => {
-            let top = head.top();
-            Some([-1.0f32, 1.0].map(|sd| {
-                let q = camera.project(Vec3::new(px + sd * 0.015, top.y, top.z + 0.02));
-                [q.x, q.y]
-            }))
-        }
-        _ => None,
-    };
-    let strokes = make_strokes(
-        &proj,
-        &vars,
-        anchors,
-        &mask_img,
-        &gt_dir,
-        &body_depth,
-        tol,
-        sc,
-        &mut stroke_rng,
-    );
-    let mut lm = BTreeMap::new();
-    for name in head.landmark_names() {
-        if let Some(q) = head.landmark(name) {
-            let q = camera.project(q);
-            lm.insert(name.to_string(), [q.x, q.y]);
+        // Ground-truth strands.
+        let roots = head.sample_roots(o.strands, strand_rng.next_u32() as u64);
+        let vars: Vec<StrandVar> = roots
+            .iter()
+            .map(|r| StrandVar::new(r, &spec, &mut strand_rng))
+            .collect();
+        let strands: Vec<Vec<Vec3>> = roots
+            .par_iter()
+            .zip(vars.par_iter())
+            .map(|(r, v)| grow_strand(&body, &spec, r, v))
+            .collect();
+        Synth3dScene {
+            params: *p,
+            head,
+            camera,
+            yaw_deg,
+            strands,
+            body,
+            look,
+            spec,
+            vars,
+            stroke_rng,
         }
     }
 
-    let image = to_image(&rgb, p.width, p.height);
+    /// Signed distance (metres) from model point `q` to the head united with the shoulders:
+    /// what the hair rests on.
+    pub fn body_sdf(&self, q: Vec3) -> f32 {
+        self.body.sdf(q)
+    }
+
+    /// Renders the scene through `camera` with `strands` (the scene's strands, same counts,
+    /// moved anywhere): body, face features at the projected landmarks, the hair mask and
+    /// directions, then the strands back to front. The still is this with the scene's own
+    /// camera and strands. Panics if `strands` does not match the scene's counts.
+    pub fn render(&self, camera: &WeakPerspective, strands: &[Vec<Vec3>]) -> Synth3dFrame {
+        assert_eq!(strands.len(), self.strands.len(), "strand count");
+        let p = &self.params;
+        let (w, h) = (p.width as usize, p.height as usize);
+        let sc = p.width.min(p.height) as f32 / 512.0;
+        let s = camera.s;
+
+        // Body render and depth.
+        let bodypix = render_body(&self.body, camera, w, h);
+        let body_depth: Vec<f32> = bodypix.iter().map(|b| b.depth).collect();
+        let mut rgb = render_base(&self.look, camera, &self.head, &bodypix, w, h, s);
+
+        // Per-vertex hair colours (model space shading) and the projection.
+        let view = camera.r.row(2);
+        let colors: Vec<Vec<[f32; 3]>> = strands
+            .iter()
+            .zip(&self.vars)
+            .map(|(st, v)| shade_strand(st, v, &self.look, view))
+            .collect();
+        let proj: Vec<Vec<Vec3>> = strands
+            .iter()
+            .map(|st| st.iter().map(|&q| camera.project(q)).collect())
+            .collect();
+        let tol = tolerance(s);
+
+        // Image-space ground truth: front-most visible strand at each pixel.
+        let fp = Footprint::new(&proj, &body_depth, w, h, 0.75f32.max(0.6 * sc), tol);
+        let mask = close_mask(&fp.covered(), w, h, (2.0 * sc).max(1.5));
+        let (gt_dir, mask) = fill_dir(&fp, mask, w, h);
+        let gt_theta: Vec<f32> = (0..w * h)
+            .map(|k| {
+                let d = [gt_dir[2 * k], gt_dir[2 * k + 1]];
+                if d[0].is_nan() {
+                    f32::NAN
+                } else {
+                    theta_of(d)
+                }
+            })
+            .collect();
+
+        // Hair: dark base under the mask, then the strands back to front.
+        base_fill(&mut rgb, &mask, &self.look, w, h);
+        draw_strands(
+            &mut rgb,
+            &proj,
+            &colors,
+            &self.vars,
+            &body_depth,
+            tol,
+            sc,
+            w,
+            h,
+        );
+
+        let mut lm = BTreeMap::new();
+        for name in self.head.landmark_names() {
+            if let Some(q) = self.head.landmark(name) {
+                let q = camera.project(q);
+                lm.insert(name.to_string(), [q.x, q.y]);
+            }
+        }
+        Synth3dFrame {
+            image: to_image(&rgb, p.width, p.height),
+            mask: GrayImage::from_raw(p.width, p.height, mask).expect("mask size"),
+            gt_dir,
+            gt_theta,
+            landmarks: Landmarks::new(lm),
+            body_depth,
+            hair_depth: fp.depth,
+            hits: fp.hit,
+            colors,
+            proj,
+        }
+    }
+
+    /// The still portrait: the scene through its own camera, with strokes.
+    pub fn still(&self) -> Synth3dCase {
+        let p = &self.params;
+        let mut stroke_rng = self.stroke_rng.clone();
+        let camera = self.camera;
+        let f = self.render(&camera, &self.strands);
+        let sc = p.width.min(p.height) as f32 / 512.0;
+        // Where a user starts a stroke on each side of a parting: on the hair just beside it,
+        // near the top of the head.
+        let anchors = match self.spec.rule {
+            Rule::Part { px, .. } => {
+                let top = self.head.top();
+                Some([-1.0f32, 1.0].map(|sd| {
+                    let q = camera.project(Vec3::new(px + sd * 0.015, top.y, top.z + 0.02));
+                    [q.x, q.y]
+                }))
+            }
+            _ => None,
+        };
+        let strokes = make_strokes(
+            &f.proj,
+            &self.vars,
+            anchors,
+            &f.mask,
+            &f.gt_dir,
+            &f.body_depth,
+            tolerance(camera.s),
+            sc,
+            &mut stroke_rng,
+        );
+        Synth3dCase {
+            gt: strand_set(&self.strands, &f.colors),
+            case: SynthCase {
+                image: f.image,
+                mask: f.mask,
+                strokes,
+                landmarks: f.landmarks,
+                gt_theta: f.gt_theta,
+                gt_dir: f.gt_dir,
+                width: p.width,
+                height: p.height,
+            },
+            head: self.head.clone(),
+            camera,
+            body_depth: f.body_depth,
+            hair_depth: f.hair_depth,
+            yaw_deg: self.yaw_deg,
+        }
+    }
+}
+
+/// Depth slack (px) within which a strand on the body's surface counts as in front of it.
+fn tolerance(s: f32) -> f32 {
+    0.002 * s
+}
+
+/// Strands and their per-vertex colours (clamped to 0..1) as a strand set.
+pub fn strand_set(strands: &[Vec<Vec3>], colors: &[Vec<[f32; 3]>]) -> StrandSet {
     let counts: Vec<u32> = strands.iter().map(|st| st.len() as u32).collect();
     let points: Vec<[f32; 3]> = strands.iter().flatten().map(|q| q.to_array()).collect();
     let mut gt = StrandSet::new(points, counts);
     gt.colors = Some(
         colors
-            .into_iter()
+            .iter()
             .flatten()
             .map(|c| c.map(|v| v.clamp(0.0, 1.0)))
             .collect(),
     );
-    Synth3dCase {
-        case: SynthCase {
-            image,
-            mask: mask_img,
-            strokes,
-            landmarks: Landmarks::new(lm),
-            gt_theta,
-            gt_dir,
-            width: p.width,
-            height: p.height,
-        },
-        head,
-        camera,
-        gt,
-        body_depth,
-        hair_depth: fp.depth,
-        yaw_deg,
-    }
+    gt
 }
 
 fn style_salt(s: Style) -> u64 {

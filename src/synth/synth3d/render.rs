@@ -2,6 +2,7 @@
 
 use super::body::Body;
 use super::grow::StrandVar;
+use super::StrandHit;
 use crate::base::mask;
 use crate::hair::head::{Head, WeakPerspective};
 use crate::synth::{
@@ -229,6 +230,9 @@ pub(super) fn shade_strand(st: &[Vec3], v: &StrandVar, look: &Look, view: Vec3) 
 pub(super) struct Footprint {
     pub(super) depth: Vec<f32>,
     pub(super) dir: Vec<[f32; 2]>,
+    /// The material point the depth and direction were taken from (a video's true flow
+    /// follows it).
+    pub(super) hit: Vec<Option<StrandHit>>,
 }
 
 impl Footprint {
@@ -242,8 +246,9 @@ impl Footprint {
     ) -> Self {
         let mut depth = vec![f32::NEG_INFINITY; w * h];
         let mut dir = vec![[f32::NAN; 2]; w * h];
-        for st in proj {
-            for seg in st.windows(2) {
+        let mut hit = vec![None; w * h];
+        for (si, st) in proj.iter().enumerate() {
+            for (j, seg) in st.windows(2).enumerate() {
                 let (a, b) = (seg[0], seg[1]);
                 let (dx, dy) = (b.x - a.x, b.y - a.y);
                 let l2 = dx * dx + dy * dy;
@@ -271,11 +276,16 @@ impl Footprint {
                         }
                         depth[k] = z;
                         dir[k] = u;
+                        hit[k] = Some(StrandHit {
+                            strand: si as u32,
+                            segment: j as u32,
+                            t,
+                        });
                     }
                 }
             }
         }
-        Footprint { depth, dir }
+        Footprint { depth, dir, hit }
     }
 
     pub(super) fn covered(&self) -> Vec<bool> {
