@@ -313,6 +313,46 @@ fn uniform_structs_match_wgsl() {
         }),
         16,
     );
+    // flow_down and flow_up: the same four sizes.
+    for st in [&stages::flow_down::STAGE, &stages::flow_up::STAGE] {
+        check_layout(
+            st.name,
+            st.wgsl,
+            encase_bytes(&stages::flow_down::Config {
+                src_w: 1,
+                src_h: 2,
+                dst_w: 3,
+                dst_h: 4,
+            }),
+            4,
+        );
+    }
+    check_layout(
+        "flow_warp",
+        stages::flow_warp::STAGE.wgsl,
+        encase_bytes(&stages::flow_warp::Config {
+            width: 1,
+            height: 2,
+            _pad0: 3,
+            _pad1: 4,
+        }),
+        4,
+    );
+    check_layout(
+        "flow_solve",
+        stages::flow_solve::STAGE.wgsl,
+        encase_bytes(&stages::flow_solve::Config {
+            width: 1,
+            height: 2,
+            colour: 3,
+            _pad0: 4,
+            alpha: f(5),
+            eps_data: f(6),
+            eps_smooth: f(7),
+            omega: f(8),
+        }),
+        8,
+    );
     // One uniform shared by the four PatchMatch stages.
     let pm = encase_bytes(&stages::pm_common::Config {
         width: 1,

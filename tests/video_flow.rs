@@ -116,9 +116,9 @@ fn make_pair(style: Style, size: u32, v: &Field) -> Pair {
 fn epe(pair: &Pair, got: &[[f32; 2]]) -> (f64, f64, f64) {
     let mut errs = Vec::new();
     let mut mag = 0.0f64;
-    for i in 0..got.len() {
+    for (i, &g) in got.iter().enumerate() {
         if pair.eval[i] {
-            let (t, g) = (pair.truth[i], got[i]);
+            let t = pair.truth[i];
             errs.push(((g[0] - t[0]).hypot(g[1] - t[1])) as f64);
             mag += (t[0].hypot(t[1])) as f64;
         }
@@ -205,5 +205,240 @@ fn flow_recovers_known_motion_on_hair() {
     assert!(
         failures.is_empty(),
         "EPE over 0.5 px mean / 1 px p90: {failures:?}"
+    );
+}
+
+// ---- Parity: lavapipe against the CPU mirrors ----------------------------------------------
+
+use coif::base::sentinel::SENTINEL;
+use coif::gpu::engine::{BufProxy, Recording};
+use coif::stages::{flow_down, flow_solve, flow_up, flow_warp};
+use coif::testing::{assert_no_sentinel, compare_f32, Tolerance};
+
+/// Sizes straddling the 8x8 workgroups (odd, non-square), within lavapipe's patience.
+const SIZES: &[(u32, u32)] = &[(1, 1), (63, 65), (96, 72)];
+
+fn run_both(build: impl Fn(&mut Recording) -> BufProxy) -> (Vec<f32>, Vec<f32>) {
+    let run = |e: &Engine| {
+        let mut rec = Recording::default();
+        let out = build(&mut rec);
+        rec.download(out);
+        e.run(rec).unwrap().get::<f32>(out)
+    };
+    (run(&common::gpu()), run(&Engine::cpu()))
+}
+
+/// A smooth 2-channel feature image with stripes, like `orient_features` of hair.
+fn features(w: u32, h: u32, seed: u64) -> Vec<[f32; 2]> {
+    let t = common::texture(w, h, seed);
+    t.data
+        .iter()
+        .enumerate()
+        .map(|(i, &v)| {
+            let th = 0.8 * v + 0.01 * (i as u32 % w) as f32;
+            [v * (2.0 * th).cos(), v * (2.0 * th).sin()]
+        })
+        .collect()
+}
+
+/// A smooth flow of a few pixels, leaving the image on one side.
+fn test_flow(w: u32, h: u32) -> Vec<[f32; 2]> {
+    (0..w * h)
+        .map(|i| {
+            let (x, y) = ((i % w) as f32, (i / w) as f32);
+            [
+                3.0 + 2.0 * (y / 17.0).sin(),
+                -1.5 + 1.2 * (x / 13.0).cos() + 0.03 * x,
+            ]
+        })
+        .collect()
+}
+
+fn check(name: &str, g: &[f32], c: &[f32], tol: Tolerance) {
+    assert_no_sentinel(name, g).unwrap();
+    let st = compare_f32(name, g, c, tol).unwrap_or_else(|m| panic!("{m}"));
+    println!("{name}: {st}");
+}
+
+#[test]
+fn flow_down_matches_cpu() {
+    for &(w, h) in SIZES {
+        let f = features(w, h, 1);
+        let cfg = flow_down::Config::halving(w, h);
+        let (g, c) = run_both(|rec| {
+            let u = rec.uniform("cfg", &cfg);
+            let s = rec.upload("src", &f);
+            let o = rec.alloc("dst", (cfg.dst_w * cfg.dst_h) as u64 * 8, SENTINEL);
+            rec.dispatch(
+                &flow_down::STAGE,
+                flow_down::workgroups(&cfg),
+                &[u, s, o],
+                &[],
+            );
+            o
+        });
+        check(
+            &format!("flow_down {w}x{h}"),
+            &g,
+            &c,
+            Tolerance::new(1e-6, 1e-5),
+        );
+    }
+}
+
+#[test]
+fn flow_up_matches_cpu() {
+    for &(w, h) in SIZES {
+        let cfg = flow_up::Config {
+            src_w: w.div_ceil(2),
+            src_h: h.div_ceil(2),
+            dst_w: w,
+            dst_h: h,
+        };
+        let coarse = test_flow(cfg.src_w, cfg.src_h);
+        let (g, c) = run_both(|rec| {
+            let u = rec.uniform("cfg", &cfg);
+            let s = rec.upload("src", &coarse);
+            let o = rec.alloc("dst", (w * h) as u64 * 8, SENTINEL);
+            rec.dispatch(&flow_up::STAGE, flow_up::workgroups(&cfg), &[u, s, o], &[]);
+            o
+        });
+        check(
+            &format!("flow_up {w}x{h}"),
+            &g,
+            &c,
+            Tolerance::new(1e-5, 1e-5),
+        );
+    }
+}
+
+#[test]
+fn flow_warp_matches_cpu() {
+    for &(w, h) in SIZES {
+        let (a, b, uv) = (features(w, h, 2), features(w, h, 3), test_flow(w, h));
+        let cfg = flow_warp::Config {
+            width: w,
+            height: h,
+            ..Default::default()
+        };
+        let (g, c) = run_both(|rec| {
+            let u = rec.uniform("cfg", &cfg);
+            let (ba, bb, bf) = (
+                rec.upload("a", &a),
+                rec.upload("b", &b),
+                rec.upload("f", &uv),
+            );
+            let o = rec.alloc("deriv", (w * h) as u64 * 24, SENTINEL);
+            rec.dispatch(
+                &flow_warp::STAGE,
+                flow_warp::workgroups(&cfg),
+                &[u, ba, bb, bf, o],
+                &[],
+            );
+            o
+        });
+        // c0 = It - Ix u: a difference of terms up to ~10, so 1e-5 relative of those.
+        check(
+            &format!("flow_warp {w}x{h}"),
+            &g,
+            &c,
+            Tolerance::new(1e-4, 1e-4),
+        );
+    }
+}
+
+#[test]
+fn flow_solve_matches_cpu() {
+    for &(w, h) in SIZES {
+        let (a, b, uv) = (features(w, h, 4), features(w, h, 5), test_flow(w, h));
+        let p = FlowParams::default();
+        // Derivatives from the CPU warp, so both sides solve the same system.
+        let deriv = {
+            let mut rec = Recording::default();
+            let cfg = flow_warp::Config {
+                width: w,
+                height: h,
+                ..Default::default()
+            };
+            let u = rec.uniform("cfg", &cfg);
+            let (ba, bb, bf) = (
+                rec.upload("a", &a),
+                rec.upload("b", &b),
+                rec.upload("f", &uv),
+            );
+            let o = rec.alloc("deriv", (w * h) as u64 * 24, SENTINEL);
+            rec.dispatch(
+                &flow_warp::STAGE,
+                flow_warp::workgroups(&cfg),
+                &[u, ba, bb, bf, o],
+                &[],
+            );
+            rec.download(o);
+            Engine::cpu().run(rec).unwrap().get::<[f32; 2]>(o)
+        };
+        for colour in [0u32, 1] {
+            let cfg = flow_solve::Config {
+                width: w,
+                height: h,
+                colour,
+                alpha: p.alpha,
+                eps_data: p.eps_data,
+                eps_smooth: p.eps_smooth,
+                omega: p.omega,
+                ..Default::default()
+            };
+            let (g, c) = run_both(|rec| {
+                let u = rec.uniform("cfg", &cfg);
+                let d = rec.upload("deriv", &deriv);
+                let f = rec.upload("flow", &uv);
+                rec.dispatch(
+                    &flow_solve::STAGE,
+                    flow_solve::workgroups(&cfg),
+                    &[u, d, f],
+                    &[],
+                );
+                f
+            });
+            // One half-sweep must move the flow, or the comparison says little.
+            let moved = g
+                .iter()
+                .zip(uv.iter().flatten())
+                .filter(|(a, b)| a != b)
+                .count();
+            assert!(w * h == 1 || moved > (w * h) as usize / 2, "{moved} moved");
+            check(
+                &format!("flow_solve {w}x{h} colour {colour}"),
+                &g,
+                &c,
+                Tolerance::new(1e-4, 1e-4),
+            );
+        }
+    }
+}
+
+/// The whole coarse-to-fine recording (4 passes, hundreds of dispatches): rounding
+/// differences pass through the non-linear solve, so the bar is 1e-3 px (measured: ~5e-6).
+#[test]
+fn flow_matches_cpu() {
+    let (w, h) = (96, 80);
+    let a = features(w, h, 6);
+    // b(q + (2, 1)) = a(q): a shifted by whole pixels, edges clamped.
+    let b: Vec<[f32; 2]> = (0..w * h)
+        .map(|i| {
+            let (x, y) = ((i % w).saturating_sub(2), (i / w).saturating_sub(1));
+            a[(y * w + x) as usize]
+        })
+        .collect();
+    let p = FlowParams::default();
+    let g = flow(&common::gpu(), &a, &b, w, h, &p).unwrap();
+    let c = flow(&Engine::cpu(), &a, &b, w, h, &p).unwrap();
+    let flat = |v: &[[f32; 2]]| v.iter().flatten().copied().collect::<Vec<f32>>();
+    let max_c = flat(&c).iter().fold(0.0f32, |m, v| m.max(v.abs()));
+    assert!(max_c > 0.5, "the test flow should move ({max_c} px)");
+    check(
+        &format!("flow() {w}x{h}, {} levels", p.pyramid(w, h).len()),
+        &flat(&g),
+        &flat(&c),
+        Tolerance::abs(1e-3),
     );
 }

@@ -26,6 +26,9 @@ pub struct Config {
     pub _pad1: u32,
 }
 
+/// A WGSL `vec2<f32>` element.
+type Vec2 = [f32; 2];
+
 /// vec2 slots per pixel in the `deriv` buffer: Ix, Iy, c0.
 pub const DERIV_PER_PX: usize = 3;
 
@@ -65,7 +68,7 @@ fn flow_warp_cpu(_wg: [u32; 3], bind: &[CpuBinding]) {
         bind[2].get::<[f32; 2]>(),
         bind[3].get::<[f32; 2]>(),
     );
-    let (a, b, flow): (&[[f32; 2]], &[[f32; 2]], &[[f32; 2]]) = (&g_a, &g_b, &g_flow);
+    let (a, b, flow): (&[Vec2], &[Vec2], &[Vec2]) = (&g_a, &g_b, &g_flow);
     let mut deriv = bind[4].get_mut::<[f32; 2]>();
     let (w, h) = (cfg.width as i32, cfg.height as i32);
     let clamped = |x: i32, y: i32| (y.clamp(0, h - 1) * w + x.clamp(0, w - 1)) as usize;
