@@ -70,12 +70,14 @@ pub fn back_project(head: &Head, cam: &WeakPerspective, p: [f32; 2]) -> Option<V
 }
 
 /// Fits frame i's camera to face anchors (model points) and where the tracked features are
-/// in that frame, with rounds of outlier rejection. None when fewer than
+/// in that frame, starting from the previous frame's camera, with rounds of outlier
+/// rejection. None when fewer than
 /// `p.min_points` pairs are available or survive.
 pub fn fit_features(
     anchors: &[Vec3],
     tracked: &[Vec2],
     size: (u32, u32),
+    prev: &WeakPerspective,
     p: &HeadFitParams,
 ) -> Option<(WeakPerspective, usize, f32)> {
     let mut idx: Vec<usize> = (0..anchors.len()).collect();
@@ -86,7 +88,7 @@ pub fn fit_features(
         }
         let m: Vec<Vec3> = idx.iter().map(|&i| anchors[i]).collect();
         let q: Vec<Vec2> = idx.iter().map(|&i| tracked[i]).collect();
-        let Ok((cam, _)) = fit_points(&m, &q, size) else {
+        let Ok((cam, _)) = fit_points(&m, &q, size, Some(prev)) else {
             break;
         };
         // Errors of every pair, so a feature dropped early can come back.

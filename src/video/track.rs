@@ -199,7 +199,7 @@ pub fn frame_camera(
             seen.push(Vec2::from_array(q));
         }
     }
-    Ok(match fit_features(&anchors, &seen, size, p) {
+    Ok(match fit_features(&anchors, &seen, size, &prev.camera, p) {
         Some((camera, points, rms_px)) => FramePose {
             camera,
             source: PoseSource::Features,

@@ -80,13 +80,16 @@ pub fn fit_landmarks(
 }
 
 /// Fits a weak-perspective camera to any model points and their image positions (at least
-/// four, not coplanar in the model, spread in the image), the method of [`fit_landmarks`].
-/// Returns the camera and the per-point reprojection errors (px). Used by video tracking,
-/// where the points are features on the face back-projected onto the head.
+/// four, spread in the image). With `init`, Levenberg-Marquardt starts from that camera
+/// (a video's previous frame): a nearly flat point set, like features on a face, fits a
+/// turn either way about as well (the depth reversal of affine cameras), and only a start
+/// on the right side keeps the right one. Without it, the linear start of
+/// [`fit_landmarks`]. Returns the camera and the per-point reprojection errors (px).
 pub fn fit_points(
     model: &[Vec3],
     image: &[Vec2],
     size: (u32, u32),
+    init: Option<&WeakPerspective>,
 ) -> Result<(WeakPerspective, Vec<f32>)> {
     if model.len() != image.len() || model.len() < 4 {
         return Err(Error::Invalid(format!(
@@ -103,7 +106,21 @@ pub fn fit_points(
     let model: Vec<DVec3> = model.iter().map(|p| p.as_dvec3()).collect();
     let image: Vec<DVec2> = image.iter().map(|q| q.as_dvec2()).collect();
     check_spread(&image, size.0.max(size.1) as f64)?;
-    let (cam, _, _, _) = fit_cam(&model, &image)?;
+    let cam = match init {
+        Some(c) => {
+            let mut cam = Cam64 {
+                s: c.s as f64,
+                r: c.r.as_dmat3(),
+                t: c.t.as_dvec2(),
+            };
+            refine(&mut cam, &model, &image);
+            let out = cam.to_f32();
+            out.validate()
+                .map_err(|_| Error::Invalid("camera fit did not converge".into()))?;
+            out
+        }
+        None => fit_cam(&model, &image)?.0,
+    };
     let res = model
         .iter()
         .zip(&image)
