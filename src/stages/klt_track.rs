@@ -141,8 +141,9 @@ fn track_one(cfg: &Config, tmpl: &[f32], tgt: &[f32], tp: [f32; 4], gs: [f32; 4]
         let root = (h * h + (gxy / n) * (gxy / n)).sqrt();
         let lam_min = 0.5 * (gxx + gyy) / n - root;
         let lam_max = 0.5 * (gxx + gyy) / n + root;
-        // `!(a >= b)` so a NaN eigenvalue counts as flat, as in the shader.
-        if l == 0 && (!(lam_min >= cfg.min_eig) || !(lam_min >= cfg.min_iso * lam_max)) {
+        // A NaN eigenvalue counts as flat, as in the shader's `!(a >= b)`.
+        if l == 0 && (lam_min.is_nan() || lam_min < cfg.min_eig || lam_min < cfg.min_iso * lam_max)
+        {
             return lost;
         }
         let det = gxx * gyy - gxy * gxy;
@@ -163,7 +164,8 @@ fn track_one(cfg: &Config, tmpl: &[f32], tgt: &[f32], tp: [f32; 4], gs: [f32; 4]
                 }
                 let step = [(gyy * bx - gxy * by) / det, (gxx * by - gxy * bx) / det];
                 v = [v[0] + step[0], v[1] + step[1]];
-                if !((step[0] * step[0] + step[1] * step[1]).sqrt() >= cfg.eps) {
+                let len = (step[0] * step[0] + step[1] * step[1]).sqrt();
+                if len.is_nan() || len < cfg.eps {
                     break;
                 }
             }
@@ -208,8 +210,8 @@ fn klt_track_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
         b[4].get::<[f32; 4]>(),
     );
     // Plain slices: the RefCell guards are not Sync, the data is.
-    let (tmpl, tp, tgt, gs): (&[f32], &[[f32; 4]], &[f32], &[[f32; 4]]) =
-        (&g_tmpl, &g_tp, &g_tgt, &g_gs);
+    let (tmpl, tgt): (&[f32], &[f32]) = (&g_tmpl, &g_tgt);
+    let (tp, gs): (&[[f32; 4]], &[[f32; 4]]) = (&g_tp, &g_gs);
     let mut out = b[5].get_mut::<[f32; 4]>();
     out[..cfg.n_points as usize]
         .par_iter_mut()
