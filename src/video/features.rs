@@ -52,8 +52,7 @@ pub struct KltParams {
     /// 1e-4 and more. A flat image therefore has no features, and a patch that became flat
     /// is lost.
     pub min_eigen: f32,
-    /// Smallest λmin/λmax of the structure tensor, for detection and for keeping a tracked
-    /// feature. Along an edge or a strand (ratio near 0) the position is not determined:
+    /// Smallest λmin/λmax of the structure tensor for a detected feature. Along an edge or a strand (ratio near 0) the position is not determined:
     /// translation-only Lucas–Kanade then slides along it as soon as the patch turns a
     /// little (`tests/video_features.rs` prints the error by ratio).
     pub min_isotropy: f32,
