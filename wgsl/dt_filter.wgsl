@@ -12,7 +12,7 @@ struct Config {
     height: u32,
     // 0: along rows, 1: along columns.
     axis: u32,
-    // Guide channels, interleaved per pixel.
+    // Guide channels, each a width*height plane, one after the other.
     channels: u32,
     // Planes filtered together, each width*height, stored one after the other.
     n_planes: u32,
@@ -36,11 +36,12 @@ fn index(line: u32, k: u32) -> u32 {
 
 // Feedback weight between positions k-1 and k.
 fn weight(line: u32, k: u32) -> f32 {
-    let a = index(line, k - 1u) * cfg.channels;
-    let b = index(line, k) * cfg.channels;
+    let a = index(line, k - 1u);
+    let b = index(line, k);
+    let plane = cfg.width * cfg.height;
     var s = 0.0;
     for (var c = 0u; c < cfg.channels; c++) {
-        s = s + abs(guide[b + c] - guide[a + c]);
+        s = s + abs(guide[c * plane + b] - guide[c * plane + a]);
     }
     return exp((1.0 + cfg.ratio * s) * cfg.log_a);
 }

@@ -2,11 +2,16 @@
 // template patch around `tmpl_pts[i]` (in the template pyramid) lies in the target pyramid,
 // starting from `guess[i]`, coarse to fine, with Newton iterations per level.
 //
+// Window pixels are weighted by a Gaussian of sigma win/2 (as in klt_score, so a feature
+// detected there passes the checks here): the rim, which a turning patch moves most, counts
+// least.
+//
 // Points are vec4 (x, y, status, residual): status 1 tracked, 0 lost; residual is the mean
 // absolute difference between the template patch and the target patch at the result (level 0).
-// A feature is lost when its input is lost, its template patch is too flat to fix both
-// coordinates (min eigenvalue of the window-averaged structure tensor below `min_eig`), or the
-// result's window leaves the image.
+// A feature is lost when its input is lost, its template patch is too flat or too
+// one-dimensional to fix both coordinates (min eigenvalue of the window-averaged structure
+// tensor below `min_eig`, or below `min_iso` times the max eigenvalue), or the result's
+// window leaves the image.
 
 struct Config {
     n_points: u32,
@@ -20,6 +25,12 @@ struct Config {
     // Stop a level's iterations once an update is shorter than this (level pixels).
     eps: f32,
     min_eig: f32,
+    // Lost when λmin < min_iso λmax at level 0: the patch is an edge or stripes, and its
+    // position along them is not determined.
+    min_iso: f32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
 
 @group(0) @binding(0) var<uniform> cfg: Config;
@@ -95,6 +106,10 @@ fn tmpl_grad(lv: Level, q: vec2<f32>) -> vec2<f32> {
     );
 }
 
+fn window_weight(dx: i32, dy: i32) -> f32 {
+    return exp(-2.0 / f32(cfg.win * cfg.win) * f32(dx * dx + dy * dy));
+}
+
 fn finite(v: f32) -> bool {
     // NaN fails both comparisons; infinities fail the bound.
     return abs(v) <= 3.0e38;
@@ -116,7 +131,12 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let r = i32(cfg.win);
-    let n = f32((2 * r + 1) * (2 * r + 1));
+    var n = 0.0;
+    for (var dy = -r; dy <= r; dy++) {
+        for (var dx = -r; dx <= r; dx++) {
+            n = n + window_weight(dx, dy);
+        }
+    }
     let top = cfg.levels - 1u;
     // Displacement carried from level to level, in the current level's pixels.
     var g = (gs.xy - tp.xy) / f32(1u << top);
@@ -131,14 +151,17 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         for (var dy = -r; dy <= r; dy++) {
             for (var dx = -r; dx <= r; dx++) {
                 let d = tmpl_grad(lv, c + vec2<f32>(f32(dx), f32(dy)));
-                gxx = gxx + d.x * d.x;
-                gxy = gxy + d.x * d.y;
-                gyy = gyy + d.y * d.y;
+                let wt = window_weight(dx, dy);
+                gxx = gxx + wt * d.x * d.x;
+                gxy = gxy + wt * d.x * d.y;
+                gyy = gyy + wt * d.y * d.y;
             }
         }
         let h = 0.5 * (gxx - gyy) / n;
-        let lam_min = 0.5 * (gxx + gyy) / n - sqrt(h * h + (gxy / n) * (gxy / n));
-        if l == 0u && !(lam_min >= cfg.min_eig) {
+        let root = sqrt(h * h + (gxy / n) * (gxy / n));
+        let lam_min = 0.5 * (gxx + gyy) / n - root;
+        let lam_max = 0.5 * (gxx + gyy) / n + root;
+        if l == 0u && (!(lam_min >= cfg.min_eig) || !(lam_min >= cfg.min_iso * lam_max)) {
             out[i] = lost;
             return;
         }
@@ -153,7 +176,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                     for (var dx = -r; dx <= r; dx++) {
                         let q = c + vec2<f32>(f32(dx), f32(dy));
                         let d = tmpl_grad(lv, q);
-                        let diff = tmpl_at(lv, q) - tgt_at(lv, q + g + v);
+                        let diff = window_weight(dx, dy) * (tmpl_at(lv, q) - tgt_at(lv, q + g + v));
                         bx = bx + diff * d.x;
                         by = by + diff * d.y;
                     }
@@ -182,7 +205,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     for (var dy = -r; dy <= r; dy++) {
         for (var dx = -r; dx <= r; dx++) {
             let o = vec2<f32>(f32(dx), f32(dy));
-            res = res + abs(tmpl_at(lv0, tp.xy + o) - tgt_at(lv0, result + o));
+            res = res + window_weight(dx, dy) * abs(tmpl_at(lv0, tp.xy + o) - tgt_at(lv0, result + o));
         }
     }
     out[i] = vec4<f32>(result, 1.0, res / n);

@@ -16,7 +16,7 @@ pub struct Config {
     pub height: u32,
     /// 0: along rows, 1: along columns.
     pub axis: u32,
-    /// Guide channels, interleaved per pixel.
+    /// Guide channels, each a width*height plane, one after the other.
     pub channels: u32,
     /// Planes filtered together, each width*height, one after the other.
     pub n_planes: u32,
@@ -47,10 +47,10 @@ fn dt_filter_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
     };
     let nc = cfg.channels as usize;
     let weight = |line: usize, k: usize| {
-        let (a, b) = (index(line, k - 1) * nc, index(line, k) * nc);
+        let (a, b) = (index(line, k - 1), index(line, k));
         let mut s = 0.0f32;
         for c in 0..nc {
-            s += (guide[b + c] - guide[a + c]).abs();
+            s += (guide[c * w * h + b] - guide[c * w * h + a]).abs();
         }
         ((1.0 + cfg.ratio * s) * cfg.log_a).exp()
     };

@@ -1,5 +1,5 @@
 //! Shi–Tomasi corner score per pixel: the smaller eigenvalue of the box-averaged structure
-//! tensor (KLT feature detection, `crate::video::features::detect`).
+//! tensor (Gaussian window of sigma r/2), 0 where the tensor is too anisotropic (KLT feature detection, `crate::video::features::detect`).
 
 use crate::gpu::engine::{Bind, CpuBinding, StageDef};
 use rayon::prelude::*;
@@ -15,9 +15,10 @@ pub const STAGE: StageDef = StageDef {
 pub struct Config {
     pub width: u32,
     pub height: u32,
-    /// Window half size r: the window is (2r+1)².
+    /// Window half size r: the window is (2r+1)², its Gaussian weights have sigma r/2.
     pub radius: u32,
-    pub _pad0: u32,
+    /// Scores with λmin < min_iso·λmax are set to 0 (edges and stripes).
+    pub min_iso: f32,
 }
 
 pub fn workgroups(cfg: &Config) -> [u32; 3] {
@@ -42,21 +43,26 @@ fn klt_score_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
         .enumerate()
         .for_each(|(gy, row)| {
             for (gx, out) in row.iter_mut().enumerate() {
-                let (mut sxx, mut sxy, mut syy) = (0.0f32, 0.0f32, 0.0f32);
+                let (mut sxx, mut sxy, mut syy, mut wsum) = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
+                let k = -2.0 / (r * r) as f32;
                 for dy in -r..=r {
                     for dx in -r..=r {
                         let (x, y) = (gx as i32 + dx, gy as i32 + dy);
                         let ix = 0.5 * (px(x + 1, y) - px(x - 1, y));
                         let iy = 0.5 * (px(x, y + 1) - px(x, y - 1));
-                        sxx += ix * ix;
-                        sxy += ix * iy;
-                        syy += iy * iy;
+                        let wt = (k * (dx * dx + dy * dy) as f32).exp();
+                        sxx += wt * ix * ix;
+                        sxy += wt * ix * iy;
+                        syy += wt * iy * iy;
+                        wsum += wt;
                     }
                 }
-                let n = ((2 * r + 1) * (2 * r + 1)) as f32;
+                let n = wsum;
                 let (a, b, c) = (sxx / n, sxy / n, syy / n);
                 let hh = 0.5 * (a - c);
-                *out = 0.5 * (a + c) - (hh * hh + b * b).sqrt();
+                let root = (hh * hh + b * b).sqrt();
+                let (lo, hi) = (0.5 * (a + c) - root, 0.5 * (a + c) + root);
+                *out = if lo >= cfg.min_iso * hi { lo } else { 0.0 };
             }
         });
 }

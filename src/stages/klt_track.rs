@@ -32,6 +32,11 @@ pub struct Config {
     /// Stop a level's iterations once an update is shorter than this (level pixels).
     pub eps: f32,
     pub min_eig: f32,
+    /// Lost when λmin < min_iso·λmax at level 0 (edges, stripes).
+    pub min_iso: f32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+    pub _pad2: u32,
 }
 
 pub fn workgroups(cfg: &Config) -> [u32; 3] {
@@ -80,6 +85,11 @@ fn grad(pyr: &[f32], lv: Level, q: [f32; 2]) -> [f32; 2] {
     ]
 }
 
+/// Gaussian window weight of sigma win/2, as in `klt_score`.
+fn window_weight(cfg: &Config, dx: i32, dy: i32) -> f32 {
+    (-2.0 / (cfg.win * cfg.win) as f32 * (dx * dx + dy * dy) as f32).exp()
+}
+
 fn finite(v: f32) -> bool {
     v.abs() <= 3.0e38
 }
@@ -102,7 +112,12 @@ fn track_one(cfg: &Config, tmpl: &[f32], tgt: &[f32], tp: [f32; 4], gs: [f32; 4]
         return lost;
     }
     let r = cfg.win as i32;
-    let n = ((2 * r + 1) * (2 * r + 1)) as f32;
+    let mut n = 0.0f32;
+    for dy in -r..=r {
+        for dx in -r..=r {
+            n += window_weight(cfg, dx, dy);
+        }
+    }
     let top = cfg.levels - 1;
     let scale = (1u32 << top) as f32;
     let mut g = [(gs[0] - tp[0]) / scale, (gs[1] - tp[1]) / scale];
@@ -116,15 +131,19 @@ fn track_one(cfg: &Config, tmpl: &[f32], tgt: &[f32], tp: [f32; 4], gs: [f32; 4]
         for dy in -r..=r {
             for dx in -r..=r {
                 let d = grad(tmpl, lv, [c[0] + dx as f32, c[1] + dy as f32]);
-                gxx += d[0] * d[0];
-                gxy += d[0] * d[1];
-                gyy += d[1] * d[1];
+                let wt = window_weight(cfg, dx, dy);
+                gxx += wt * d[0] * d[0];
+                gxy += wt * d[0] * d[1];
+                gyy += wt * d[1] * d[1];
             }
         }
         let h = 0.5 * (gxx - gyy) / n;
-        let lam_min = 0.5 * (gxx + gyy) / n - (h * h + (gxy / n) * (gxy / n)).sqrt();
-        // `!(a >= b)` so a NaN eigenvalue counts as flat, as in the shader.
-        if l == 0 && !(lam_min >= cfg.min_eig) {
+        let root = (h * h + (gxy / n) * (gxy / n)).sqrt();
+        let lam_min = 0.5 * (gxx + gyy) / n - root;
+        let lam_max = 0.5 * (gxx + gyy) / n + root;
+        // A NaN eigenvalue counts as flat, as in the shader's `!(a >= b)`.
+        if l == 0 && (lam_min.is_nan() || lam_min < cfg.min_eig || lam_min < cfg.min_iso * lam_max)
+        {
             return lost;
         }
         let det = gxx * gyy - gxy * gxy;
@@ -136,15 +155,17 @@ fn track_one(cfg: &Config, tmpl: &[f32], tgt: &[f32], tp: [f32; 4], gs: [f32; 4]
                     for dx in -r..=r {
                         let q = [c[0] + dx as f32, c[1] + dy as f32];
                         let d = grad(tmpl, lv, q);
-                        let diff = sample(tmpl, lv, q)
-                            - sample(tgt, lv, [q[0] + g[0] + v[0], q[1] + g[1] + v[1]]);
+                        let diff = window_weight(cfg, dx, dy)
+                            * (sample(tmpl, lv, q)
+                                - sample(tgt, lv, [q[0] + g[0] + v[0], q[1] + g[1] + v[1]]));
                         bx += diff * d[0];
                         by += diff * d[1];
                     }
                 }
                 let step = [(gyy * bx - gxy * by) / det, (gxx * by - gxy * bx) / det];
                 v = [v[0] + step[0], v[1] + step[1]];
-                if !((step[0] * step[0] + step[1] * step[1]).sqrt() >= cfg.eps) {
+                let len = (step[0] * step[0] + step[1] * step[1]).sqrt();
+                if len.is_nan() || len < cfg.eps {
                     break;
                 }
             }
@@ -171,9 +192,10 @@ fn track_one(cfg: &Config, tmpl: &[f32], tgt: &[f32], tp: [f32; 4], gs: [f32; 4]
     for dy in -r..=r {
         for dx in -r..=r {
             let (ox, oy) = (dx as f32, dy as f32);
-            res += (sample(tmpl, lv0, [tp[0] + ox, tp[1] + oy])
-                - sample(tgt, lv0, [result[0] + ox, result[1] + oy]))
-            .abs();
+            res += window_weight(cfg, dx, dy)
+                * (sample(tmpl, lv0, [tp[0] + ox, tp[1] + oy])
+                    - sample(tgt, lv0, [result[0] + ox, result[1] + oy]))
+                .abs();
         }
     }
     [result[0], result[1], 1.0, res / n]
@@ -188,8 +210,8 @@ fn klt_track_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
         b[4].get::<[f32; 4]>(),
     );
     // Plain slices: the RefCell guards are not Sync, the data is.
-    let (tmpl, tp, tgt, gs): (&[f32], &[[f32; 4]], &[f32], &[[f32; 4]]) =
-        (&g_tmpl, &g_tp, &g_tgt, &g_gs);
+    let (tmpl, tgt): (&[f32], &[f32]) = (&g_tmpl, &g_tgt);
+    let (tp, gs): (&[[f32; 4]], &[[f32; 4]]) = (&g_tp, &g_gs);
     let mut out = b[5].get_mut::<[f32; 4]>();
     out[..cfg.n_points as usize]
         .par_iter_mut()

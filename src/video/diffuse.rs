@@ -12,7 +12,7 @@ use crate::analyze::orient::GrayImage;
 use crate::base::sentinel::SENTINEL;
 use crate::error::{Error, Result};
 use crate::gpu::engine::{Engine, Recording};
-use crate::stages::dt_filter;
+use crate::stages::{dt_filter, sep_blur};
 
 /// Parameters of [`spread`].
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
@@ -23,6 +23,11 @@ pub struct DiffuseParams {
     /// Range extent in guide units (channels in [0, 1]): a guide step of this size counts as
     /// `sigma_s` pixels of distance.
     pub sigma_r: f32,
+    /// Gaussian blur of the guide before its edges are measured (0: none). The filter is to
+    /// stop at region boundaries (hair against face or background), not at every strand:
+    /// on raw hair texture each strand edge adds tens of pixels of distance and the weights
+    /// of a few strands away underflow.
+    pub guide_sigma: f32,
     /// Horizontal + vertical pass pairs, with sigma halving each time (G&O 2011 Eq. 14); 3
     /// removes most of the stripe artefacts of a single pair.
     pub iterations: u32,
@@ -33,6 +38,7 @@ impl Default for DiffuseParams {
         DiffuseParams {
             sigma_s: 40.0,
             sigma_r: 0.1,
+            guide_sigma: 2.0,
             iterations: 3,
         }
     }
@@ -50,6 +56,12 @@ impl DiffuseParams {
             return Err(Error::Invalid(format!(
                 "diffusion sigma_r must be positive, got {}",
                 self.sigma_r
+            )));
+        }
+        if !(self.guide_sigma.is_finite() && (0.0..=32.0).contains(&self.guide_sigma)) {
+            return Err(Error::Invalid(format!(
+                "diffusion guide_sigma must be in 0..=32 pixels, got {}",
+                self.guide_sigma
             )));
         }
         if !(1..=16).contains(&self.iterations) {
@@ -71,7 +83,7 @@ impl DiffuseParams {
     }
 }
 
-/// The edge guide: `channels` values per pixel, interleaved, row-major.
+/// The edge guide: `channels` planes of width*height values (row-major), one after the other.
 #[derive(Clone, Debug)]
 pub struct Guide {
     pub width: u32,
@@ -88,7 +100,9 @@ impl Guide {
             width: img.width(),
             height: img.height(),
             channels: 3,
-            data: img.as_raw().iter().map(|&v| v as f32 / 255.0).collect(),
+            data: (0..3)
+                .flat_map(|c| img.pixels().map(move |p| p[c] as f32 / 255.0))
+                .collect(),
         }
     }
 
@@ -137,6 +151,13 @@ pub fn spread(
     if samples.is_empty() {
         return Ok(vec![[f32::NAN; 2]; n]);
     }
+    let blurred;
+    let guide = if p.guide_sigma > 0.0 {
+        blurred = blur_guide(engine, guide, p.guide_sigma)?;
+        &blurred
+    } else {
+        guide
+    };
     let mut rec = Recording::default();
     let gbuf = rec.upload("coif.dt.guide", &guide.data);
     let pbuf = rec.upload("coif.dt.planes", &planes);
@@ -167,6 +188,50 @@ pub fn spread(
         return Err(Error::Gpu("dt_filter left planes unwritten".into()));
     }
     Ok(normalise(&out, n))
+}
+
+/// The guide's planes each blurred by `sigma` (`sep_blur`, one engine run); a second run
+/// filters with them, since `sep_blur` reads and writes whole buffers from offset 0.
+pub fn blur_guide(engine: &Engine, guide: &Guide, sigma: f32) -> Result<Guide> {
+    let (w, h) = (guide.width, guide.height);
+    let n = w as usize * h as usize;
+    let (radius, weights) = sep_blur::gaussian_weights(sigma);
+    let mut rec = Recording::default();
+    let wbuf = rec.upload("coif.dt.blur_weights", &weights);
+    let mut outs = Vec::new();
+    for c in 0..guide.channels as usize {
+        let src = rec.upload("coif.dt.guide_plane", &guide.data[c * n..(c + 1) * n]);
+        let tmp = rec.alloc("coif.dt.blur_tmp", n as u64 * 4, SENTINEL);
+        let out = rec.alloc("coif.dt.guide_blurred", n as u64 * 4, SENTINEL);
+        for (axis, from, to) in [(0u32, src, tmp), (1, tmp, out)] {
+            let cfg = sep_blur::Config {
+                width: w,
+                height: h,
+                radius,
+                axis,
+                ..Default::default()
+            };
+            let u = rec.uniform("coif.dt.blur_cfg", &cfg);
+            // The unused `minus` binding still needs a buffer; `from` is as good as any.
+            rec.dispatch(
+                &sep_blur::STAGE,
+                sep_blur::workgroups(&cfg),
+                &[u, wbuf, from, from, to],
+                &[],
+            );
+        }
+        rec.download(out);
+        outs.push(out);
+    }
+    let dl = engine.run(rec)?;
+    let mut data = Vec::with_capacity(guide.data.len());
+    for out in outs {
+        data.extend(dl.get::<f32>(out));
+    }
+    if data.iter().any(|v| v.to_bits() == SENTINEL) {
+        return Err(Error::Gpu("sep_blur left guide pixels unwritten".into()));
+    }
+    Ok(Guide { data, ..*guide })
 }
 
 /// Bilinear splat of (dx·w, dy·w, w) into three planes. Samples outside the image, or with a
