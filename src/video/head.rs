@@ -63,10 +63,10 @@ impl Default for HeadFitParams {
 /// The model point under the reference pixel `p` on the head's front surface, or None when
 /// the ray misses the head.
 pub fn back_project(head: &Head, cam: &WeakPerspective, p: [f32; 2]) -> Option<Vec3> {
-    let view = cam.view_dir_model();
-    // From well in front of the head along the view direction, back into it.
-    let near = cam.unproject(Vec3::new(p[0], p[1], 0.0)) + view * 0.5;
-    head.raycast(near, -view, 1.0)
+    // Into the scene; the ray starts well in front of the head, on the camera's side.
+    let into = cam.view_dir_model();
+    let near = cam.unproject(Vec3::new(p[0], p[1], 0.0)) - into * 0.5;
+    head.raycast(near, into, 1.0)
 }
 
 /// Fits frame i's camera to face anchors (model points) and where the tracked features are

@@ -74,7 +74,10 @@ fn frame_name(dir: &str, k: usize, ext: &str) -> String {
 }
 
 /// Landmark files for frames: the reference's own file and every `NNNN.json` of the folder.
-pub fn load_landmarks(inp: &VideoInputs, size: (u32, u32)) -> Result<BTreeMap<usize, Landmarks>> {
+pub fn load_landmarks(
+    inp: &VideoInputs,
+    size: (u32, u32),
+) -> Result<BTreeMap<usize, (PathBuf, Landmarks)>> {
     let mut out = BTreeMap::new();
     if let Some(dir) = &inp.landmark_dir {
         let rd = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
@@ -91,11 +94,12 @@ pub fn load_landmarks(inp: &VideoInputs, size: (u32, u32)) -> Result<BTreeMap<us
                 )
             })?;
             crate::video::head::check_frame(k, inp.clip.len(), &path)?;
-            out.insert(k, Landmarks::load(&path, Some(size))?);
+            let lm = Landmarks::load(&path, Some(size))?;
+            out.insert(k, (path, lm));
         }
     }
     if let Some(l) = &inp.landmarks {
-        out.insert(inp.reference, Landmarks::load(l, Some(size))?);
+        out.insert(inp.reference, (l.clone(), Landmarks::load(l, Some(size))?));
     }
     Ok(out)
 }
@@ -171,7 +175,9 @@ pub fn run(
         .into());
     }
     let size = (inp.clip.width, inp.clip.height);
-    let landmarks = load_landmarks(inp, size)?;
+    let lm_files = load_landmarks(inp, size)?;
+    let landmarks: BTreeMap<usize, Landmarks> =
+        lm_files.iter().map(|(k, (_, l))| (*k, l.clone())).collect();
     let user = match &inp.points {
         Some(p) => load_points(p, size.0, size.1, n)?,
         None => UserPoints::default(),
@@ -188,12 +194,14 @@ pub fn run(
     let scene = if done.contains(&inp.reference) {
         Scene::load(out).context("resuming: the reference model")?
     } else {
+        // The reference's landmarks: its own file, else its file in the landmark folder.
+        let ref_lm = lm_files.get(&inp.reference).map(|(p, _)| p.clone());
         let (rgb, m) = crate::model::run(
             engine,
             &ref_png,
             &inp.strokes,
             inp.mask.as_deref(),
-            inp.landmarks.as_deref(),
+            ref_lm.as_deref(),
             mp,
         )?;
         crate::model::write(out, &ref_png, &rgb, &m, mp, &engine.describe())?;
