@@ -3,3 +3,4 @@
 
 pub mod gt3d;
 pub mod metrics;
+pub mod video;
