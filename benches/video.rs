@@ -116,10 +116,13 @@ fn main() {
             }
             let mut v = f.vertex_median_mm.clone();
             v.sort_by(f32::total_cmp);
+            let mut vv = f.vertex_visible_median_mm.clone();
+            vv.sort_by(f32::total_cmp);
             println!(
-                "  3D: median vertex error {:.2} mm (median over frames; last frame {:.2} mm), roots {:.1e} m, stretch p99 {:.2} % (largest {:.1} %)",
+                "  3D: median vertex error {:.2} mm (median over frames; last frame {:.2} mm; visible vertices {:.2} mm), roots {:.1e} m, stretch p99 {:.2} % (largest {:.1} %)",
                 v[v.len() / 2],
                 f.vertex_median_mm[f.vertex_median_mm.len() - 1],
+                vv[vv.len() / 2],
                 f.root_max_m,
                 100.0 * f.stretch_p99,
                 100.0 * f.stretch_max

@@ -18,8 +18,8 @@ use crate::video::diffuse::Guide;
 use crate::video::features::UserPoints;
 use crate::video::head::{pose_of, FramePose, PoseSource};
 use crate::video::track::{
-    beta_of, feature_warp, features, flow_between, frame_camera, orientation_features, step,
-    Reference, TrackParams,
+    beta_of, feature_warp, features, flow_between, frame_camera, orientation_features,
+    reference_surface, rigid_motion, step, Reference, TrackParams,
 };
 use crate::video::warp::compose;
 use std::collections::BTreeMap;
@@ -36,6 +36,9 @@ pub struct EvalOptions {
     pub drift_frames: Vec<usize>,
     /// Re-render every frame and measure flicker (the slowest part).
     pub flicker: bool,
+    /// Moves the strands by the true warp from frame 0 (where a strand covers the pixel; the
+    /// head's rigid motion elsewhere) instead of W*: the error Eq. (7) itself leaves.
+    pub oracle_warp: bool,
     /// Writes `frames/NNNN.png` and `flow/NNNN.npy` (true flow, i ≥ 1) here, for the
     /// OpenCV peer script, and `ours/NNNN.npy` (our flow).
     pub write_dir: Option<PathBuf>,
@@ -48,6 +51,7 @@ impl Default for EvalOptions {
             alphas: vec![0.5, 0.0, 1.0],
             drift_frames: vec![30, 60],
             flicker: true,
+            oracle_warp: false,
             write_dir: None,
         }
     }
@@ -72,6 +76,10 @@ pub struct ClipFigures {
     pub drift: Vec<Drift>,
     /// Per frame: median distance of the tracked vertices from their true positions, mm.
     pub vertex_median_mm: Vec<f32>,
+    /// The same over the vertices visible on the reference frame (within 3 mm of the
+    /// nearest vertex at their pixel): those whose motion the image shows. A hidden vertex
+    /// takes the warp of what covers it (Eq. 7 knows no occlusion).
+    pub vertex_visible_median_mm: Vec<f32>,
     /// Largest distance of a root from its true position (the head's motion), m.
     pub root_max_m: f32,
     /// 99th percentile (the largest over frames) and largest relative change of a segment's
@@ -164,7 +172,7 @@ pub fn evaluate(engine: &Engine, vp: &VideoParams, o: &EvalOptions) -> Result<Cl
     for i in 1..n {
         let f = sv.frame(i);
         true_flows.push(true_flow(&prev, &f));
-        if o.drift_frames.contains(&i) {
+        if o.drift_frames.contains(&i) || o.oracle_warp {
             tracks_gt.insert(i, true_flow(&f0, &f));
         }
         rgb.push(f.render.image.clone());
@@ -198,6 +206,7 @@ pub fn evaluate(engine: &Engine, vp: &VideoParams, o: &EvalOptions) -> Result<Cl
     let feats = features(engine, &gray, &reference, &UserPoints::default(), tp)?;
     let guide = Guide::from_rgb(&rgb[0]);
     let beta_v = beta_of(&reference, tp);
+    let surface = reference_surface(&reference, w, h);
 
     let mut flow_epe = Vec::new();
     let mut flow_mean_motion = Vec::new();
@@ -242,7 +251,17 @@ pub fn evaluate(engine: &Engine, vp: &VideoParams, o: &EvalOptions) -> Result<Cl
                 &v,
             )?;
         }
-        let wdag = feature_warp(engine, &guide, &feats.tracks, i, &tp.diffuse)?;
+        let prev_pose = *poses.last().expect("frame 0");
+        let pose = frame_camera(&reference, i, size, &lm, &feats, &prev_pose, &tp.head_fit)?;
+        let rigid = rigid_motion(&surface, &pose.camera, w);
+        let wdag = feature_warp(
+            engine,
+            &guide,
+            &feats.tracks,
+            i,
+            tp.spread_residual.then_some(rigid.as_slice()),
+            &tp.diffuse,
+        )?;
         for (k, &a) in o.alphas.iter().enumerate() {
             let next = compose(engine, &wdag, &warps[k], &v, w, h, a)?;
             warps[k] = next;
@@ -264,14 +283,20 @@ pub fn evaluate(engine: &Engine, vp: &VideoParams, o: &EvalOptions) -> Result<Cl
                 });
             }
         }
-        let prev_pose = *poses.last().expect("frame 0");
-        let pose = frame_camera(&reference, i, size, &lm, &feats, &prev_pose, &tp.head_fit)?;
         // The tracked strands follow the paper's weight (or the one asked for).
         let k = o.alphas.iter().position(|&a| a == tp.alpha).unwrap_or(0);
         if o.alphas.get(k) == Some(&tp.alpha) {
             main_warp = warps[k].clone();
         } else {
             main_warp = compose(engine, &wdag, &main_warp, &v, w, h, tp.alpha)?;
+        }
+        if o.oracle_warp {
+            let gt = &tracks_gt[&i];
+            main_warp = gt
+                .iter()
+                .zip(&rigid)
+                .map(|(t, m)| if t[0].is_finite() { *t } else { *m })
+                .collect();
         }
         let res = crate::video::warp::warp_strands(
             engine,
@@ -311,6 +336,30 @@ pub fn evaluate(engine: &Engine, vp: &VideoParams, o: &EvalOptions) -> Result<Cl
         })
         .collect();
     let off = reference.strands.offsets();
+    // Visibility on the reference: a z-buffer of the vertices' depths.
+    let cam0 = reference.camera;
+    let mut zbuf = vec![f32::NEG_INFINITY; (w * h) as usize];
+    let pix = |q: glam::Vec3| -> Option<usize> {
+        let (x, y) = (q.x.round(), q.y.round());
+        (x >= 0.0 && y >= 0.0 && x < w as f32 && y < h as f32)
+            .then(|| y as usize * w as usize + x as usize)
+    };
+    for p in &reference.strands.points {
+        let q = cam0.project(glam::Vec3::from(*p));
+        if let Some(i) = pix(q) {
+            zbuf[i] = zbuf[i].max(q.z);
+        }
+    }
+    let visible: Vec<bool> = reference
+        .strands
+        .points
+        .iter()
+        .map(|p| {
+            let q = cam0.project(glam::Vec3::from(*p));
+            pix(q).is_some_and(|i| q.z >= zbuf[i] - 0.003 * cam0.s)
+        })
+        .collect();
+    let mut vertex_visible_median_mm = Vec::with_capacity(n);
     for (i, ours) in tracked.iter().enumerate() {
         let (truth, _) = sv.strands(i);
         let mut d: Vec<f32> = ours
@@ -339,6 +388,14 @@ pub fn evaluate(engine: &Engine, vp: &VideoParams, o: &EvalOptions) -> Result<Cl
                 seg += 1;
             }
         }
+        let mut dv: Vec<f32> = d
+            .iter()
+            .zip(&visible)
+            .filter(|(_, v)| **v)
+            .map(|(e, _)| *e)
+            .collect();
+        dv.sort_by(f32::total_cmp);
+        vertex_visible_median_mm.push(1e3 * dv.get(dv.len() / 2).copied().unwrap_or(0.0));
         stretch_p99 = stretch_p99.max(crate::base::stats::percentile(&stretch, 0.99));
         stretch_max = stretch.iter().fold(stretch_max, |a, &b| a.max(b));
         d.sort_by(f32::total_cmp);
@@ -403,6 +460,7 @@ pub fn evaluate(engine: &Engine, vp: &VideoParams, o: &EvalOptions) -> Result<Cl
         flow_mean_motion,
         drift,
         vertex_median_mm,
+        vertex_visible_median_mm,
         root_max_m,
         stretch_p99,
         stretch_max,

@@ -22,8 +22,8 @@ use crate::video::features::{load_points, UserPoints};
 use crate::video::frames::Clip;
 use crate::video::head::{pose_of, pose_rigid, world_camera, FramePose};
 use crate::video::track::{
-    beta_of, feature_warp, features, flow_between, frame_camera, order, orientation_features, step,
-    Reference, TrackParams,
+    beta_of, feature_warp, features, flow_between, frame_camera, order, orientation_features,
+    reference_surface, rigid_motion, step, Reference, TrackParams,
 };
 use serde_json::json;
 use std::collections::BTreeMap;
@@ -230,6 +230,7 @@ pub fn run(
     }
     let feats = features(engine, &gray, &r, &user, tp).context("tracking features")?;
     let guide = Guide::from_rgb(&rgb_ref);
+    let surface = reference_surface(&r, size.0, size.1);
 
     let bar = if progress {
         indicatif::ProgressBar::new(n as u64)
@@ -301,9 +302,17 @@ pub fn run(
             Some(j) => {
                 let v = flow_between(engine, &feat(j)?, &feat(i)?, size, &tp.flow)
                     .with_context(|| format!("flow from frame {j} to {i}"))?;
-                let wdag = feature_warp(engine, &guide, &feats.tracks, i, &tp.diffuse)?;
                 let (wprev, prev_pose) = carry.get(&j).context("recursion order")?;
                 let pose = frame_camera(&r, i, size, &landmarks, &feats, prev_pose, &tp.head_fit)?;
+                let rigid = rigid_motion(&surface, &pose.camera, size.0);
+                let wdag = feature_warp(
+                    engine,
+                    &guide,
+                    &feats.tracks,
+                    i,
+                    tp.spread_residual.then_some(rigid.as_slice()),
+                    &tp.diffuse,
+                )?;
                 let res = step(
                     engine,
                     &r,
