@@ -229,6 +229,23 @@ pub fn run(
         gray.push(GrayImage::from_rgb(&inp.clip.load_rgb(k)?));
     }
     let feats = features(engine, &gray, &r, &user, tp).context("tracking features")?;
+    // The tracks, for a user who corrects points (`--points`) and for inspection.
+    let face: std::collections::BTreeSet<usize> = feats.face.iter().map(|f| f.0).collect();
+    let list: Vec<serde_json::Value> = (0..feats.tracks.ids.len())
+        .map(|k| {
+            json!({
+                "id": feats.tracks.ids[k],
+                "user": feats.tracks.user[k],
+                "face": face.contains(&k),
+                "points": feats.tracks.points[k],
+                "fb_error_px": feats.tracks.fb_error[k].iter().map(|e| if e.is_finite() { Some(*e) } else { None }).collect::<Vec<_>>(),
+            })
+        })
+        .collect();
+    write_json(
+        &out.join("features.json"),
+        &json!({ "version": 1, "reference": inp.reference, "features": list }),
+    )?;
     let guide = Guide::from_rgb(&rgb_ref);
     let surface = reference_surface(&r, size.0, size.1);
 
