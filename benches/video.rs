@@ -7,7 +7,9 @@
 //!
 //! Run: `cargo bench --bench video`. COIF_BENCH_SIZE (256), COIF_BENCH_FRAMES (61),
 //! COIF_BENCH_STYLES ("long,whorl,sidepart"), COIF_BENCH_STRANDS (6000),
-//! COIF_BENCH_FLICKER=0 skips the re-render, COIF_BENCH_KEEP=DIR keeps the clips.
+//! COIF_BENCH_FLICKER=0 skips the re-render, COIF_BENCH_KEEP=DIR keeps the clips,
+//! COIF_BENCH_RESIDUAL=1 spreads the features' departure from the head's motion
+//! (`TrackParams::spread_residual`).
 
 use coif::eval::video::{evaluate, EvalOptions};
 use coif::gpu::engine::{BackendChoice, Engine};
@@ -77,7 +79,10 @@ fn main() {
             };
             let mut vp = VideoParams::new(style, 1, size, frames);
             vp.strands = strands;
+            let mut track = coif::video::track::TrackParams::default();
+            track.spread_residual = env("COIF_BENCH_RESIDUAL", 0) != 0;
             let o = EvalOptions {
+                track,
                 drift_frames: vec![30, 60].into_iter().filter(|&f| f < frames).collect(),
                 flicker: flicker && *name == "cpu",
                 write_dir: Some(dir.clone()),
