@@ -39,9 +39,9 @@ pub struct TrackParams {
     /// to cover the hair of a frame.
     pub mask_margin_px: u32,
     /// Spread the features' departure from the head's rigid motion (and add that motion
-    /// back) rather than their raw motion. Measured on the synthetic long clip (256², 16
-    /// frames): median drift 1.71 px against 1.90, mean 2.59 against 2.30; off by default
-    /// until a longer clip decides.
+    /// back) rather than their raw motion. Measured (`cargo bench --bench video`, 256², 61
+    /// frames): Eq. 6's mean drift at r+30 / r+60 went from 1.62 / 1.70 to 1.73 / 1.70 px
+    /// (long) and from 0.56 / 0.89 to 0.77 / 0.98 px (side parting), so it is off.
     pub spread_residual: bool,
 }
 
