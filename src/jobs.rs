@@ -689,6 +689,19 @@ fn render_frames(engine: &Engine, scene: &Scene, j: &RenderJob) -> anyhow::Resul
 }
 
 fn run_video(engine: &Engine, j: &VideoJob) -> anyhow::Result<Report> {
+    let fresh = !j.out.exists();
+    let r = run_video_in(engine, j);
+    if r.is_err() && fresh {
+        // A run that failed before writing a frame leaves no empty folders behind (a video
+        // that could not be decoded, say); remove_dir keeps any folder that holds a file.
+        for d in ["decoded", "frames", "photos", "masks", "warps", ""] {
+            let _ = std::fs::remove_dir(j.out.join(d));
+        }
+    }
+    r
+}
+
+fn run_video_in(engine: &Engine, j: &VideoJob) -> anyhow::Result<Report> {
     use crate::video::frames;
     let clip = match &j.source {
         ClipSource::Frames(d) => frames::open_frames_dir(d)?,
