@@ -336,7 +336,7 @@ pub fn run(
             let (shape, data) = crate::io::npy::read_f32(&out.join(frame_name("warps", i, "npy")))?;
             if shape != [size.1 as usize, size.0 as usize, 2] {
                 return Err(Error::bad_file(
-                    &out.join(frame_name("warps", i, "npy")),
+                    out.join(frame_name("warps", i, "npy")),
                     format!("shape {shape:?}, expected [{}, {}, 2]", size.1, size.0),
                 )
                 .into());
