@@ -583,8 +583,8 @@ fn a_real_clip_runs_end_to_end() {
             return;
         }
     }
-    // The first 24 frames (0.8 s): the script numbers them from 0001.
-    let n = 24;
+    // The first 20 frames (0.7 s): the script numbers them from 0001.
+    let n = 20;
     let frames = dir.join("frames");
     std::fs::create_dir_all(&frames).unwrap();
     for k in 1..=n {
@@ -602,7 +602,7 @@ fn a_real_clip_runs_end_to_end() {
         "--out",
         &s(&out),
         "--roots",
-        "4000",
+        "2000",
         "--backend",
         "cpu",
     ]);
