@@ -274,7 +274,7 @@ pub fn run_all(engine: &Engine, jobs: &[Job]) -> anyhow::Result<Vec<Report>> {
 /// The main job on the embedded inputs: a synthetic case with ground truth and the astronaut
 /// photo, each through orientation, directed hair, 3D strands and three renders (the
 /// original view, a novel view and a recolouring); then a comb, a cut and a short wind clip
-/// of the photo's hair.
+/// of the photo's hair; then a short synthetic clip tracked and recoloured (`coif video`).
 pub fn demo(out: &Path) -> Vec<Job> {
     let case = out.join("synth-long");
     let astro = out.join("astronaut");
@@ -399,6 +399,39 @@ pub fn demo(out: &Path) -> Vec<Job> {
         model: wind.clone(),
         out: wind.join("render"),
         params: RenderParams::default(),
+        sixteen: false,
+    }));
+    // A short synthetic clip: the model of its first frame tracked through it, and every
+    // frame recoloured over its own photo. Small (128², 12 frames, 3000 roots) so that it
+    // adds about half a minute on the cpu backend.
+    let clip = out.join("synth-video-long");
+    let mut vp = synth::video::VideoParams::new(synth::Style::Long, 1, 128, 12);
+    vp.strands = 300;
+    jobs.push(Job::SynthVideo(SynthVideoJob {
+        out: clip.clone(),
+        params: vp,
+    }));
+    let tracked = out.join("video-synth-long");
+    let r = clip.join("reference");
+    jobs.push(Job::Video(VideoJob {
+        source: ClipSource::Frames(clip.join("frames")),
+        reference: 0,
+        strokes: r.join("strokes.json"),
+        mask: Some(r.join("mask.png")),
+        landmarks: Some(r.join("landmarks.json")),
+        landmark_dir: None,
+        points: None,
+        out: tracked.clone(),
+        model: ModelParams {
+            roots: 3000,
+            ..Default::default()
+        },
+        track: Default::default(),
+    }));
+    jobs.push(Job::Render(RenderJob {
+        model: tracked.clone(),
+        out: tracked.join("render_dyed"),
+        params: views[2].1.clone(),
         sixteen: false,
     }));
     jobs
@@ -689,6 +722,19 @@ fn render_frames(engine: &Engine, scene: &Scene, j: &RenderJob) -> anyhow::Resul
 }
 
 fn run_video(engine: &Engine, j: &VideoJob) -> anyhow::Result<Report> {
+    let fresh = !j.out.exists();
+    let r = run_video_in(engine, j);
+    if r.is_err() && fresh {
+        // A run that failed before writing a frame leaves no empty folders behind (a video
+        // that could not be decoded, say); remove_dir keeps any folder that holds a file.
+        for d in ["decoded", "frames", "photos", "masks", "warps", ""] {
+            let _ = std::fs::remove_dir(j.out.join(d));
+        }
+    }
+    r
+}
+
+fn run_video_in(engine: &Engine, j: &VideoJob) -> anyhow::Result<Report> {
     use crate::video::frames;
     let clip = match &j.source {
         ClipSource::Frames(d) => frames::open_frames_dir(d)?,

@@ -381,6 +381,11 @@ fn demo_runs_on_the_cpu_backend() {
         "model-synth-long/strands.hair",
         "model-synth-long/preview.png",
         "model-astronaut/model.json",
+        "synth-video-long/frames/0011.png",
+        "video-synth-long/frames/0011.hair",
+        "video-synth-long/preview.gif",
+        "video-synth-long/render_dyed/0000.png",
+        "video-synth-long/render_dyed/0011.png",
     ] {
         assert!(c.p("demo").join(f).is_file(), "{f} missing");
     }

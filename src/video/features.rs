@@ -542,7 +542,8 @@ pub fn parse_points(
         if frame >= frames as u64 {
             return Err(bad(format!(
                 "points[{k}] (id \"{id}\"): frame {frame} is out of range (the clip has \
-                 {frames} frames, 0..{frames})"
+                 {frames} frames, 0..{})",
+                frames.saturating_sub(1)
             )));
         }
         let coord = |name: &str| -> Result<f32> {

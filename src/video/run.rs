@@ -7,7 +7,10 @@
 //! camera per frame. `warps/NNNN.npy` keeps W*_i (H×W×2, px) and `video.json` the per-frame
 //! figures. Every file is written whole (temporary name, then rename) as its frame is done,
 //! and `progress.json` records the frames done for these inputs: a run stopped half-way
-//! keeps them, and the same command resumes after the last one.
+//! keeps them, and the same command resumes after the last one. A run of other inputs into
+//! the folder starts afresh and first removes the older run's frame files. The environment
+//! variable `COIF_VIDEO_STOP_AFTER=N` is a test hook that stops a run after N frames
+//! ([`STOP_AFTER_ENV`]).
 
 use crate::analyze::orient::GrayImage;
 use crate::error::{Error, Result};
@@ -139,6 +142,69 @@ fn signature(inp: &VideoInputs, mp: &ModelParams, tp: &TrackParams) -> Result<se
     }))
 }
 
+/// Test hook: with `COIF_VIDEO_STOP_AFTER=N` in the environment a run returns an error
+/// right after it has finished (and recorded) N frames, as if it had been stopped there.
+/// The resume tests use it to stop a run half-way at a known point; nobody else should.
+pub const STOP_AFTER_ENV: &str = "COIF_VIDEO_STOP_AFTER";
+
+fn stop_hook() -> Result<Option<usize>> {
+    match std::env::var(STOP_AFTER_ENV) {
+        Err(_) => Ok(None),
+        Ok(v) => v.trim().parse().map(Some).map_err(|_| {
+            Error::Invalid(format!(
+                "{STOP_AFTER_ENV}={v}: expected a whole number of frames"
+            ))
+        }),
+    }
+}
+
+/// Before a run that resumes nothing writes anything: progress.json first records these
+/// inputs with no frame done (a stop from now on cannot resume an older run's frames under
+/// this run's model), then an older run's per-frame files go, so that none of them mixes
+/// with this run's (a longer clip's extra frames, say). Only in a folder an earlier run
+/// wrote (it has a progress.json): files of ours by name, nothing else.
+fn start_afresh(out: &Path, sig: &serde_json::Value) -> Result<()> {
+    let progress = out.join("progress.json");
+    if !progress.exists() {
+        return Ok(());
+    }
+    write_json(&progress, &progress_json(sig, &[]))?;
+    for (dir, ext) in [
+        ("frames", "hair"),
+        ("photos", "png"),
+        ("masks", "png"),
+        ("warps", "npy"),
+    ] {
+        let d = out.join(dir);
+        let Ok(rd) = std::fs::read_dir(&d) else {
+            continue;
+        };
+        for e in rd.flatten() {
+            let p = e.path();
+            let ours = p.extension().and_then(|x| x.to_str()) == Some(ext)
+                && p.file_stem()
+                    .and_then(|x| x.to_str())
+                    .is_some_and(|x| !x.is_empty() && x.bytes().all(|b| b.is_ascii_digit()));
+            if ours {
+                std::fs::remove_file(&p).map_err(|e| Error::io(&p, e))?;
+            }
+        }
+    }
+    for f in ["video.json", "preview.gif"] {
+        let p = out.join(f);
+        if p.exists() {
+            std::fs::remove_file(&p).map_err(|e| Error::io(&p, e))?;
+        }
+    }
+    Ok(())
+}
+
+/// progress.json: the inputs (for people to read), the same as one compact JSON text (what a
+/// resumed run compares) and the frames done.
+fn progress_json(sig: &serde_json::Value, done: &[usize]) -> serde_json::Value {
+    json!({ "inputs": sig, "key": sig.to_string(), "done": done })
+}
+
 fn read_progress(out: &Path, sig: &serde_json::Value) -> Vec<usize> {
     let Ok(text) = std::fs::read_to_string(out.join("progress.json")) else {
         return Vec::new();
@@ -146,7 +212,9 @@ fn read_progress(out: &Path, sig: &serde_json::Value) -> Vec<usize> {
     let Ok(v) = serde_json::from_str::<serde_json::Value>(&text) else {
         return Vec::new();
     };
-    if v.get("inputs") != Some(sig) {
+    // By text: JSON numbers read back need not equal the f32 settings they were written from
+    // to the last bit, so comparing parsed values would never resume.
+    if v.get("key").and_then(|k| k.as_str()) != Some(sig.to_string().as_str()) {
         return Vec::new();
     }
     v.get("done")
@@ -188,6 +256,11 @@ pub fn run(
     let sig = signature(inp, mp, tp)?;
     let mut done = read_progress(out, &sig);
     let resumed = done.len();
+    if done.is_empty() {
+        start_afresh(out, &sig)?;
+    }
+    let stop_after = stop_hook()?;
+    let mut computed = 0usize;
 
     // The reference model, or the one a stopped run of the same inputs already wrote.
     let ref_png = inp.clip.frames[inp.reference].clone();
@@ -281,7 +354,7 @@ pub fn run(
             let (shape, data) = crate::io::npy::read_f32(&out.join(frame_name("warps", i, "npy")))?;
             if shape != [size.1 as usize, size.0 as usize, 2] {
                 return Err(Error::bad_file(
-                    &out.join(frame_name("warps", i, "npy")),
+                    out.join(frame_name("warps", i, "npy")),
                     format!("shape {shape:?}, expected [{}, {}, 2]", size.1, size.0),
                 )
                 .into());
@@ -368,6 +441,13 @@ pub fn run(
         done.push(i);
         write_progress(out, &sig, &done, &per_frame)?;
         bar.inc(1);
+        computed += 1;
+        if stop_after == Some(computed) {
+            return Err(Error::Invalid(format!(
+                "stopped after {computed} frames ({STOP_AFTER_ENV} test hook)"
+            ))
+            .into());
+        }
     }
     bar.finish_and_clear();
 
@@ -464,10 +544,7 @@ fn write_progress(
         &json!({ "version": 1, "per_frame": list }),
     )?;
     // Written last: a frame counts as done only once all its files are.
-    write_json(
-        &out.join("progress.json"),
-        &json!({ "inputs": sig, "done": done }),
-    )
+    write_json(&out.join("progress.json"), &progress_json(sig, done))
 }
 
 /// Every frame's strands over its photo, dimmed, as an animated GIF.

@@ -371,6 +371,9 @@ pub struct FrameResult {
     pub mask: Vec<u8>,
 }
 
+/// A 2D vector field borrowed (W*, V), px.
+pub type FieldRef<'a> = &'a [[f32; 2]];
+
 /// Frame i from its recursion source: Eq. (6) then Eq. (7). `prev` is W*_j of the frame the
 /// recursion comes from (j = i ∓ 1), `flow_ji` the flow from frame j to frame i.
 #[allow(clippy::too_many_arguments)]
@@ -378,7 +381,7 @@ pub fn step(
     engine: &Engine,
     r: &Reference,
     wdag: &[[f32; 2]],
-    prev: Option<(&[[f32; 2]], &[[f32; 2]])>,
+    prev: Option<(FieldRef, FieldRef)>,
     pose: FramePose,
     beta_v: &[f32],
     size: (u32, u32),

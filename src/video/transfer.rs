@@ -128,13 +128,13 @@ pub fn transfer(video: &Scene, new: &Scene, out: &std::path::Path) -> Result<Sce
         (Some(h0), Some(h1)) if h0.params() == h1.params() => {}
         (Some(_), Some(_)) => {
             return Err(Error::bad_file(
-                &new.dir.join("model.json"),
+                new.dir.join("model.json"),
                 "its head has other parameters than the video's: the scalps would not match",
             ))
         }
         _ => {
             return Err(Error::bad_file(
-                &new.dir.join("model.json"),
+                new.dir.join("model.json"),
                 "the model has no head (an imported strand file?): hair replacement needs one",
             ))
         }
@@ -150,7 +150,7 @@ pub fn transfer(video: &Scene, new: &Scene, out: &std::path::Path) -> Result<Sce
         let world = video.frame(k)?;
         if world.counts != video.strands.counts {
             return Err(Error::bad_file(
-                &video.dir.join(&a.frames[k]),
+                video.dir.join(&a.frames[k]),
                 "its strands do not match the model's (counts differ)",
             ));
         }

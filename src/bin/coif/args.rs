@@ -40,7 +40,8 @@ pub enum Command {
     /// Orientation and confidence maps of the hair (C13 §2.1).
     Orient(OrientArgs),
     /// The main job on the embedded default inputs: a synthetic case and the embedded
-    /// astronaut photo through orientation, directed hair, 3D strands and renders.
+    /// astronaut photo through orientation, directed hair, 3D strands and renders; edits, a
+    /// wind clip, and a short synthetic clip tracked and recoloured.
     Demo(DemoArgs),
     /// Directed hair from a photo, its hair mask and direction strokes (C13 §2.1): traced
     /// curves, their growth direction (Eq. 1-2) and a dense direction field.
