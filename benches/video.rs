@@ -79,8 +79,10 @@ fn main() {
             };
             let mut vp = VideoParams::new(style, 1, size, frames);
             vp.strands = strands;
-            let mut track = coif::video::track::TrackParams::default();
-            track.spread_residual = env("COIF_BENCH_RESIDUAL", 0) != 0;
+            let track = coif::video::track::TrackParams {
+                spread_residual: env("COIF_BENCH_RESIDUAL", 0) != 0,
+                ..Default::default()
+            };
             let o = EvalOptions {
                 track,
                 drift_frames: vec![30, 60].into_iter().filter(|&f| f < frames).collect(),

@@ -61,7 +61,7 @@ fn a_synthetic_clip_is_tracked() {
     assert!(f.root_max_m <= 1e-5, "roots {} m", f.root_max_m);
     assert!(f.yaw_err_max_deg <= 1.0, "yaw error {}°", f.yaw_err_max_deg);
     assert!(
-        f.pose_sources.get("held").is_none(),
+        !f.pose_sources.contains_key("held"),
         "a frame lost its head pose"
     );
     assert!(flicker <= 1.2, "flicker ratio {flicker}");
