@@ -313,7 +313,6 @@ pub fn evaluate(engine: &Engine, vp: &VideoParams, o: &EvalOptions) -> Result<Cl
             &main_warp,
             w,
             h,
-            tp.mask_margin_px,
         ));
         poses.push(pose);
         tracked.push(res);

@@ -60,6 +60,37 @@ pub fn workgroups(cfg: &Config) -> [u32; 3] {
     ]
 }
 
+/// Records a Gaussian blur of `src` (w x h) by `sigma` into the first w*h values of `dst`
+/// (`sep_blur` along x, then y).
+pub fn record_gaussian(
+    rec: &mut crate::gpu::engine::Recording,
+    src: crate::gpu::engine::BufProxy,
+    dst: crate::gpu::engine::BufProxy,
+    w: u32,
+    h: u32,
+    sigma: f32,
+) {
+    let (radius, weights) = gaussian_weights(sigma);
+    let wbuf = rec.upload("coif.sep_blur.weights", &weights);
+    let tmp = rec.alloc(
+        "coif.sep_blur.tmp",
+        w as u64 * h as u64 * 4,
+        crate::base::sentinel::SENTINEL,
+    );
+    for (axis, from, to) in [(0u32, src, tmp), (1, tmp, dst)] {
+        let cfg = Config {
+            width: w,
+            height: h,
+            radius,
+            axis,
+            ..Default::default()
+        };
+        let u = rec.uniform("coif.sep_blur.cfg", &cfg);
+        // The unused `minus` binding still needs a buffer; `from` is as good as any.
+        rec.dispatch(&STAGE, workgroups(&cfg), &[u, wbuf, from, from, to], &[]);
+    }
+}
+
 fn sep_blur_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
     let cfg: Config = b[0].uniform();
     // Plain slices: the RefCell guards are not Sync, the data is.

@@ -195,31 +195,12 @@ pub fn spread(
 pub fn blur_guide(engine: &Engine, guide: &Guide, sigma: f32) -> Result<Guide> {
     let (w, h) = (guide.width, guide.height);
     let n = w as usize * h as usize;
-    let (radius, weights) = sep_blur::gaussian_weights(sigma);
     let mut rec = Recording::default();
-    let wbuf = rec.upload("coif.dt.blur_weights", &weights);
     let mut outs = Vec::new();
     for c in 0..guide.channels as usize {
         let src = rec.upload("coif.dt.guide_plane", &guide.data[c * n..(c + 1) * n]);
-        let tmp = rec.alloc("coif.dt.blur_tmp", n as u64 * 4, SENTINEL);
         let out = rec.alloc("coif.dt.guide_blurred", n as u64 * 4, SENTINEL);
-        for (axis, from, to) in [(0u32, src, tmp), (1, tmp, out)] {
-            let cfg = sep_blur::Config {
-                width: w,
-                height: h,
-                radius,
-                axis,
-                ..Default::default()
-            };
-            let u = rec.uniform("coif.dt.blur_cfg", &cfg);
-            // The unused `minus` binding still needs a buffer; `from` is as good as any.
-            rec.dispatch(
-                &sep_blur::STAGE,
-                sep_blur::workgroups(&cfg),
-                &[u, wbuf, from, from, to],
-                &[],
-            );
-        }
+        sep_blur::record_gaussian(&mut rec, src, out, w, h, sigma);
         rec.download(out);
         outs.push(out);
     }

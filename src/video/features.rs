@@ -21,7 +21,7 @@ use crate::base::sentinel::SENTINEL;
 use crate::error::{Error, Result};
 use crate::gpu::engine::{BufProxy, Engine, Recording};
 use crate::stages::klt_pyr_down::{self, Layout};
-use crate::stages::{klt_score, klt_track, sep_blur};
+use crate::stages::{klt_score, klt_track};
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -193,31 +193,6 @@ fn check_image(gray: &GrayImage, what: &str) -> Result<()> {
     Ok(())
 }
 
-/// Records a Gaussian blur of `src` (w x h) by `sigma` into the first w*h values of `dst`
-/// (`sep_blur` along x, then y).
-fn record_blur(rec: &mut Recording, src: BufProxy, dst: BufProxy, w: u32, h: u32, sigma: f32) {
-    let (radius, weights) = sep_blur::gaussian_weights(sigma);
-    let wbuf = rec.upload("coif.klt.blur_weights", &weights);
-    let tmp = rec.alloc("coif.klt.blur_tmp", w as u64 * h as u64 * 4, SENTINEL);
-    for (axis, from, to) in [(0u32, src, tmp), (1, tmp, dst)] {
-        let cfg = sep_blur::Config {
-            width: w,
-            height: h,
-            radius,
-            axis,
-            ..Default::default()
-        };
-        let u = rec.uniform("coif.klt.blur_cfg", &cfg);
-        // The unused `minus` binding still needs a buffer; `from` is as good as any.
-        rec.dispatch(
-            &sep_blur::STAGE,
-            sep_blur::workgroups(&cfg),
-            &[u, wbuf, from, from, to],
-            &[],
-        );
-    }
-}
-
 /// The Shi–Tomasi score of every pixel (the `klt_score` pass) of `gray` blurred by
 /// `p.smooth_sigma` (what tracking sees), 0 where λmin < min_isotropy·λmax.
 pub fn score(engine: &Engine, gray: &GrayImage, p: &KltParams) -> Result<Vec<f32>> {
@@ -237,7 +212,7 @@ pub fn score(engine: &Engine, gray: &GrayImage, p: &KltParams) -> Result<Vec<f32
             gray.data.len() as u64 * 4,
             SENTINEL,
         );
-        record_blur(
+        crate::stages::sep_blur::record_gaussian(
             &mut rec,
             src,
             blurred,
@@ -369,7 +344,14 @@ pub fn pyramids(
                 let src = rec.upload("coif.klt.frame", &f.data);
                 let buf = rec.alloc("coif.klt.pyramid", layout.len as u64 * 4, SENTINEL);
                 // sep_blur writes the first w*h values: level 0 of the pyramid.
-                record_blur(&mut rec, src, buf, f.width, f.height, smooth_sigma);
+                crate::stages::sep_blur::record_gaussian(
+                    &mut rec,
+                    src,
+                    buf,
+                    f.width,
+                    f.height,
+                    smooth_sigma,
+                );
                 buf
             } else {
                 let mut init = vec![f32::from_bits(SENTINEL); layout.len as usize];

@@ -35,8 +35,8 @@ pub struct TrackParams {
     pub klt: KltParams,
     pub diffuse: DiffuseParams,
     pub head_fit: HeadFitParams,
-    /// Pixels the reference hair mask grows by to take hair features and, after the warp,
-    /// to cover the hair of a frame.
+    /// Pixels the reference hair mask grows by to take hair features (and to keep face
+    /// features off the hair's edge).
     pub mask_margin_px: u32,
     /// Spread the features' departure from the head's rigid motion (and add that motion
     /// back) rather than their raw motion. Measured (`cargo bench --bench video`, 256², 61
@@ -334,9 +334,10 @@ pub fn frame_camera(
     })
 }
 
-/// The hair mask of frame i: the reference mask carried by W*_i (forward splat), closed and
-/// grown by `margin` px.
-pub fn warp_mask(mask: &[u8], wstar: &[[f32; 2]], width: u32, height: u32, margin: u32) -> Vec<u8> {
+/// The hair mask of frame i: the reference mask carried by W*_i (forward splat) and closed
+/// by one pixel, which fills the holes a stretching splat leaves without growing it (the
+/// renderer adds its own margin before inpainting).
+pub fn warp_mask(mask: &[u8], wstar: &[[f32; 2]], width: u32, height: u32) -> Vec<u8> {
     let (w, h) = (width as usize, height as usize);
     let mut out = vec![0u8; w * h];
     for (i, &m) in mask.iter().enumerate() {
@@ -354,11 +355,12 @@ pub fn warp_mask(mask: &[u8], wstar: &[[f32; 2]], width: u32, height: u32, margi
             out[yi as usize * w + xi as usize] = 255;
         }
     }
-    // The splat leaves holes where the motion stretches; a grow by one more pixel closes them.
-    let grown = crate::base::mask::dilate(&out, w, h, margin as usize + 1);
-    grown
+    // Erosion clears the image's border; the splat's own pixels stay.
+    let closed = crate::base::mask::erode(&crate::base::mask::dilate(&out, w, h, 1), w, h, 1);
+    closed
         .into_iter()
-        .map(|v| if v != 0 { 255 } else { 0 })
+        .zip(&out)
+        .map(|(c, o)| if c != 0 || *o != 0 { 255 } else { 0 })
         .collect()
 }
 
@@ -403,7 +405,7 @@ pub fn step(
         &r.camera,
         &pose.camera,
     )?;
-    let mask = warp_mask(&r.mask, &wstar, w, h, p.mask_margin_px);
+    let mask = warp_mask(&r.mask, &wstar, w, h);
     Ok(FrameResult {
         wstar,
         pose,
