@@ -105,11 +105,6 @@ pub fn face_mask(r: &Reference, width: u32, height: u32, margin: u32) -> Vec<u8>
         .collect()
 }
 
-/// Cosine of the largest angle between a face feature's surface normal and the view
-/// direction: features seen more obliquely lie near the outline and are not used for the
-/// head's motion.
-pub const FACE_MIN_FACING: f32 = 0.5;
-
 /// Features detected on the reference frame's hair and face, tracked through the clip.
 pub struct Features {
     pub tracks: Tracks,
@@ -143,13 +138,7 @@ pub fn features(
             + (q[0].round() as usize).min(w as usize - 1);
         if face[i] != 0 {
             if let Some(x) = back_project(&r.head, &r.camera, q) {
-                // Corners near the head's outline are where skin meets what is behind it:
-                // the outline slides over the surface as the head turns, so such a corner
-                // is no material point and would understate the turn.
-                let toward = r.camera.r.row(2);
-                if r.head.sdf_grad(x).normalize_or_zero().dot(toward) >= FACE_MIN_FACING {
-                    face_pts.push((k, x));
-                }
+                face_pts.push((k, x));
             }
         }
     }
