@@ -1,6 +1,7 @@
 //! Accuracy of the dense orientation-field flow (`coif::video::flow::flow`) on a synthetic
 //! clip with exact ground truth (`coif synth-video`): for every frame pair (i-1, i) of
-//! CLIP_DIR/frames, the flow from the orientation features of the whole frames, and its mean
+//! CLIP_DIR/frames, the flow from the orientation features of the whole frames
+//! (`feature_orient_params`, `orient_features`), and its mean
 //! end-point error on the pixels where CLIP_DIR/flow/NNNN.npy is finite (frame i-1's hair).
 //! The OpenCV peers on the same clip: `benches/peers/flow_opencv.py CLIP_DIR`.
 //!
@@ -13,7 +14,7 @@
 use coif::analyze::orient::{orient, GrayImage, OrientMap, OrientParams};
 use coif::gpu::engine::Engine;
 use coif::io::npy::{read_f32, write_f32};
-use coif::video::flow::{flow, orient_features, FlowParams};
+use coif::video::flow::{feature_orient_params, flow, orient_features, FlowParams};
 use std::path::{Path, PathBuf};
 
 fn env<T: std::str::FromStr>(name: &str) -> Option<T> {
@@ -108,7 +109,7 @@ fn main() {
     let cache: Option<PathBuf> = env("COIF_EPE_CACHE");
     let write: Option<PathBuf> = env("COIF_EPE_WRITE");
     let p = params();
-    let mut op = OrientParams::default();
+    let mut op = feature_orient_params();
     if let Some(v) = env("COIF_ORIENT_SMOOTH") {
         op.smooth_sigma = v;
     }
