@@ -4,16 +4,16 @@
 //!
 //! Test pairs: frame a is a synthetic portrait (`coif::synth`), frame b is a resampled with
 //! Catmull-Rom so that a(q) = b(q + V(q)) for a known smooth V; the orientation of each
-//! frame comes from `orient()` on the CPU with default parameters and no mask (a clip has no
-//! per-frame hair mask). The end-point error is measured on a's hair pixels at least 4 px
+//! frame comes from `orient()` on the CPU with the flow's `feature_orient_params()` and no
+//! mask (a clip has no per-frame hair mask). The end-point error is measured on a's hair pixels at least 4 px
 //! inside the hair mask whose target q + V(q) is at least 4 px inside the image.
 
 mod common;
 
-use coif::analyze::orient::{orient, GrayImage, OrientParams};
+use coif::analyze::orient::{orient, GrayImage};
 use coif::gpu::engine::Engine;
 use coif::synth::{mask_interior, synth, Style, SynthParams};
-use coif::video::flow::{flow, orient_features, FlowParams};
+use coif::video::flow::{feature_orient_params, flow, orient_features, FlowParams};
 
 type Field = dyn Fn(f32, f32) -> [f32; 2];
 
@@ -87,7 +87,7 @@ fn make_pair(style: Style, size: u32, v: &Field) -> Pair {
     let a = GrayImage::from_rgb(&case.image);
     let b = warp_frame(&a, v);
     let e = Engine::cpu();
-    let op = OrientParams::default();
+    let op = feature_orient_params();
     let oa = orient(&e, &a, None, &op).unwrap();
     let ob = orient(&e, &b, None, &op).unwrap();
     let inside = mask_interior(&case.mask, 4.0);

@@ -17,13 +17,14 @@
 //!   a Charbonnier (TV-like, per link) smoothness, non-linearity lagged per sweep (IRLS);
 //! * the flow doubled onto the next finer level (`flow_up`).
 //!
-//! Measured on those pairs (256², EPE on hair): the confidence normalised by its median
-//! ([`FEATURE_QUANTILE`]) beats the 95th percentile for rotations (0.21 vs 1.07 px on a 3°
-//! turn: the Gabor confidence depends on the strand angle to the pixel grid, so a strongly
-//! confidence-weighted feature changes when the hair turns); α = 0.2 beats 0.02 and 1;
-//! quadratic and Charbonnier smoothness are within 0.03 px on these smooth fields (the
-//! robust one is kept for motion boundaries); 15 sweeps per warp are within 0.02 px of 30
-//! and 60, so the error is the features', not the solver's.
+//! Measured on those pairs and on the synthetic clips of `coif synth-video`
+//! (`benches/flow_epe.rs`, 256², EPE on hair): the features are described and measured at
+//! [`orient_features`] and [`feature_orient_params`]; α = 0.5 is a compromise between the
+//! clips' small, smooth motion (α = 1: 0.23/0.13/0.15 px on long/whorl/sidepart, every 3rd
+//! pair of seed 1, against 0.25/0.13/0.16 at 0.5) and the 3° turn of the test pairs (2.0 px at
+//! α = 1, 0.38 at 0.5, 0.09 at 0.3). With the earlier features, quadratic and Charbonnier
+//! smoothness were within 0.03 px on the test pairs (the robust one is kept for motion
+//! boundaries) and 15 sweeps per warp within 0.02 px of 30 and 60 (on the clips too).
 //!
 //! Orientation features alone leave the motion along a straight strand unobserved (the
 //! aperture problem): the smoothness term carries it in from where the strands curve, cross
@@ -32,7 +33,7 @@
 //!
 //! Everything runs in one [`Recording`]: the CPU mirrors or the GPU replay the same passes.
 
-use crate::analyze::orient::OrientMap;
+use crate::analyze::orient::{OrientMap, OrientParams};
 use crate::error::{Error, Result};
 use crate::gpu::engine::{BufProxy, Engine, Recording};
 use crate::stages::{flow_down, flow_solve, flow_up, flow_warp};
@@ -71,7 +72,7 @@ impl Default for FlowParams {
             min_size: 16,
             warps: 3,
             iters: 15,
-            alpha: 0.2,
+            alpha: 0.5,
             eps_data: 0.05,
             eps_smooth: 0.1,
             omega: 1.8,
@@ -127,20 +128,60 @@ impl FlowParams {
 }
 
 /// Share of the positive confidences at or below the normalising confidence of
-/// [`orient_features`].
+/// [`orient_features`] (the median).
 pub const FEATURE_QUANTILE: f64 = 0.5;
 
-/// The matched feature image of one frame: `w · (cos 2θ, sin 2θ)` per pixel, `w` the
-/// confidence divided by its [`FEATURE_QUANTILE`] quantile over pixels with an orientation
-/// and clamped to 1 (a quantile rather than the maximum, so a few hot pixels do not dim a
-/// whole frame; the same scale in every frame of a clip because the content is alike);
-/// `[0, 0]` where θ is NaN or the confidence is not positive.
+/// Radius in pixels of the box over which [`orient_features`] takes the local mean
+/// confidence.
+pub const FEATURE_TEXTURE_RADIUS: usize = 8;
+
+/// Knee of the texture weight of [`orient_features`]: r / (r + K), r the confidence over its
+/// local mean.
+pub const FEATURE_TEXTURE_KNEE: f32 = 4.0;
+
+/// Share of the texture weight in the weight of [`orient_features`]; the rest is the
+/// clamped confidence.
+pub const FEATURE_TEXTURE_MIX: f32 = 0.5;
+
+/// The orientation parameters of the matched features: the defaults without the refinement
+/// passes and without the confidence-weighted smoothing of the double-angle field. Both make
+/// a better still-image orientation but flatten the strand-scale structure that pins the
+/// motion: on the synthetic clips (256², seed 1) θ with the defaults changes by under 1°
+/// between frames whether or not frame b is warped by the true motion.
+pub fn feature_orient_params() -> OrientParams {
+    OrientParams {
+        refine_iters: 0,
+        smooth_sigma: 0.0,
+        ..OrientParams::default()
+    }
+}
+
+/// The matched feature image of one frame: `w · (cos 2θ, sin 2θ)` per pixel, `[0, 0]` where
+/// θ is NaN or the confidence c is not positive, with
+/// `w = (1 − m) · min(c / c_med, 1) + m · r / (r + K)`, `r = c / mean_R(c)`:
+/// c_med the [`FEATURE_QUANTILE`] quantile of the positive confidences, mean_R the box mean
+/// of radius R = [`FEATURE_TEXTURE_RADIUS`] (c counted 0 where θ is NaN),
+/// K = [`FEATURE_TEXTURE_KNEE`], m = [`FEATURE_TEXTURE_MIX`].
+///
+/// Why two terms. θ is smooth across the hair, so the clamped term alone (the earlier
+/// feature) is nearly flat over half the pixels and matches sub-pixel motion poorly; the
+/// confidence varies strand by strand, and that texture, carried by the motion, is what the
+/// data term can pin to a fraction of a pixel. Dividing it by its local mean removes the
+/// slow changes of the Gabor confidence with the strand angle to the pixel grid and with the
+/// lighting; r / (r + K) bounds the few hot pixels. The texture alone loses the large
+/// motions (the 3° turn of `tests/video_flow.rs`: 1.5 px EPE), where the smooth θ term
+/// guides the coarse levels, hence the mix. Measured with `benches/flow_epe.rs` (seed-1
+/// clips, 256², every 3rd pair, EPE on hair long/whorl/sidepart): clamped only (with the
+/// default orientation parameters) 0.27/0.15/0.18 px at its best α (1 to 3); texture only
+/// (m = 1, α = 0.3) 0.23/0.10/0.13 but 1.5 px on the 3° turn; the mix at α = 0.5
+/// 0.25/0.13/0.16 and 0.38 px on the 3° turn.
 pub fn orient_features(o: &OrientMap) -> Vec<[f32; 2]> {
+    let valid = |t: f32, c: f32| t.is_finite() && c.is_finite() && c > 0.0;
     let mut conf: Vec<f32> = o
         .theta
         .iter()
         .zip(&o.confidence)
-        .filter(|(t, c)| t.is_finite() && c.is_finite() && **c > 0.0)
+        .filter(|(t, c)| valid(**t, **c))
         .map(|(_, &c)| c)
         .collect();
     if conf.is_empty() {
@@ -148,18 +189,55 @@ pub fn orient_features(o: &OrientMap) -> Vec<[f32; 2]> {
     }
     let k = ((conf.len() - 1) as f64 * FEATURE_QUANTILE).round() as usize;
     let (_, &mut scale, _) = conf.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
-    o.theta
+    let c0: Vec<f32> = o
+        .theta
         .iter()
         .zip(&o.confidence)
-        .map(|(&t, &c)| {
-            if t.is_finite() && c.is_finite() && c > 0.0 {
-                let w = (c / scale).min(1.0);
+        .map(|(&t, &c)| if valid(t, c) { c } else { 0.0 })
+        .collect();
+    let local = box_mean(
+        &c0,
+        o.width as usize,
+        o.height as usize,
+        FEATURE_TEXTURE_RADIUS,
+    );
+    o.theta
+        .iter()
+        .zip(&c0)
+        .zip(&local)
+        .map(|((&t, &c), &m)| {
+            if c > 0.0 && m > 0.0 {
+                let r = c / m;
+                let w = (1.0 - FEATURE_TEXTURE_MIX) * (c / scale).min(1.0)
+                    + FEATURE_TEXTURE_MIX * r / (r + FEATURE_TEXTURE_KNEE);
                 [w * (2.0 * t).cos(), w * (2.0 * t).sin()]
             } else {
                 [0.0; 2]
             }
         })
         .collect()
+}
+
+/// Mean of `v` (width × height, row-major) over the (2r+1)² box around each pixel, clipped
+/// to the image. Stays on the CPU: two prefix-sum passes, O(1) per pixel, once per frame.
+fn box_mean(v: &[f32], width: usize, height: usize, r: usize) -> Vec<f32> {
+    // One pass along lines of length n, element i of line k at k * step + i * stride.
+    let pass = |src: &[f32], n: usize, stride: usize, lines: usize, step: usize| {
+        let mut out = vec![0.0f32; src.len()];
+        let mut pre = vec![0.0f64; n + 1];
+        for k in 0..lines {
+            for i in 0..n {
+                pre[i + 1] = pre[i] + src[k * step + i * stride] as f64;
+            }
+            for i in 0..n {
+                let (a, b) = (i.saturating_sub(r), (i + r + 1).min(n));
+                out[k * step + i * stride] = ((pre[b] - pre[a]) / (b - a) as f64) as f32;
+            }
+        }
+        out
+    };
+    let rows = pass(v, width, 1, height, width);
+    pass(&rows, height, width, width, 1)
 }
 
 /// Records the whole coarse-to-fine flow and returns the full-size flow buffer.

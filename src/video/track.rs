@@ -50,7 +50,7 @@ impl Default for TrackParams {
         TrackParams {
             alpha: PAPER_ALPHA,
             beta_ramp_m: 0.03,
-            orient: OrientParams::default(),
+            orient: crate::video::flow::feature_orient_params(),
             flow: FlowParams::default(),
             klt: KltParams::default(),
             diffuse: DiffuseParams::default(),
