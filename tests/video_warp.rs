@@ -1,4 +1,5 @@
-//! Eq. (6) and Eq. (7) of C13 (issue 15): `warp_compose` and `strand_warp` on lavapipe
+//! Eq. (6) and Eq. (7) of C13 (issue 15): `warp_compose` and `strand_warp` (with the shared
+//! bilinear field sampler `shared/field_sample.wgsl`) on lavapipe
 //! against their CPU mirrors, and the properties the equations promise.
 
 mod common;
