@@ -116,9 +116,21 @@ pub(super) fn render_base(
         let q = cam.project(head.landmark(n).unwrap_or(Vec3::ZERO));
         [q.x, q.y]
     };
+    // Brows as points of the head's surface, so that they move as the head turns (a video's
+    // ground truth) rather than as a flat drawing pinned to the eyes.
+    let (la, lb) = (head.params().landmark_a, head.params().landmark_b);
+    let brows = [("left_eye", -1.0f32), ("right_eye", 1.0)].map(|(n, side)| {
+        let e = head.landmark(n).unwrap_or(Vec3::ZERO);
+        [(-side * 0.23, 0.19), (0.0, 0.25), (side * 0.23, 0.19)].map(|(dx, dy)| {
+            let q = head.project_to_surface(e + Vec3::new(dx * la, dy * lb, 0.0));
+            let q = cam.project(q);
+            [q.x, q.y]
+        })
+    });
     let feat = Features {
         a: head.params().landmark_a * s,
         b: head.params().landmark_b * s,
+        brows,
         eyes: [lm("left_eye"), lm("right_eye")],
         nose: lm("nose_tip"),
         mouth: [lm("mouth_left"), lm("mouth_right")],
@@ -157,6 +169,8 @@ pub(super) fn render_base(
 pub(super) struct Features {
     pub(super) a: f32,
     pub(super) b: f32,
+    /// Three points of each brow (image px), projected from the head's surface.
+    pub(super) brows: [[[f32; 2]; 3]; 2],
     pub(super) eyes: [[f32; 2]; 2],
     pub(super) nose: [f32; 2],
     pub(super) mouth: [[f32; 2]; 2],
@@ -182,15 +196,9 @@ impl Features {
             return;
         }
         let brow = scale3(look.hair, 0.6);
-        for (i, side) in [-1.0f32, 1.0].into_iter().enumerate() {
-            let [ex, ey] = self.eyes[i];
-            let pts = [
-                [ex - side * 0.23 * a, ey - 0.19 * b],
-                [ex, ey - 0.25 * b],
-                [ex + side * 0.23 * a, ey - 0.19 * b],
-            ];
-            blend(c, brow, 0.9 * cov(poly_dist(p, &pts) - 0.035 * b));
-            draw_eye(c, p, [ex, ey], a, b, s, look.iris);
+        for i in 0..2 {
+            blend(c, brow, 0.9 * cov(poly_dist(p, &self.brows[i]) - 0.035 * b));
+            draw_eye(c, p, self.eyes[i], a, b, s, look.iris);
         }
         draw_nostrils(c, p, self.nose, a, b, look.skin);
         let (ml, mr) = (self.mouth[0], self.mouth[1]);
