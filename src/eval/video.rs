@@ -18,8 +18,8 @@ use crate::video::diffuse::Guide;
 use crate::video::features::UserPoints;
 use crate::video::head::{pose_of, FramePose, PoseSource};
 use crate::video::track::{
-    beta_of, feature_warp, features, flow_between, frame_camera, orientation_features,
-    reference_surface, rigid_motion, step, Reference, TrackParams,
+    feature_warp, features, frame_camera, orientation_features, reference_surface, rigid_motion,
+    step, Reference, TrackParams,
 };
 use crate::video::warp::compose;
 use std::collections::BTreeMap;
@@ -205,7 +205,7 @@ pub fn evaluate(engine: &Engine, vp: &VideoParams, o: &EvalOptions) -> Result<Cl
     let gray: Vec<GrayImage> = rgb.iter().map(GrayImage::from_rgb).collect();
     let feats = features(engine, &gray, &reference, &UserPoints::default(), tp)?;
     let guide = Guide::from_rgb(&rgb[0]);
-    let beta_v = beta_of(&reference, tp);
+    let beta_v = crate::video::warp::beta(&reference.strands, tp.beta_ramp_m);
     let surface = reference_surface(&reference, w, h);
 
     let mut flow_epe = Vec::new();
@@ -239,7 +239,7 @@ pub fn evaluate(engine: &Engine, vp: &VideoParams, o: &EvalOptions) -> Result<Cl
     let mut main_warp = vec![[0.0f32; 2]; (w * h) as usize];
     for i in 1..n {
         let feat_i = orientation_features(engine, &gray[i], &tp.orient)?;
-        let v = flow_between(engine, &feat_prev, &feat_i, size, &tp.flow)?;
+        let v = crate::video::flow::flow(engine, &feat_prev, &feat_i, size.0, size.1, &tp.flow)?;
         let (e, m, _) = mean_epe(&v, &true_flows[i]);
         flow_epe.push(e);
         flow_mean_motion.push(m);

@@ -380,12 +380,14 @@ pub fn demo(out: &Path) -> Vec<Job> {
     let r = clip.join("reference");
     jobs.push(Job::Video(VideoJob {
         source: ClipSource::Frames(clip.join("frames")),
-        reference: 0,
-        strokes: r.join("strokes.json"),
-        mask: Some(r.join("mask.png")),
-        landmarks: Some(r.join("landmarks.json")),
-        landmark_dir: None,
-        points: None,
+        ann: crate::video::run::Annotations {
+            reference: 0,
+            strokes: r.join("strokes.json"),
+            mask: Some(r.join("mask.png")),
+            landmarks: Some(r.join("landmarks.json")),
+            landmark_dir: None,
+            points: None,
+        },
         out: tracked.clone(),
         model: ModelParams {
             roots: 3000,

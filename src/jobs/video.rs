@@ -24,12 +24,7 @@ pub enum ClipSource {
 #[derive(Clone, Debug)]
 pub struct VideoJob {
     pub source: ClipSource,
-    pub reference: usize,
-    pub strokes: PathBuf,
-    pub mask: Option<PathBuf>,
-    pub landmarks: Option<PathBuf>,
-    pub landmark_dir: Option<PathBuf>,
-    pub points: Option<PathBuf>,
+    pub ann: crate::video::run::Annotations,
     pub out: PathBuf,
     pub model: ModelParams,
     pub track: crate::video::track::TrackParams,
@@ -107,12 +102,7 @@ fn run_video_in(engine: &Engine, j: &VideoJob) -> anyhow::Result<Report> {
     };
     let inp = crate::video::run::VideoInputs {
         clip,
-        reference: j.reference,
-        strokes: j.strokes.clone(),
-        mask: j.mask.clone(),
-        landmarks: j.landmarks.clone(),
-        landmark_dir: j.landmark_dir.clone(),
-        points: j.points.clone(),
+        ann: j.ann.clone(),
     };
     let r = crate::video::run::run(engine, &inp, &j.model, &j.track, &j.out, true)?;
     let fb: Vec<f32> = r
@@ -138,7 +128,7 @@ fn run_video_in(engine: &Engine, j: &VideoJob) -> anyhow::Result<Report> {
         summary: format!(
             "video: {} frames (reference {}{}) -> {} ({:.1} s, {:.2} s/frame on {})",
             r.frames,
-            j.reference,
+            j.ann.reference,
             if r.resumed > 0 {
                 format!(", {} resumed", r.resumed)
             } else {

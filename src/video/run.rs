@@ -25,18 +25,18 @@ use crate::video::features::{load_points, UserPoints};
 use crate::video::frames::Clip;
 use crate::video::head::{pose_of, pose_rigid, world_camera, FramePose};
 use crate::video::track::{
-    beta_of, feature_warp, features, flow_between, frame_camera, order, orientation_features,
-    reference_surface, rigid_motion, step, Reference, TrackParams,
+    feature_warp, features, frame_camera, order, orientation_features, reference_surface,
+    rigid_motion, step, Reference, TrackParams,
 };
 use serde_json::json;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// What a video run reads.
+/// The user's files for a clip: the reference frame, its strokes, mask and landmarks, and
+/// the per-frame landmarks and feature points. What `coif video` names besides the clip.
 #[derive(Clone, Debug)]
-pub struct VideoInputs {
-    pub clip: Clip,
+pub struct Annotations {
     pub reference: usize,
     /// Strokes on the reference frame.
     pub strokes: PathBuf,
@@ -49,6 +49,13 @@ pub struct VideoInputs {
     pub landmark_dir: Option<PathBuf>,
     /// Feature points the user adds or corrects (see `crate::video::features::load_points`).
     pub points: Option<PathBuf>,
+}
+
+/// What a video run reads.
+#[derive(Clone, Debug)]
+pub struct VideoInputs {
+    pub clip: Clip,
+    pub ann: Annotations,
 }
 
 /// Per-frame figures written to `video.json`.
@@ -82,7 +89,7 @@ pub fn load_landmarks(
     size: (u32, u32),
 ) -> Result<BTreeMap<usize, (PathBuf, Landmarks)>> {
     let mut out = BTreeMap::new();
-    if let Some(dir) = &inp.landmark_dir {
+    if let Some(dir) = &inp.ann.landmark_dir {
         let rd = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
         for e in rd {
             let path = e.map_err(|e| Error::io(dir, e))?.path();
@@ -101,8 +108,11 @@ pub fn load_landmarks(
             out.insert(k, (path, lm));
         }
     }
-    if let Some(l) = &inp.landmarks {
-        out.insert(inp.reference, (l.clone(), Landmarks::load(l, Some(size))?));
+    if let Some(l) = &inp.ann.landmarks {
+        out.insert(
+            inp.ann.reference,
+            (l.clone(), Landmarks::load(l, Some(size))?),
+        );
     }
     Ok(out)
 }
@@ -123,10 +133,10 @@ fn signature(inp: &VideoInputs, mp: &ModelParams, tp: &TrackParams) -> Result<se
         files.push(stamp(f)?);
     }
     for p in [
-        &Some(inp.strokes.clone()),
-        &inp.mask,
-        &inp.landmarks,
-        &inp.points,
+        &Some(inp.ann.strokes.clone()),
+        &inp.ann.mask,
+        &inp.ann.landmarks,
+        &inp.ann.points,
     ]
     .into_iter()
     .flatten()
@@ -135,8 +145,8 @@ fn signature(inp: &VideoInputs, mp: &ModelParams, tp: &TrackParams) -> Result<se
     }
     Ok(json!({
         "files": files,
-        "reference": inp.reference,
-        "landmark_dir": inp.landmark_dir.as_ref().map(|d| d.display().to_string()),
+        "reference": inp.ann.reference,
+        "landmark_dir": inp.ann.landmark_dir.as_ref().map(|d| d.display().to_string()),
         "model": mp,
         "track": tp,
     }))
@@ -234,10 +244,10 @@ pub fn run(
     use anyhow::Context;
     let t0 = Instant::now();
     let n = inp.clip.len();
-    if inp.reference >= n {
+    if inp.ann.reference >= n {
         return Err(Error::Invalid(format!(
             "reference frame {} is out of range: the clip has {n} frames (0..{})",
-            inp.reference,
+            inp.ann.reference,
             n - 1
         ))
         .into());
@@ -246,7 +256,7 @@ pub fn run(
     let lm_files = load_landmarks(inp, size)?;
     let landmarks: BTreeMap<usize, Landmarks> =
         lm_files.iter().map(|(k, (_, l))| (*k, l.clone())).collect();
-    let user = match &inp.points {
+    let user = match &inp.ann.points {
         Some(p) => load_points(p, size.0, size.1, n)?,
         None => UserPoints::default(),
     };
@@ -263,17 +273,17 @@ pub fn run(
     let mut computed = 0usize;
 
     // The reference model, or the one a stopped run of the same inputs already wrote.
-    let ref_png = inp.clip.frames[inp.reference].clone();
-    let scene = if done.contains(&inp.reference) {
+    let ref_png = inp.clip.frames[inp.ann.reference].clone();
+    let scene = if done.contains(&inp.ann.reference) {
         Scene::load(out).context("resuming: the reference model")?
     } else {
         // The reference's landmarks: its own file, else its file in the landmark folder.
-        let ref_lm = lm_files.get(&inp.reference).map(|(p, _)| p.clone());
+        let ref_lm = lm_files.get(&inp.ann.reference).map(|(p, _)| p.clone());
         let (rgb, m) = crate::model::run(
             engine,
             &ref_png,
-            &inp.strokes,
-            inp.mask.as_deref(),
+            &inp.ann.strokes,
+            inp.ann.mask.as_deref(),
             ref_lm.as_deref(),
             mp,
         )?;
@@ -281,7 +291,7 @@ pub fn run(
         Scene::load(out)?
     };
     let r = Reference {
-        index: inp.reference,
+        index: inp.ann.reference,
         strands: scene.strands.clone(),
         camera: scene.camera.context("the reference model has no camera")?,
         head: scene
@@ -293,10 +303,10 @@ pub fn run(
             .clone()
             .context("the reference model has no hair mask")?,
     };
-    let beta_v = beta_of(&r, tp);
+    let beta_v = crate::video::warp::beta(&r.strands, tp.beta_ramp_m);
 
     // Gray frames for the features; every frame is loaded once here to check it.
-    let rgb_ref = inp.clip.load_rgb(inp.reference)?;
+    let rgb_ref = inp.clip.load_rgb(inp.ann.reference)?;
     let mut gray = Vec::with_capacity(n);
     for k in 0..n {
         gray.push(GrayImage::from_rgb(&inp.clip.load_rgb(k)?));
@@ -317,7 +327,7 @@ pub fn run(
         .collect();
     write_json(
         &out.join("features.json"),
-        &json!({ "version": 1, "reference": inp.reference, "features": list }),
+        &json!({ "version": 1, "reference": inp.ann.reference, "features": list }),
     )?;
     let guide = Guide::from_rgb(&rgb_ref);
     let surface = reference_surface(&r, size.0, size.1);
@@ -347,7 +357,7 @@ pub fn run(
     // frame it comes from.
     let mut carry: BTreeMap<usize, (Vec<[f32; 2]>, FramePose)> = BTreeMap::new();
     let mut feat_cache: BTreeMap<usize, Vec<[f32; 2]>> = BTreeMap::new();
-    for (i, from) in order(n, inp.reference) {
+    for (i, from) in order(n, inp.ann.reference) {
         let t = Instant::now();
         if done.contains(&i) {
             // Resume: the frame's warp and pose from its files.
@@ -390,8 +400,15 @@ pub fn run(
                 (step(engine, &r, &[], None, pose, &beta_v, size, tp)?, pose)
             }
             Some(j) => {
-                let v = flow_between(engine, &feat(j)?, &feat(i)?, size, &tp.flow)
-                    .with_context(|| format!("flow from frame {j} to {i}"))?;
+                let v = crate::video::flow::flow(
+                    engine,
+                    &feat(j)?,
+                    &feat(i)?,
+                    size.0,
+                    size.1,
+                    &tp.flow,
+                )
+                .with_context(|| format!("flow from frame {j} to {i}"))?;
                 let (wprev, prev_pose) = carry.get(&j).context("recursion order")?;
                 let pose = frame_camera(&r, i, size, &landmarks, &feats, prev_pose, &tp.head_fit)?;
                 let rigid = rigid_motion(&surface, &pose.camera, size.0);

@@ -15,9 +15,9 @@ use crate::hair::strands::StrandSet;
 use crate::io::annot::Landmarks;
 use crate::video::diffuse::{spread, DiffuseParams, Guide};
 use crate::video::features::{detect, track, KltParams, Tracks, UserPoints};
-use crate::video::flow::{flow, orient_features, FlowParams};
+use crate::video::flow::{orient_features, FlowParams};
 use crate::video::head::{back_project, fit_features, FramePose, HeadFitParams, PoseSource};
-use crate::video::warp::{beta, compose, warp_strands, PAPER_ALPHA};
+use crate::video::warp::{compose, warp_strands, PAPER_ALPHA};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -401,20 +401,4 @@ pub fn step(
         strands,
         mask,
     })
-}
-
-/// Flow from frame j to frame i on their orientation features.
-pub fn flow_between(
-    engine: &Engine,
-    feat_j: &[[f32; 2]],
-    feat_i: &[[f32; 2]],
-    size: (u32, u32),
-    p: &FlowParams,
-) -> Result<Vec<[f32; 2]>> {
-    flow(engine, feat_j, feat_i, size.0, size.1, p)
-}
-
-/// β of Eq. (7) for the reference strands.
-pub fn beta_of(r: &Reference, p: &TrackParams) -> Vec<f32> {
-    beta(&r.strands, p.beta_ramp_m)
 }

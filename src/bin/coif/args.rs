@@ -803,12 +803,14 @@ impl Command {
                 Request::one(
                     Job::Video(VideoJob {
                         source,
-                        reference: a.reference,
-                        strokes: a.strokes,
-                        mask: a.mask,
-                        landmarks: a.landmarks,
-                        landmark_dir: a.landmark_dir,
-                        points: a.points,
+                        ann: coif::video::run::Annotations {
+                            reference: a.reference,
+                            strokes: a.strokes,
+                            mask: a.mask,
+                            landmarks: a.landmarks,
+                            landmark_dir: a.landmark_dir,
+                            points: a.points,
+                        },
                         out: a.out,
                         model,
                         track,
