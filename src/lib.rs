@@ -14,6 +14,7 @@ pub mod jobs;
 pub mod model;
 pub mod render;
 pub mod sim;
+pub mod sketch;
 pub mod stages;
 pub mod synth;
 pub mod testing;

@@ -1,0 +1,198 @@
+//! The primitive dictionary's windows and the sketch's part of the vector field, V_sk
+//! (CZ06 Eq. 8): each primitive paints the pixels of its window with the orientation,
+//! contrast and (once the curve's labels are known) direction of the side they lie on.
+//!
+//! A window is a rectangle centred on the primitive, [`ALONG`] pixels along the axis and
+//! [`ACROSS`] across it ([`ACROSS_DIVIDING`] for a dividing line, whose middle strip is the
+//! scalp and carries no flow). Light sequential work over a few thousand pixels: CPU.
+
+use super::{Curve, Kind, Primitive};
+
+/// Window length along the axis, pixels.
+pub const ALONG: f32 = 7.0;
+/// Window width across the axis, pixels.
+pub const ACROSS: f32 = 5.0;
+/// A dividing line's window is wider: its middle strip (|offset| < 1) is the parting.
+pub const ACROSS_DIVIDING: f32 = 6.0;
+/// Half-width of a dividing line's scalp strip.
+pub const STRIP: f32 = 1.0;
+
+/// Where a window pixel lies.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Side {
+    Left,
+    Right,
+    /// A dividing line's scalp strip.
+    Strip,
+}
+
+impl Side {
+    pub fn index(self) -> Option<usize> {
+        match self {
+            Side::Left => Some(0),
+            Side::Right => Some(1),
+            Side::Strip => None,
+        }
+    }
+}
+
+/// Calls `f(pixel index, side)` for every pixel whose centre lies strictly inside `p`'s
+/// window, within a w×h image (a centre at a pixel centre covers 7×5 pixels). A pixel
+/// whose centre lies on the axis counts as left. The right side of a and b (non-hair) is
+/// visited too: callers decide what it means.
+pub fn window(kind: Kind, p: &Primitive, w: u32, h: u32, mut f: impl FnMut(usize, Side)) {
+    let across = if kind == Kind::Dividing {
+        ACROSS_DIVIDING
+    } else {
+        ACROSS
+    };
+    let (ha, hc) = (0.5 * ALONG, 0.5 * across);
+    let r = (ha * ha + hc * hc).sqrt().ceil() as i64 + 1;
+    let t = p.tangent();
+    let n = p.left_normal();
+    let (cx, cy) = (p.x.floor() as i64, p.y.floor() as i64);
+    for j in (cy - r).max(0)..=(cy + r).min(h as i64 - 1) {
+        for i in (cx - r).max(0)..=(cx + r).min(w as i64 - 1) {
+            let dx = i as f32 + 0.5 - p.x;
+            let dy = j as f32 + 0.5 - p.y;
+            let a = dx * t[0] + dy * t[1];
+            let c = dx * n[0] + dy * n[1];
+            if a.abs() >= ha || c.abs() >= hc {
+                continue;
+            }
+            let side = if kind == Kind::Dividing && c.abs() < STRIP {
+                Side::Strip
+            } else if c >= 0.0 {
+                Side::Left
+            } else {
+                Side::Right
+            };
+            f(j as usize * w as usize + i as usize, side);
+        }
+    }
+}
+
+/// V_sk: the sketch's pixels and what they carry.
+#[derive(Clone, Debug)]
+pub struct Painted {
+    pub width: u32,
+    pub height: u32,
+    /// Orientation in [0, π) on the sketch's hair pixels, NaN elsewhere.
+    pub theta: Vec<f32>,
+    /// Direction angle τ in [0, 2π) where the curve's label on that side is known, NaN
+    /// elsewhere (undirected curves, a dividing line's strip, off the sketch).
+    pub tau: Vec<f32>,
+    /// Contrast on the sketch, NaN elsewhere.
+    pub rho: Vec<f32>,
+    /// Pixels any window covers (including non-hair sides and strips): Λ_sk.
+    pub on: Vec<bool>,
+    /// Index of the curve that painted the pixel, u32::MAX off the sketch.
+    pub curve: Vec<u32>,
+}
+
+/// Paints V_sk from `curves` on a w×h image (Eq. 8). A pixel keeps the first primitive that
+/// reaches it, in curve order then primitive order. `hair`, when given, limits the painted
+/// flow to hair pixels (the non-hair side of a and b is never painted with flow).
+pub fn paint(curves: &[Curve], w: u32, h: u32, hair: Option<&[bool]>) -> Painted {
+    let n = w as usize * h as usize;
+    let mut out = Painted {
+        width: w,
+        height: h,
+        theta: vec![f32::NAN; n],
+        tau: vec![f32::NAN; n],
+        rho: vec![f32::NAN; n],
+        on: vec![false; n],
+        curve: vec![u32::MAX; n],
+    };
+    for (ci, c) in curves.iter().enumerate() {
+        let hair_sides = c.kind.hair_sides();
+        for p in &c.prims {
+            window(c.kind, p, w, h, |k, side| {
+                if out.on[k] {
+                    return;
+                }
+                out.on[k] = true;
+                out.curve[k] = ci as u32;
+                let Some(s) = side.index() else { return };
+                if !hair_sides[s] || hair.is_some_and(|m| !m[k]) {
+                    return;
+                }
+                let a = p.side_angle(s);
+                out.theta[k] = super::wrap_pi(a);
+                out.rho[k] = p.rho;
+                let label = c.dirs[s];
+                if label != 0 {
+                    let tau = if label > 0 {
+                        a
+                    } else {
+                        a + std::f32::consts::PI
+                    };
+                    out.tau[k] = tau.rem_euclid(2.0 * std::f32::consts::PI);
+                }
+            });
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f32::consts::PI;
+
+    fn prim(x: f32, y: f32, axis: f32, side: [f32; 2]) -> Primitive {
+        Primitive {
+            x,
+            y,
+            axis,
+            rho: 10.0,
+            side,
+        }
+    }
+
+    #[test]
+    fn window_has_the_dictionary_size() {
+        let mut count = [0usize; 3];
+        window(
+            Kind::Stream,
+            &prim(20.5, 20.5, 0.0, [0.0; 2]),
+            40,
+            40,
+            |_, s| {
+                count[match s {
+                    Side::Left => 0,
+                    Side::Right => 1,
+                    Side::Strip => 2,
+                }] += 1
+            },
+        );
+        // 7 along × 5 across, centre row on the axis counts as left.
+        assert_eq!(count, [21, 14, 0]);
+        let mut strip = 0;
+        window(
+            Kind::Dividing,
+            &prim(20.0, 20.0, 0.0, [PI / 2.0; 2]),
+            40,
+            40,
+            |_, s| strip += (s == Side::Strip) as usize,
+        );
+        // Centred on a pixel corner: 6 columns, and the two rows beside the axis are strip.
+        assert_eq!(strip, 12);
+    }
+
+    #[test]
+    fn dividing_line_paints_outward_directions() {
+        let c = Curve {
+            kind: Kind::Dividing,
+            prims: vec![prim(20.0, 20.0, 0.0, [PI / 2.0; 2])],
+            dirs: [1, 1],
+        };
+        let v = paint(&[c], 40, 40, None);
+        // Above the axis (left, y smaller) hair grows up (τ = 3π/2), below it grows down.
+        let above = 18 * 40 + 20;
+        let below = 22 * 40 + 20;
+        assert!((v.tau[above] - 1.5 * PI).abs() < 1e-5, "{}", v.tau[above]);
+        assert!((v.tau[below] - 0.5 * PI).abs() < 1e-5, "{}", v.tau[below]);
+        assert!(v.theta[20 * 40 + 20].is_nan() && v.on[20 * 40 + 20]);
+    }
+}
