@@ -16,6 +16,8 @@ pub const ACROSS: f32 = 5.0;
 pub const ACROSS_DIVIDING: f32 = 6.0;
 /// Half-width of a dividing line's scalp strip.
 pub const STRIP: f32 = 1.0;
+/// Tolerance of the window's edges and of the axis, px.
+const EDGE_EPS: f32 = 1e-3;
 
 /// Where a window pixel lies.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -36,9 +38,10 @@ impl Side {
     }
 }
 
-/// Calls `f(pixel index, side)` for every pixel whose centre lies strictly inside `p`'s
-/// window, within a w×h image (a centre at a pixel centre covers 7×5 pixels). A pixel
-/// whose centre lies on the axis counts as left. The right side of a and b (non-hair) is
+/// Calls `f(pixel index, side)` for every pixel of `p`'s window within a w×h image: the
+/// pixels whose centres lie at most half a pixel inside the window's edges, so a window
+/// centred on a pixel centre covers 7×5 pixels and one centred on a pixel corner 6×4. A
+/// pixel whose centre lies on the axis counts as left. The right side of a and b (non-hair) is
 /// visited too: callers decide what it means.
 pub fn window(kind: Kind, p: &Primitive, w: u32, h: u32, mut f: impl FnMut(usize, Side)) {
     let across = if kind == Kind::Dividing {
@@ -48,6 +51,9 @@ pub fn window(kind: Kind, p: &Primitive, w: u32, h: u32, mut f: impl FnMut(usize
     };
     let (ha, hc) = (0.5 * ALONG, 0.5 * across);
     let r = (ha * ha + hc * hc).sqrt().ceil() as i64 + 1;
+    // Pixel centres within half a pixel of the edge are in; the tolerance keeps rounding
+    // (sin π ≠ 0 in f32) from deciding, so a reversed curve covers the same pixels.
+    let (ba, bc) = (ha - 0.5 + EDGE_EPS, hc - 0.5 + EDGE_EPS);
     let t = p.tangent();
     let n = p.left_normal();
     let (cx, cy) = (p.x.floor() as i64, p.y.floor() as i64);
@@ -57,12 +63,12 @@ pub fn window(kind: Kind, p: &Primitive, w: u32, h: u32, mut f: impl FnMut(usize
             let dy = j as f32 + 0.5 - p.y;
             let a = dx * t[0] + dy * t[1];
             let c = dx * n[0] + dy * n[1];
-            if a.abs() >= ha || c.abs() >= hc {
+            if a.abs() > ba || c.abs() > bc {
                 continue;
             }
-            let side = if kind == Kind::Dividing && c.abs() < STRIP {
+            let side = if kind == Kind::Dividing && c.abs() < STRIP - EDGE_EPS {
                 Side::Strip
-            } else if c >= 0.0 {
+            } else if c >= -EDGE_EPS {
                 Side::Left
             } else {
                 Side::Right
@@ -178,6 +184,25 @@ mod tests {
         );
         // Centred on a pixel corner: 6 columns, and the two rows beside the axis are strip.
         assert_eq!(strip, 12);
+    }
+
+    #[test]
+    fn a_reversed_primitive_covers_the_same_pixels() {
+        for (x, y) in [(20.0, 20.0), (20.5, 20.5), (20.3, 19.7)] {
+            for k in 0..24 {
+                let a = k as f32 * crate::sketch::AXIS_QUANTUM;
+                let mut fwd = Vec::new();
+                let mut back = Vec::new();
+                window(Kind::Stream, &prim(x, y, a, [0.0; 2]), 40, 40, |i, _| {
+                    fwd.push(i)
+                });
+                let rev = prim(x, y, (a + PI).rem_euclid(2.0 * PI), [0.0; 2]);
+                window(Kind::Stream, &rev, 40, 40, |i, _| back.push(i));
+                fwd.sort_unstable();
+                back.sort_unstable();
+                assert_eq!(fwd, back, "centre ({x}, {y}), axis step {k}");
+            }
+        }
     }
 
     #[test]
