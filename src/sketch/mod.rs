@@ -26,6 +26,7 @@
 //! reverse with the axis and the labels stay.
 
 pub mod prim;
+pub mod swc;
 
 use serde::{Deserialize, Serialize};
 use std::f32::consts::PI;
