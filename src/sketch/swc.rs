@@ -20,19 +20,23 @@
 //! 1 − s_u s_v d_A d_B cos(Θ_u − Θ_v) across a border, and −log p_dir on the sketch pixels is
 //! linear in each label: E(d) = C − Σ J_ij d_i d_j − Σ h_i d_i exactly, a [`PairModel`], with
 //! J_ij = Σ_border s_u s_v cos(Θ_u − Θ_v) and h_i = κ Σ_sketch cos(φ_v − μ_v) (φ the side's
-//! flow vector, μ the prior's mean direction, [`DirPrior`]). The cells stand in for the
-//! diffused d_V of the paper, which the fill computes afterwards from the chosen labels.
+//! flow vector, μ the prior's mean direction, [`DirPrior`]). Contacts thinner than
+//! `min_border` are left out of the graph and of E. The cells stand in for the diffused d_V
+//! of the paper, which the fill computes afterwards from the chosen labels.
 //!
 //! Labels are relative to each curve's traversal (see `sketch`'s module docs), so two
 //! compatible curves may carry opposite labels: J is then negative. The sampler works in
 //! that gauge: an edge "agrees" when d_i = sgn(J_ij)·d_j, and only agreeing edges can bond
 //! (CZ06 writes d_i = d_j, true when both curves run the same way).
 //!
-//! The sampler (§4.2.2): bonds on agreeing edges with probability q_ij ([`Bonds`]), the
-//! connected component V0 of a uniformly chosen node, flipped as a whole, accepted with the
+//! The sampler (§4.2.2): bonds on agreeing edges with probability q_ij, the connected
+//! component V0 of a uniformly chosen node, flipped as a whole, accepted with the
 //! Metropolis-Hastings ratio of the paper, min(1, Π_{C'}(1 − q)/Π_{C}(1 − q) · p'/p) where C
 //! are the edges from V0 to the rest that agree now and C' those that will agree after the
-//! flip. No annealing, as in the paper; the best state seen is kept.
+//! flip. No annealing, as in the paper; the best state seen is kept. One departure: q_ij is
+//! drawn per proposal from a ladder of bond strengths ([`Bonds`], which says why: with the
+//! paper's single strength the chain freezes at the couplings' pixel-sum scale);
+//! `Bonds::single` is the paper's sampler unchanged.
 //!
 //! Light, branchy, sequential work (a Dijkstra over the hair, then a graph of a few hundred
 //! nodes): CPU.
