@@ -26,6 +26,7 @@
 //! reverse with the axis and the labels stay.
 
 pub mod prim;
+pub mod swc;
 pub mod vis;
 
 use serde::{Deserialize, Serialize};
