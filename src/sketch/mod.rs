@@ -25,7 +25,9 @@
 //! traversal, so reversing a curve changes nothing but flips nothing either: the vectors
 //! reverse with the axis and the labels stay.
 
+pub mod bands;
 pub mod prim;
+pub mod samples;
 
 use serde::{Deserialize, Serialize};
 use std::f32::consts::PI;
