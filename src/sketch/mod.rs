@@ -28,6 +28,7 @@
 pub mod bands;
 pub mod prim;
 pub mod samples;
+pub mod shading;
 
 use serde::{Deserialize, Serialize};
 use std::f32::consts::PI;
