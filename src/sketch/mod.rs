@@ -26,6 +26,7 @@
 //! reverse with the axis and the labels stay.
 
 pub mod bands;
+pub mod format;
 pub mod prim;
 pub mod samples;
 pub mod shading;
