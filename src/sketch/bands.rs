@@ -255,13 +255,11 @@ impl ColourMap {
     /// value). No hair at all gives a gray map.
     pub fn fit(b: &Bands, hair: &[bool]) -> ColourMap {
         let mut sum = vec![[0f64; 3]; COLOUR_BINS];
-        for k in 0..b.l.len().min(hair.len()) {
-            if hair[k] {
-                let i = ((b.l[k] / BIN) as usize).min(COLOUR_BINS - 1);
-                sum[i][0] += b.u[k] as f64;
-                sum[i][1] += b.v[k] as f64;
-                sum[i][2] += 1.0;
-            }
+        for (k, _) in hair.iter().enumerate().take(b.l.len()).filter(|(_, &m)| m) {
+            let i = ((b.l[k] / BIN) as usize).min(COLOUR_BINS - 1);
+            sum[i][0] += b.u[k] as f64;
+            sum[i][1] += b.v[k] as f64;
+            sum[i][2] += 1.0;
         }
         let full: Vec<usize> = (0..COLOUR_BINS).filter(|&i| sum[i][2] > 0.0).collect();
         let mean = |i: usize| {
@@ -365,9 +363,9 @@ mod tests {
             .filter(|&k| hair[k])
             .map(|k| b.l[k])
             .fold(f32::MIN, f32::max);
-        for k in 0..(w * h) as usize {
+        for (k, &m) in hair.iter().enumerate() {
             assert!((b.l[k] - b.low[k] - b.high[k]).abs() < 1e-4);
-            if hair[k] {
+            if m {
                 assert!(b.low[k] <= brightest_hair + 1e-3, "leak at {k}");
             } else {
                 assert_eq!(b.high[k], 0.0);

@@ -57,8 +57,8 @@ pub const RHO_LEVELS: [f32; 16] = [
     8.0,
     11.887_954,
     17.665_432,
-    26.250_731,
-    39.008_437,
+    26.250_73,
+    39.008_44,
     57.966_315,
     86.137_61,
     128.0,
@@ -559,7 +559,7 @@ impl BitWriter {
     /// The low `n` bits of `v`, most significant first.
     fn put(&mut self, v: u64, n: u32) {
         for i in (0..n).rev() {
-            if self.bits % 8 == 0 {
+            if self.bits.is_multiple_of(8) {
                 self.bytes.push(0);
             }
             if (v >> i) & 1 == 1 {
@@ -706,12 +706,10 @@ fn pack(c: &Codes) -> (Vec<u8>, [usize; 4]) {
                     2,
                 );
             }
-            for s in 0..2 {
-                if hair[s] {
-                    w.put(p.side[s].0 as u64, 2);
-                    if refine {
-                        w.put(p.side[s].1 as u64, 4);
-                    }
+            for (side, _) in p.side.iter().zip(hair).filter(|(_, h)| *h) {
+                w.put(side.0 as u64, 2);
+                if refine {
+                    w.put(side.1 as u64, 4);
                 }
             }
             w.put(p.rho as u64, 4);

@@ -24,7 +24,7 @@ pub const COARSE: u32 = 4;
 pub const THETAS: u32 = 8;
 /// Scales σ, pixels: 4·2^(4k/7), k = 0..7 (4 to 64).
 pub const SIGMAS: [f32; 8] = [
-    4.0, 5.943_977, 8.832_716, 13.125_366, 19.504_219, 28.983_158, 43.068_806, 64.0,
+    4.0, 5.943_977, 8.832_716, 13.125_366, 19.504_22, 28.983_158, 43.068_806, 64.0,
 ];
 /// Largest step between the σ indices of an atom's two axes (an elongation ≤ 4.4).
 pub const MAX_ELONGATION_STEPS: usize = 3;
