@@ -25,7 +25,11 @@
 //! traversal, so reversing a curve changes nothing but flips nothing either: the vectors
 //! reverse with the axis and the labels stay.
 
+pub mod bands;
+pub mod format;
 pub mod prim;
+pub mod samples;
+pub mod shading;
 pub mod swc;
 pub mod vis;
 
@@ -115,10 +119,11 @@ pub struct Primitive {
     pub y: f32,
     /// Traversal direction, radians in [0, 2π), on the lattice of [`AXIS_QUANTUM`].
     pub axis: f32,
-    /// Contrast ρ across the flow on the primitive (mean |∇⊥Θ I_H|, gray units 0..255).
+    /// Contrast ρ across the flow on the primitive (mean |∇⊥Θ I_H|, L* units).
     pub rho: f32,
-    /// Side angles (left, right), radians in [0, π); see the module docs. A side without
-    /// hair (the right of a and b) is 0 and ignored.
+    /// Side angles (left, right), radians: a dictionary angle (0, π/3, π/2, 2π/3) plus a
+    /// refinement within ±π/6, so possibly slightly negative; see the module docs. A side
+    /// without hair (the right of a and b) is 0 and ignored.
     pub side: [f32; 2],
 }
 

@@ -1,0 +1,1739 @@
+//! The sketch's three files: `hair.czs` (bit-packed, a few hundred bytes), `sketch.json`
+//! (the same content readable, checked against `schemas/sketch.v1.schema.json`) and
+//! `sketch.svg` (one polyline per curve, an ellipse per shading base; opens in Inkscape and
+//! the SVG stroke importer reads it).
+//!
+//! All three store the *quantised* sketch ([`quantise`]): every number sits on the lattice
+//! `.czs` codes, and each reader snaps what it reads to that lattice and decodes it with the
+//! same functions, so reading any of the three files gives the same [`Sketch`], bit for bit.
+//!
+//! The lattice (see [`quantise`] for the rules):
+//! - curves: start rounded to whole pixels; axes on 24 steps of 15°, turning −1, 0 or +1
+//!   step per primitive; each centre is the previous centre + [`STEP`] along the new
+//!   primitive's axis, so centres are implicit;
+//! - side angles: the dictionary {0, 60°, 90°, 120°}, plus, when any side needs it, a
+//!   refinement (k − 8)·3.75°, k in 0..16 (−30° to +26.25°);
+//! - ρ: 0 or 0.5·2^(4(k−1)/7), k in 1..16 (0.5 to 128);
+//! - p_nsk: the first weight in 1/255 (the second is 1 minus it), means and σs on a
+//!   log scale of 2^(1/16) steps from 2^−6 to ~940 (and 0);
+//! - shading: μ in 100/1023 steps; bases on the lattice of [`super::shading`], amplitudes
+//!   in steps of 0.5 from −64 to 63.5;
+//! - colour map: u* and v* on a grid of 2 units from −32 to 94, 6-bit codes.
+//!
+//! Packing, light sequential work over a few hundred bytes: CPU.
+
+use super::shading::{block_centre, theta_of, COARSE, SIGMAS, THETAS};
+use super::{
+    Base, ColourMap, Curve, Kind, Primitive, RhoPrior, Shading, Sketch, AXIS_QUANTUM, AXIS_STEPS,
+    COLOUR_BINS, STEP,
+};
+use crate::error::{Error, Result};
+use serde::{Deserialize, Serialize};
+use std::f64::consts::PI;
+use std::path::Path;
+
+/// File magic of `.czs`.
+pub const MAGIC: &[u8; 3] = b"CZS";
+/// `.czs` and `sketch.json` format version.
+pub const VERSION: u8 = 1;
+/// The JSON Schema `sketch.json` is checked against.
+pub const SCHEMA: &str = include_str!("../../schemas/sketch.v1.schema.json");
+const SCHEMA_URL: &str = "urn:coif:sketch.v1.schema.json";
+
+/// The side-angle dictionary of CZ06 §2.1, degrees.
+pub const SIDE_DICTIONARY_DEG: [f64; 4] = [0.0, 60.0, 90.0, 120.0];
+/// Step of the side refinement, degrees; offsets are (k − 8)·step, k in 0..16.
+pub const SIDE_REFINE_STEP_DEG: f64 = 3.75;
+/// ρ levels (code 0 is 0): 0.5·2^(4(k−1)/7).
+pub const RHO_LEVELS: [f32; 16] = [
+    0.0,
+    0.5,
+    0.742_997_15,
+    1.104_089_5,
+    1.640_670_7,
+    2.438_027_3,
+    3.622_894_7,
+    5.383_600_7,
+    8.0,
+    11.887_954,
+    17.665_432,
+    26.250_73,
+    39.008_44,
+    57.966_315,
+    86.137_61,
+    128.0,
+];
+/// 2^(r/16), r in 0..16: the mantissas of the prior's log scale.
+const LOG16: [f64; 16] = [
+    1.0,
+    1.044_273_782_427_413_8,
+    1.090_507_732_665_257_7,
+    1.138_788_634_756_691_6,
+    1.189_207_115_002_721,
+    1.241_857_812_073_484,
+    1.296_839_554_651_009_6,
+    1.354_255_546_936_892_7,
+    std::f64::consts::SQRT_2,
+    1.476_826_145_939_499_3,
+    1.542_210_825_407_940_7,
+    1.610_490_331_949_254_3,
+    1.681_792_830_507_429,
+    1.756_252_160_373_299_5,
+    1.834_008_086_409_342_4,
+    1.915_206_561_397_147_4,
+];
+/// Amplitude step of a shading base, L*.
+pub const AMP_STEP: f32 = 0.5;
+/// The colour map's chroma grid: u* and v* each CHROMA_LO + k·CHROMA_STEP, k in 0..64
+/// (−32 to 94: hair from blue-black to red and blond; a fixed grid, so that snapping a
+/// snapped map changes nothing).
+pub const CHROMA_LO: f32 = -32.0;
+pub const CHROMA_STEP: f32 = 2.0;
+
+/// Bytes per part of a `.czs` file; the header is the rest (magic, version, length, size,
+/// seed, flags, p_nsk, padding and checksum), so the parts add up to `total`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct CzsSizes {
+    pub header: usize,
+    pub curves: usize,
+    pub shading: usize,
+    pub colour: usize,
+    pub total: usize,
+}
+
+// ---------------------------------------------------------------------------------------
+// The lattice: codes and their decoding.
+
+/// cos(k·15°) from square roots (correctly rounded), so decoding gives the same bits on
+/// every platform.
+fn cos15(k: i64) -> f64 {
+    let s6 = 6f64.sqrt();
+    let s2 = 2f64.sqrt();
+    let c = [
+        1.0,
+        (s6 + s2) / 4.0,
+        3f64.sqrt() / 2.0,
+        s2 / 2.0,
+        0.5,
+        (s6 - s2) / 4.0,
+        0.0,
+    ];
+    let k = k.rem_euclid(24) as usize;
+    match k {
+        0..=6 => c[k],
+        7..=12 => -c[12 - k],
+        13..=18 => -c[k - 12],
+        _ => c[24 - k],
+    }
+}
+
+fn sin15(k: i64) -> f64 {
+    cos15(6 - k)
+}
+
+fn axis_of(code: u8) -> f32 {
+    code as f32 * AXIS_QUANTUM
+}
+
+fn side_deg(dict: u8, refine: u8) -> f64 {
+    SIDE_DICTIONARY_DEG[dict as usize] + (refine as f64 - 8.0) * SIDE_REFINE_STEP_DEG
+}
+
+fn deg_to_rad(d: f64) -> f32 {
+    (d * (PI / 180.0)) as f32
+}
+
+/// (dictionary index, refinement code) nearest to `deg` (the nearest dictionary angle,
+/// ties to the smaller; the refinement clamped to its range).
+fn snap_side(deg: f64) -> (u8, u8) {
+    let deg = if deg.is_finite() { deg } else { 0.0 };
+    let mut best = 0;
+    for (i, d) in SIDE_DICTIONARY_DEG.iter().enumerate() {
+        if (deg - d).abs() < (deg - SIDE_DICTIONARY_DEG[best]).abs() {
+            best = i;
+        }
+    }
+    let r = ((deg - SIDE_DICTIONARY_DEG[best]) / SIDE_REFINE_STEP_DEG).round() + 8.0;
+    (best as u8, r.clamp(0.0, 15.0) as u8)
+}
+
+fn snap_rho(rho: f32) -> u8 {
+    if !(rho.is_finite() && rho >= 0.25) {
+        return 0;
+    }
+    let l = rho.ln();
+    (1..16u8)
+        .min_by(|&a, &b| {
+            let da = (l - RHO_LEVELS[a as usize].ln()).abs();
+            let db = (l - RHO_LEVELS[b as usize].ln()).abs();
+            da.total_cmp(&db)
+        })
+        .unwrap_or(0)
+}
+
+/// The prior's 8-bit log scale: 0 is 0, k ≥ 1 is 2^((k − 97)/16).
+fn prior_value(code: u8) -> f32 {
+    if code == 0 {
+        return 0.0;
+    }
+    let e = code as i32 - 97;
+    let (q, r) = (e.div_euclid(16), e.rem_euclid(16));
+    (LOG16[r as usize] * 2f64.powi(q)) as f32
+}
+
+fn snap_prior(v: f32) -> u8 {
+    if !(v.is_finite() && v > 0.0) {
+        return 0;
+    }
+    let k = (16.0 * (v as f64).log2()).round() + 97.0;
+    if k < 1.0 {
+        // Below 2^−6.03: nearer 0 than the first level?
+        return if (v as f64) < 0.5 * prior_value(1) as f64 {
+            0
+        } else {
+            1
+        };
+    }
+    k.min(255.0) as u8
+}
+
+fn sigma_code(s: f32) -> u8 {
+    if !(s.is_finite() && s > 0.0) {
+        return 0;
+    }
+    let l = s.ln();
+    (0..SIGMAS.len() as u8)
+        .min_by(|&a, &b| {
+            let da = (l - SIGMAS[a as usize].ln()).abs();
+            let db = (l - SIGMAS[b as usize].ln()).abs();
+            da.total_cmp(&db)
+        })
+        .unwrap_or(0)
+}
+
+fn mean_code(m: f32) -> u16 {
+    (finite_or(m, 0.0) / 100.0 * 1023.0)
+        .round()
+        .clamp(0.0, 1023.0) as u16
+}
+
+fn mean_of(code: u16) -> f32 {
+    (code as f64 * 100.0 / 1023.0) as f32
+}
+
+fn finite_or(v: f32, d: f32) -> f32 {
+    if v.is_finite() {
+        v
+    } else {
+        d
+    }
+}
+
+#[derive(Clone, Debug, PartialEq)]
+struct PrimCodes {
+    /// −1, 0, +1 (unused on the first primitive).
+    turn: i8,
+    /// Per side (dictionary index, refinement code); the right side of a and b unused.
+    side: [(u8, u8); 2],
+    rho: u8,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+struct CurveCodes {
+    kind: Kind,
+    dirs: [i8; 2],
+    start: [u32; 2],
+    axis: u8,
+    prims: Vec<PrimCodes>,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+struct BaseCodes {
+    x: u32,
+    y: u32,
+    theta: u8,
+    sx: u8,
+    sy: u8,
+    amp: i8,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+struct ColourCodes {
+    /// Per bin (u, v) codes, 6 bits each.
+    k: Vec<[u8; 2]>,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+struct Codes {
+    width: u32,
+    height: u32,
+    seed: u64,
+    curves: Vec<CurveCodes>,
+    /// weight[0], mean[0..2], sigma[0..2].
+    rho_off: [u8; 5],
+    mean: u16,
+    bases: Vec<BaseCodes>,
+    colour: ColourCodes,
+}
+
+fn sign(d: i8) -> i8 {
+    d.signum()
+}
+
+/// The labels a kind stores (see [`Curve::dirs`]).
+fn canonical_dirs(kind: Kind, d: [i8; 2]) -> [i8; 2] {
+    match kind {
+        Kind::Boundary | Kind::Source => [sign(d[0]), 0],
+        Kind::Occluding => [sign(d[0]), sign(d[1])],
+        Kind::Dividing => [1, 1],
+        Kind::Stream => {
+            let v = if d[0] != 0 { sign(d[0]) } else { sign(d[1]) };
+            [v, v]
+        }
+    }
+}
+
+/// The free label variables of a kind, as indices into `dirs`.
+fn free_labels(kind: Kind) -> &'static [usize] {
+    match kind {
+        Kind::Occluding => &[0, 1],
+        Kind::Dividing => &[],
+        _ => &[0],
+    }
+}
+
+fn blocks(n: u32) -> u32 {
+    n.div_ceil(COARSE)
+}
+
+fn curve_codes(c: &Curve, w: u32, h: u32) -> Option<CurveCodes> {
+    let first = c.prims.first()?;
+    let q = AXIS_QUANTUM as f64;
+    let mut idx = (finite_or(first.axis, 0.0) as f64 / q).round() as i64;
+    let axis = idx.rem_euclid(AXIS_STEPS as i64) as u8;
+    let hair = c.kind.hair_sides();
+    let prims = c
+        .prims
+        .iter()
+        .enumerate()
+        .map(|(k, p)| {
+            let mut turn = 0i8;
+            if k > 0 {
+                let want = (finite_or(p.axis, 0.0) as f64 / q).round() as i64;
+                let d = (want - idx).rem_euclid(AXIS_STEPS as i64);
+                let d = if d >= AXIS_STEPS as i64 / 2 {
+                    d - AXIS_STEPS as i64
+                } else {
+                    d
+                };
+                turn = d.clamp(-1, 1) as i8;
+                idx += turn as i64;
+            }
+            let side = [0, 1].map(|s| {
+                if hair[s] {
+                    snap_side((finite_or(p.side[s], 0.0) as f64).to_degrees())
+                } else {
+                    (0, 8)
+                }
+            });
+            PrimCodes {
+                turn,
+                side,
+                rho: snap_rho(p.rho),
+            }
+        })
+        .collect();
+    let r = |v: f32, n: u32| finite_or(v, 0.0).round().clamp(0.0, n as f32) as u32;
+    Some(CurveCodes {
+        kind: c.kind,
+        dirs: canonical_dirs(c.kind, c.dirs),
+        start: [r(first.x, w), r(first.y, h)],
+        axis,
+        prims,
+    })
+}
+
+fn base_codes(b: &Base, w: u32, h: u32) -> BaseCodes {
+    let cell = |v: f32, n: u32| {
+        let k = ((finite_or(v, 0.0) - 0.5 * COARSE as f32) / COARSE as f32).round();
+        k.clamp(0.0, blocks(n).saturating_sub(1) as f32) as u32
+    };
+    let t = (finite_or(b.theta, 0.0) as f64 / (std::f64::consts::PI / THETAS as f64)).round();
+    BaseCodes {
+        x: cell(b.x, w),
+        y: cell(b.y, h),
+        theta: (t as i64).rem_euclid(THETAS as i64) as u8,
+        sx: sigma_code(b.sx),
+        sy: sigma_code(b.sy),
+        amp: (finite_or(b.amp, 0.0) / AMP_STEP)
+            .round()
+            .clamp(-128.0, 127.0) as i8,
+    }
+}
+
+fn colour_codes(c: &ColourMap) -> ColourCodes {
+    let k = (0..COLOUR_BINS)
+        .map(|i| {
+            let p = c.uv.get(i).copied().unwrap_or([0.0, 0.0]);
+            p.map(|v| {
+                ((finite_or(v, 0.0) - CHROMA_LO) / CHROMA_STEP)
+                    .round()
+                    .clamp(0.0, 63.0) as u8
+            })
+        })
+        .collect();
+    ColourCodes { k }
+}
+
+fn rho_off_codes(r: &RhoPrior) -> [u8; 5] {
+    let (a, b) = (finite_or(r.weight[0], 0.0), finite_or(r.weight[1], 0.0));
+    let w0 = if a >= 0.0 && b >= 0.0 && a + b > 0.0 {
+        a / (a + b)
+    } else {
+        0.5
+    };
+    [
+        (w0 * 255.0).round().clamp(0.0, 255.0) as u8,
+        snap_prior(r.mean[0]),
+        snap_prior(r.mean[1]),
+        snap_prior(r.sigma[0]),
+        snap_prior(r.sigma[1]),
+    ]
+}
+
+fn codes(s: &Sketch) -> Codes {
+    let (w, h) = (s.width, s.height);
+    Codes {
+        width: w,
+        height: h,
+        seed: s.seed,
+        curves: s
+            .curves
+            .iter()
+            .filter_map(|c| curve_codes(c, w, h))
+            .collect(),
+        rho_off: rho_off_codes(&s.rho_off),
+        mean: mean_code(s.shading.mean),
+        bases: s
+            .shading
+            .bases
+            .iter()
+            .map(|b| base_codes(b, w, h))
+            .collect(),
+        colour: colour_codes(&s.colour),
+    }
+}
+
+fn decode_curve(c: &CurveCodes) -> Curve {
+    let mut idx = c.axis as i64;
+    let (mut x, mut y) = (c.start[0] as f64, c.start[1] as f64);
+    let hair = c.kind.hair_sides();
+    let prims = c
+        .prims
+        .iter()
+        .enumerate()
+        .map(|(k, p)| {
+            if k > 0 {
+                idx += p.turn as i64;
+                x += STEP as f64 * cos15(idx);
+                y += STEP as f64 * sin15(idx);
+            }
+            let side = [0, 1].map(|s| {
+                if hair[s] {
+                    deg_to_rad(side_deg(p.side[s].0, p.side[s].1))
+                } else {
+                    0.0
+                }
+            });
+            Primitive {
+                x: x as f32,
+                y: y as f32,
+                axis: axis_of(idx.rem_euclid(AXIS_STEPS as i64) as u8),
+                rho: RHO_LEVELS[p.rho as usize],
+                side,
+            }
+        })
+        .collect();
+    Curve {
+        kind: c.kind,
+        prims,
+        dirs: c.dirs,
+    }
+}
+
+fn decode_base(b: &BaseCodes) -> Base {
+    Base {
+        x: block_centre(b.x),
+        y: block_centre(b.y),
+        theta: theta_of(b.theta as u32),
+        sx: SIGMAS[b.sx as usize],
+        sy: SIGMAS[b.sy as usize],
+        amp: b.amp as f32 * AMP_STEP,
+    }
+}
+
+fn decode_colour(c: &ColourCodes) -> ColourMap {
+    ColourMap {
+        uv: c
+            .k
+            .iter()
+            .map(|k| k.map(|k| CHROMA_LO + CHROMA_STEP * k as f32))
+            .collect(),
+    }
+}
+
+fn decode(c: &Codes) -> Sketch {
+    let r = &c.rho_off;
+    Sketch {
+        width: c.width,
+        height: c.height,
+        seed: c.seed,
+        curves: c.curves.iter().map(decode_curve).collect(),
+        rho_off: RhoPrior {
+            weight: [
+                (r[0] as f64 / 255.0) as f32,
+                ((255 - r[0]) as f64 / 255.0) as f32,
+            ],
+            mean: [prior_value(r[1]), prior_value(r[2])],
+            sigma: [prior_value(r[3]), prior_value(r[4])],
+        },
+        shading: Shading {
+            mean: mean_of(c.mean),
+            bases: c.bases.iter().map(decode_base).collect(),
+        },
+        colour: decode_colour(&c.colour),
+    }
+}
+
+/// Snaps a sketch to what the files store:
+/// - curves without primitives are dropped; a curve's start is its first centre rounded
+///   to whole pixels and clamped to [0, W]×[0, H]; each axis is snapped to its 15° step
+///   and each turn clamped to ±1 step (a sharper bend is cut to 15°); the centres are then
+///   rebuilt as the chain of [`STEP`]s along the axes, so a curve of the pursuit's lattice
+///   keeps its geometry and any other one is redrawn on it;
+/// - side angles go to the nearest dictionary angle plus the nearest refinement (a
+///   negative angle, down to −30°, leans the flow the other way; beyond 146.25° is
+///   clamped); the right side of a and b is 0; ρ to the nearest level in log scale;
+/// - labels: a and b keep [sign d, 0], c [sign d_l, sign d_r], d is [1, 1], e takes its
+///   first nonzero label on both sides; 0 (undecided) stays 0;
+/// - p_nsk: weights normalised to sum 1; shading and colour map as the module docs say
+///   (amplitudes beyond ±64 are clamped); a map of other than 16 bins is cut or padded
+///   with gray; non-finite numbers become 0.
+pub fn quantise(s: &Sketch) -> Sketch {
+    decode(&codes(s))
+}
+
+/// The shading as the files store it on a w×h image.
+pub fn quantise_shading(s: &Shading, w: u32, h: u32) -> Shading {
+    Shading {
+        mean: mean_of(mean_code(s.mean)),
+        bases: s
+            .bases
+            .iter()
+            .map(|b| decode_base(&base_codes(b, w, h)))
+            .collect(),
+    }
+}
+
+/// The colour map as the files store it.
+pub fn quantise_colour(c: &ColourMap) -> ColourMap {
+    decode_colour(&colour_codes(c))
+}
+
+// ---------------------------------------------------------------------------------------
+// .czs
+
+struct BitWriter {
+    bytes: Vec<u8>,
+    bits: usize,
+}
+
+impl BitWriter {
+    fn new() -> Self {
+        BitWriter {
+            bytes: Vec::new(),
+            bits: 0,
+        }
+    }
+
+    /// The low `n` bits of `v`, most significant first.
+    fn put(&mut self, v: u64, n: u32) {
+        for i in (0..n).rev() {
+            if self.bits.is_multiple_of(8) {
+                self.bytes.push(0);
+            }
+            if (v >> i) & 1 == 1 {
+                let last = self.bytes.len() - 1;
+                self.bytes[last] |= 0x80 >> (self.bits % 8);
+            }
+            self.bits += 1;
+        }
+    }
+
+    /// Elias gamma code of `v` ≥ 1.
+    fn gamma(&mut self, v: u64) {
+        debug_assert!(v >= 1);
+        let n = 64 - v.leading_zeros();
+        self.put(0, n - 1);
+        self.put(v, n);
+    }
+}
+
+struct BitReader<'a> {
+    data: &'a [u8],
+    pos: usize,
+}
+
+impl BitReader<'_> {
+    fn left(&self) -> usize {
+        self.data.len() * 8 - self.pos
+    }
+
+    fn get(&mut self, n: u32, what: &str) -> std::result::Result<u64, String> {
+        if self.left() < n as usize {
+            return Err(format!("corrupted: the data ends inside {what}"));
+        }
+        let mut v = 0u64;
+        for _ in 0..n {
+            let bit = (self.data[self.pos / 8] >> (7 - self.pos % 8)) & 1;
+            v = (v << 1) | bit as u64;
+            self.pos += 1;
+        }
+        Ok(v)
+    }
+
+    fn gamma(&mut self, what: &str) -> std::result::Result<u64, String> {
+        let mut zeros = 0;
+        while self.get(1, what)? == 0 {
+            zeros += 1;
+            if zeros > 40 {
+                return Err(format!("corrupted: {what} is out of range"));
+            }
+        }
+        Ok((1u64 << zeros) | self.get(zeros, what)?)
+    }
+}
+
+/// Bits needed to store values 0..=n.
+fn bits_for(n: u32) -> u32 {
+    32 - n.leading_zeros()
+}
+
+fn crc32(data: &[u8]) -> u32 {
+    let mut crc = !0u32;
+    for &b in data {
+        crc ^= b as u32;
+        for _ in 0..8 {
+            crc = if crc & 1 == 1 {
+                (crc >> 1) ^ 0xEDB8_8320
+            } else {
+                crc >> 1
+            };
+        }
+    }
+    !crc
+}
+
+fn leb128(mut v: u64) -> Vec<u8> {
+    let mut out = Vec::new();
+    loop {
+        let b = (v & 0x7f) as u8;
+        v >>= 7;
+        if v == 0 {
+            out.push(b);
+            return out;
+        }
+        out.push(b | 0x80);
+    }
+}
+
+/// Packs the payload; returns it and the bit counts of (header, curves, shading, colour).
+fn pack(c: &Codes) -> (Vec<u8>, [usize; 4]) {
+    let mut w = BitWriter::new();
+    w.gamma(c.width as u64 + 1);
+    w.gamma(c.height as u64 + 1);
+    let sb = 64 - c.seed.leading_zeros();
+    w.put(sb as u64, 7);
+    w.put(c.seed, sb);
+    let refine = c
+        .curves
+        .iter()
+        .flat_map(|cv| &cv.prims)
+        .any(|p| p.side.iter().any(|s| s.1 != 8));
+    let undecided = c
+        .curves
+        .iter()
+        .any(|cv| free_labels(cv.kind).iter().any(|&i| cv.dirs[i] == 0));
+    w.put(refine as u64, 1);
+    w.put(undecided as u64, 1);
+    for &r in &c.rho_off {
+        w.put(r as u64, 8);
+    }
+    let header = w.bits;
+
+    let (xb, yb) = (bits_for(c.width), bits_for(c.height));
+    w.gamma(c.curves.len() as u64 + 1);
+    for cv in &c.curves {
+        w.put(cv.kind.code() as u64, 3);
+        for &i in free_labels(cv.kind) {
+            let d = cv.dirs[i];
+            if undecided {
+                w.put(
+                    match d {
+                        0 => 0,
+                        1 => 1,
+                        _ => 2,
+                    },
+                    2,
+                );
+            } else {
+                w.put((d > 0) as u64, 1);
+            }
+        }
+        w.gamma(cv.prims.len() as u64);
+        w.put(cv.start[0] as u64, xb);
+        w.put(cv.start[1] as u64, yb);
+        w.put(cv.axis as u64, 5);
+        let hair = cv.kind.hair_sides();
+        for (k, p) in cv.prims.iter().enumerate() {
+            if k > 0 {
+                w.put(
+                    match p.turn {
+                        0 => 0,
+                        1 => 1,
+                        _ => 2,
+                    },
+                    2,
+                );
+            }
+            for (side, _) in p.side.iter().zip(hair).filter(|(_, h)| *h) {
+                w.put(side.0 as u64, 2);
+                if refine {
+                    w.put(side.1 as u64, 4);
+                }
+            }
+            w.put(p.rho as u64, 4);
+        }
+    }
+    let curves = w.bits - header;
+
+    let (bx, by) = (
+        bits_for(blocks(c.width).saturating_sub(1)),
+        bits_for(blocks(c.height).saturating_sub(1)),
+    );
+    w.put(c.mean as u64, 10);
+    w.gamma(c.bases.len() as u64 + 1);
+    for b in &c.bases {
+        w.put(b.x as u64, bx);
+        w.put(b.y as u64, by);
+        w.put(b.theta as u64, 3);
+        w.put(b.sx as u64, 3);
+        w.put(b.sy as u64, 3);
+        w.put(b.amp as u8 as u64, 8);
+    }
+    let shading = w.bits - header - curves;
+
+    for k in &c.colour.k {
+        w.put(k[0] as u64, 6);
+        w.put(k[1] as u64, 6);
+    }
+    let colour = w.bits - header - curves - shading;
+    (w.bytes, [header, curves, shading, colour])
+}
+
+fn assemble(c: &Codes) -> (Vec<u8>, [usize; 4]) {
+    let (payload, bits) = pack(c);
+    // The total length includes its own varint: find the fixed point.
+    let mut total = 4 + payload.len() + 4 + 1;
+    loop {
+        let t = 4 + leb128(total as u64).len() + payload.len() + 4;
+        if t == total {
+            break;
+        }
+        total = t;
+    }
+    let mut out = Vec::with_capacity(total);
+    out.extend_from_slice(MAGIC);
+    out.push(VERSION);
+    out.extend(leb128(total as u64));
+    out.extend(&payload);
+    let crc = crc32(&out);
+    out.extend(crc.to_le_bytes());
+    (out, bits)
+}
+
+/// The `.czs` bytes of the quantised sketch.
+pub fn to_czs(s: &Sketch) -> Vec<u8> {
+    assemble(&codes(s)).0
+}
+
+/// Bytes per part of `s`'s `.czs`.
+pub fn czs_sizes(s: &Sketch) -> CzsSizes {
+    let (bytes, bits) = assemble(&codes(s));
+    let part = |b: usize| b.div_ceil(8);
+    let (curves, shading, colour) = (part(bits[1]), part(bits[2]), part(bits[3]));
+    CzsSizes {
+        header: bytes.len() - curves - shading - colour,
+        curves,
+        shading,
+        colour,
+        total: bytes.len(),
+    }
+}
+
+fn unpack(data: &[u8]) -> std::result::Result<Codes, String> {
+    let mut r = BitReader { data, pos: 0 };
+    let dim = |r: &mut BitReader, what: &str| -> std::result::Result<u32, String> {
+        let v = r.gamma(what)? - 1;
+        if v == 0 || v > u32::MAX as u64 {
+            return Err(format!("corrupted: the image {what} is {v}"));
+        }
+        Ok(v as u32)
+    };
+    let width = dim(&mut r, "width")?;
+    let height = dim(&mut r, "height")?;
+    let sb = r.get(7, "the seed")? as u32;
+    if sb > 64 {
+        return Err(format!("corrupted: a seed of {sb} bits"));
+    }
+    let seed = r.get(sb, "the seed")?;
+    let refine = r.get(1, "the flags")? == 1;
+    let undecided = r.get(1, "the flags")? == 1;
+    let mut rho_off = [0u8; 5];
+    for v in &mut rho_off {
+        *v = r.get(8, "the contrast prior")? as u8;
+    }
+
+    let (xb, yb) = (bits_for(width), bits_for(height));
+    let n_curves = r.gamma("the curve count")? - 1;
+    let mut curves = Vec::new();
+    for ci in 0..n_curves {
+        let at = format!("curve {ci}");
+        let code = r.get(3, &at)? as u8;
+        let kind =
+            Kind::from_code(code).ok_or_else(|| format!("corrupted: {at} has kind code {code}"))?;
+        let mut dirs = [0i8; 2];
+        for &i in free_labels(kind) {
+            dirs[i] = if undecided {
+                match r.get(2, &at)? {
+                    0 => 0,
+                    1 => 1,
+                    2 => -1,
+                    _ => return Err(format!("corrupted: {at} has label code 3")),
+                }
+            } else if r.get(1, &at)? == 1 {
+                1
+            } else {
+                -1
+            };
+        }
+        // The labels a kind fixes (d outward, e shared).
+        let dirs = match kind {
+            Kind::Dividing => [1, 1],
+            Kind::Stream => [dirs[0], dirs[0]],
+            _ => dirs,
+        };
+        let n = r.gamma(&at)?;
+        let start = [r.get(xb, &at)? as u32, r.get(yb, &at)? as u32];
+        if start[0] > width || start[1] > height {
+            return Err(format!(
+                "corrupted: {at} starts at ({}, {}), outside the {width}x{height} image",
+                start[0], start[1]
+            ));
+        }
+        let axis = r.get(5, &at)? as u8;
+        if axis as u32 >= AXIS_STEPS {
+            return Err(format!("corrupted: {at} has axis code {axis}"));
+        }
+        let hair = kind.hair_sides();
+        let mut prims = Vec::new();
+        for k in 0..n {
+            let turn = if k == 0 {
+                0
+            } else {
+                match r.get(2, &at)? {
+                    0 => 0,
+                    1 => 1,
+                    2 => -1,
+                    _ => return Err(format!("corrupted: {at}, primitive {k} has turn code 3")),
+                }
+            };
+            let mut side = [(0u8, 8u8); 2];
+            for s in 0..2 {
+                if hair[s] {
+                    side[s].0 = r.get(2, &at)? as u8;
+                    if refine {
+                        side[s].1 = r.get(4, &at)? as u8;
+                    }
+                }
+            }
+            let rho = r.get(4, &at)? as u8;
+            prims.push(PrimCodes { turn, side, rho });
+        }
+        curves.push(CurveCodes {
+            kind,
+            dirs,
+            start,
+            axis,
+            prims,
+        });
+    }
+
+    let (wc, hc) = (blocks(width), blocks(height));
+    let (bx, by) = (bits_for(wc - 1), bits_for(hc - 1));
+    let mean = r.get(10, "the shading mean")? as u16;
+    if mean > 1023 {
+        return Err("corrupted: shading mean".into());
+    }
+    let n_bases = r.gamma("the base count")? - 1;
+    let mut bases = Vec::new();
+    for bi in 0..n_bases {
+        let at = format!("shading base {bi}");
+        let b = BaseCodes {
+            x: r.get(bx, &at)? as u32,
+            y: r.get(by, &at)? as u32,
+            theta: r.get(3, &at)? as u8,
+            sx: r.get(3, &at)? as u8,
+            sy: r.get(3, &at)? as u8,
+            amp: r.get(8, &at)? as u8 as i8,
+        };
+        if b.x >= wc || b.y >= hc {
+            return Err(format!("corrupted: {at} lies outside the image"));
+        }
+        bases.push(b);
+    }
+
+    let mut k = Vec::new();
+    for _ in 0..COLOUR_BINS {
+        k.push([
+            r.get(6, "the colour map")? as u8,
+            r.get(6, "the colour map")? as u8,
+        ]);
+    }
+    if r.left() >= 8 {
+        return Err(format!(
+            "corrupted: {} bytes left over after the colour map",
+            r.left() / 8
+        ));
+    }
+    if r.left() > 0 && r.get(r.left() as u32, "the padding")? != 0 {
+        return Err("corrupted: the padding bits are not zero".into());
+    }
+    Ok(Codes {
+        width,
+        height,
+        seed,
+        curves,
+        rho_off,
+        mean,
+        bases,
+        colour: ColourCodes { k },
+    })
+}
+
+/// Reads a `.czs` file's bytes; `path` names it in errors.
+pub fn from_czs(bytes: &[u8], path: &Path) -> Result<Sketch> {
+    let bad = |m: String| Error::bad_file(path, m);
+    if bytes.is_empty() {
+        return Err(bad("empty file, not a .czs sketch".into()));
+    }
+    let n = bytes.len().min(3);
+    if bytes[..n] != MAGIC[..n] {
+        return Err(bad(
+            "not a .czs sketch (it does not start with \"CZS\")".into()
+        ));
+    }
+    if bytes.len() < 5 {
+        return Err(bad(format!(
+            "truncated: {} bytes, shorter than the header",
+            bytes.len()
+        )));
+    }
+    if bytes[3] != VERSION {
+        return Err(bad(format!(
+            "unsupported .czs version {} (this build reads version {VERSION})",
+            bytes[3]
+        )));
+    }
+    let mut total = 0u64;
+    let mut at = 4;
+    loop {
+        let Some(&b) = bytes.get(at) else {
+            return Err(bad(format!(
+                "truncated: {} bytes, shorter than the header",
+                bytes.len()
+            )));
+        };
+        if at - 4 >= 5 {
+            return Err(bad("corrupted: the length field is too long".into()));
+        }
+        total |= ((b & 0x7f) as u64) << (7 * (at - 4));
+        at += 1;
+        if b & 0x80 == 0 {
+            break;
+        }
+    }
+    if bytes.len() as u64 != total && bytes.len() >= at + 4 {
+        // A complete file whose length field was damaged still checks out.
+        let (body, tail) = bytes.split_at(bytes.len() - 4);
+        if crc32(body).to_le_bytes() == tail {
+            return Err(bad(format!(
+                "corrupted: the length field says {total} bytes, the file has {}",
+                bytes.len()
+            )));
+        }
+    }
+    if (bytes.len() as u64) < total {
+        return Err(bad(format!(
+            "truncated: {} of the {total} bytes its header announces",
+            bytes.len()
+        )));
+    }
+    if bytes.len() as u64 > total {
+        return Err(bad(format!(
+            "{} bytes after the end of the sketch (its header announces {total} bytes)",
+            bytes.len() as u64 - total
+        )));
+    }
+    if total < at as u64 + 4 {
+        return Err(bad(format!("corrupted: a length of {total} bytes")));
+    }
+    let body = &bytes[..bytes.len() - 4];
+    let stored = u32::from_le_bytes(bytes[bytes.len() - 4..].try_into().expect("4 bytes"));
+    if crc32(body) != stored {
+        return Err(bad("checksum mismatch: the file is corrupted".into()));
+    }
+    let c = unpack(&body[at..]).map_err(bad)?;
+    Ok(decode(&c))
+}
+
+// ---------------------------------------------------------------------------------------
+// sketch.json
+
+#[derive(Serialize, Deserialize)]
+struct JsonPrim {
+    /// Degrees, a multiple of 15.
+    axis: u32,
+    /// Degrees.
+    sides: [f64; 2],
+    rho: f32,
+}
+
+#[derive(Serialize, Deserialize)]
+struct JsonCurve {
+    kind: String,
+    dirs: [i8; 2],
+    start: [u32; 2],
+    prims: Vec<JsonPrim>,
+}
+
+#[derive(Serialize, Deserialize)]
+struct JsonBase {
+    x: f32,
+    y: f32,
+    /// Degrees.
+    theta: f64,
+    sx: f32,
+    sy: f32,
+    amp: f32,
+}
+
+#[derive(Serialize, Deserialize)]
+struct JsonShading {
+    mean: f32,
+    bases: Vec<JsonBase>,
+}
+
+#[derive(Serialize, Deserialize)]
+struct JsonSketch {
+    format: String,
+    version: u32,
+    width: u32,
+    height: u32,
+    seed: u64,
+    curves: Vec<JsonCurve>,
+    rho_off: RhoPrior,
+    shading: JsonShading,
+    colour: ColourMap,
+}
+
+const FORMAT_NAME: &str = "coif-sketch";
+
+fn json_of(c: &Codes) -> JsonSketch {
+    let s = decode(c);
+    JsonSketch {
+        format: FORMAT_NAME.into(),
+        version: VERSION as u32,
+        width: c.width,
+        height: c.height,
+        seed: c.seed,
+        curves: c
+            .curves
+            .iter()
+            .zip(&s.curves)
+            .map(|(cc, cv)| {
+                let mut idx = cc.axis as i64;
+                JsonCurve {
+                    kind: cc.kind.letter().to_string(),
+                    dirs: cc.dirs,
+                    start: cc.start,
+                    prims: cc
+                        .prims
+                        .iter()
+                        .zip(&cv.prims)
+                        .enumerate()
+                        .map(|(k, (pc, p))| {
+                            if k > 0 {
+                                idx += pc.turn as i64;
+                            }
+                            JsonPrim {
+                                axis: idx.rem_euclid(AXIS_STEPS as i64) as u32 * 15,
+                                sides: [0, 1].map(|s| {
+                                    if cc.kind.hair_sides()[s] {
+                                        side_deg(pc.side[s].0, pc.side[s].1)
+                                    } else {
+                                        0.0
+                                    }
+                                }),
+                                rho: p.rho,
+                            }
+                        })
+                        .collect(),
+                }
+            })
+            .collect(),
+        rho_off: s.rho_off,
+        shading: JsonShading {
+            mean: s.shading.mean,
+            bases: c
+                .bases
+                .iter()
+                .zip(&s.shading.bases)
+                .map(|(bc, b)| JsonBase {
+                    x: b.x,
+                    y: b.y,
+                    theta: bc.theta as f64 * 180.0 / THETAS as f64,
+                    sx: b.sx,
+                    sy: b.sy,
+                    amp: b.amp,
+                })
+                .collect(),
+        },
+        colour: s.colour,
+    }
+}
+
+/// `sketch.json` of the quantised sketch (angles in degrees; see the schema).
+pub fn to_json(s: &Sketch) -> String {
+    serde_json::to_string_pretty(&json_of(&codes(s))).expect("a sketch serialises") + "\n"
+}
+
+/// Checks `v` against the schema; the message lists each failure with its JSON pointer.
+pub fn validate_json(v: &serde_json::Value) -> std::result::Result<(), String> {
+    let schema: serde_json::Value =
+        serde_json::from_str(SCHEMA).map_err(|e| format!("the built-in schema: {e}"))?;
+    let mut schemas = boon::Schemas::new();
+    let mut compiler = boon::Compiler::new();
+    compiler
+        .add_resource(SCHEMA_URL, schema)
+        .map_err(|e| format!("the built-in schema: {e}"))?;
+    let idx = compiler
+        .compile(SCHEMA_URL, &mut schemas)
+        .map_err(|e| format!("the built-in schema: {e}"))?;
+    schemas.validate(v, idx).map_err(|e| {
+        // The leaves of boon's error tree are the concrete failures.
+        fn leaves(e: &boon::ValidationError, out: &mut Vec<String>) {
+            if e.causes.is_empty() {
+                let at = e.instance_location.to_string();
+                let at = if at.is_empty() { "/".to_string() } else { at };
+                out.push(format!("at {at}: {}", e.kind));
+            }
+            for c in &e.causes {
+                leaves(c, out);
+            }
+        }
+        let mut out = Vec::new();
+        leaves(&e, &mut out);
+        out.truncate(8);
+        out.join("; ")
+    })
+}
+
+/// Reads `sketch.json` text; `path` names it in errors. The text must match the schema;
+/// the numbers are then snapped to the `.czs` lattice.
+pub fn from_json(text: &str, path: &Path) -> Result<Sketch> {
+    let bad = |m: String| Error::bad_file(path, m);
+    let v: serde_json::Value =
+        serde_json::from_str(text).map_err(|e| bad(format!("malformed JSON: {e}")))?;
+    validate_json(&v).map_err(|m| {
+        bad(format!(
+            "does not match the schema schemas/sketch.v1.schema.json: {m}"
+        ))
+    })?;
+    let j: JsonSketch = serde_json::from_value(v)
+        .map_err(|e| bad(format!("does not match the sketch format: {e}")))?;
+    let (w, h) = (j.width, j.height);
+    let mut curves = Vec::new();
+    for (ci, c) in j.curves.iter().enumerate() {
+        let kind = c
+            .kind
+            .chars()
+            .next()
+            .and_then(Kind::from_letter)
+            .ok_or_else(|| bad(format!("curve {ci}: unknown kind \"{}\"", c.kind)))?;
+        if c.start[0] > w || c.start[1] > h {
+            return Err(bad(format!(
+                "curve {ci} starts at ({}, {}), outside the {w}x{h} image",
+                c.start[0], c.start[1]
+            )));
+        }
+        let mut prims = Vec::new();
+        let mut prev = 0u32;
+        for (k, p) in c.prims.iter().enumerate() {
+            let a = p.axis / 15;
+            if k > 0 {
+                let d = (a + AXIS_STEPS - prev) % AXIS_STEPS;
+                if d != 0 && d != 1 && d != AXIS_STEPS - 1 {
+                    return Err(bad(format!(
+                        "curve {ci}, primitive {k}: the axis turns from {}° to {}°; a curve \
+                         turns by −15°, 0 or +15° per primitive",
+                        prev * 15,
+                        p.axis
+                    )));
+                }
+            }
+            prev = a;
+            prims.push(Primitive {
+                x: if k == 0 { c.start[0] as f32 } else { 0.0 },
+                y: if k == 0 { c.start[1] as f32 } else { 0.0 },
+                axis: axis_of(a as u8),
+                rho: p.rho,
+                side: p.sides.map(deg_to_rad),
+            });
+        }
+        curves.push(Curve {
+            kind,
+            prims,
+            dirs: c.dirs,
+        });
+    }
+    let sketch = Sketch {
+        width: w,
+        height: h,
+        seed: j.seed,
+        curves,
+        rho_off: j.rho_off,
+        shading: Shading {
+            mean: j.shading.mean,
+            bases: j
+                .shading
+                .bases
+                .iter()
+                .map(|b| Base {
+                    x: b.x,
+                    y: b.y,
+                    theta: deg_to_rad(b.theta),
+                    sx: b.sx,
+                    sy: b.sy,
+                    amp: b.amp,
+                })
+                .collect(),
+        },
+        colour: j.colour,
+    };
+    Ok(quantise(&sketch))
+}
+
+// ---------------------------------------------------------------------------------------
+// sketch.svg
+
+fn fmt_list<T: std::fmt::Display>(v: impl IntoIterator<Item = T>) -> String {
+    v.into_iter()
+        .map(|x| x.to_string())
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// Lead-in and lead-out half steps around the centres: every curve draws at least 3
+/// points (the importer needs 2), and the first segment gives the first axis.
+fn curve_points(c: &Curve) -> Vec<[f32; 2]> {
+    let mut pts = Vec::with_capacity(c.prims.len() + 2);
+    let half = 0.5 * STEP;
+    let (f, l) = (&c.prims[0], &c.prims[c.prims.len() - 1]);
+    pts.push([f.x - half * f.axis.cos(), f.y - half * f.axis.sin()]);
+    pts.extend(c.prims.iter().map(|p| [p.x, p.y]));
+    pts.push([l.x + half * l.axis.cos(), l.y + half * l.axis.sin()]);
+    pts
+}
+
+/// `sketch.svg` of the quantised sketch: one `<polyline>` per curve (class `cz-a`..`cz-e`,
+/// points the lead-in, the primitive centres and the lead-out; `data-dirs` the labels,
+/// `data-sides` each primitive's side angles in degrees, `data-rho` its contrast), one
+/// `<ellipse>` per shading base (1σ, `data-amp` its amplitude), the rest on the root
+/// element's `data-*` attributes.
+pub fn to_svg(s: &Sketch) -> String {
+    let c = codes(s);
+    let q = decode(&c);
+    let j = json_of(&c);
+    let (w, h) = (q.width, q.height);
+    let mut out = String::new();
+    out.push_str("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n");
+    out.push_str(&format!(
+        "<svg xmlns=\"http://www.w3.org/2000/svg\" version=\"1.1\" width=\"{w}\" \
+         height=\"{h}\" viewBox=\"0 0 {w} {h}\"\n     data-cz-format=\"{FORMAT_NAME}\" \
+         data-cz-version=\"{VERSION}\" data-seed=\"{}\"\n     data-rho-off=\"{}\"\n     \
+         data-shading-mean=\"{}\"\n     data-colour=\"{}\">\n",
+        q.seed,
+        fmt_list(
+            q.rho_off
+                .weight
+                .iter()
+                .chain(&q.rho_off.mean)
+                .chain(&q.rho_off.sigma)
+        ),
+        q.shading.mean,
+        fmt_list(q.colour.uv.iter().flatten()),
+    ));
+    out.push_str(
+        "  <title>coif sketch (Chen and Zhu 2006): curves a-e, shading ellipses</title>\n  \
+         <style>\n    polyline { fill: none; stroke-width: 1.5; stroke-linejoin: round; }\n    \
+         .cz-a { stroke: #1f77b4; } .cz-b { stroke: #2ca02c; } .cz-c { stroke: #d62728; }\n    \
+         .cz-d { stroke: #9467bd; } .cz-e { stroke: #ff7f0e; }\n    \
+         ellipse { fill: none; stroke-width: 0.75; stroke-dasharray: 3 2; }\n    \
+         .cz-highlight { stroke: #bbbbbb; } .cz-shadow { stroke: #444444; }\n  </style>\n",
+    );
+    out.push_str("  <g id=\"cz-shading\">\n");
+    for (b, jb) in q.shading.bases.iter().zip(&j.shading.bases) {
+        out.push_str(&format!(
+            "    <ellipse class=\"{}\" cx=\"{}\" cy=\"{}\" rx=\"{}\" ry=\"{}\" \
+             transform=\"rotate({} {} {})\" data-amp=\"{}\"/>\n",
+            if b.amp >= 0.0 {
+                "cz-highlight"
+            } else {
+                "cz-shadow"
+            },
+            b.x,
+            b.y,
+            b.sx,
+            b.sy,
+            jb.theta,
+            b.x,
+            b.y,
+            b.amp
+        ));
+    }
+    out.push_str("  </g>\n  <g id=\"cz-curves\">\n");
+    for (cv, jc) in q.curves.iter().zip(&j.curves) {
+        out.push_str(&format!(
+            "    <polyline class=\"cz-{}\" data-dirs=\"{} {}\" data-sides=\"{}\" \
+             data-rho=\"{}\"\n      points=\"{}\"/>\n",
+            cv.kind.letter(),
+            cv.dirs[0],
+            cv.dirs[1],
+            jc.prims
+                .iter()
+                .map(|p| format!("{},{}", p.sides[0], p.sides[1]))
+                .collect::<Vec<_>>()
+                .join(" "),
+            fmt_list(cv.prims.iter().map(|p| p.rho)),
+            curve_points(cv)
+                .iter()
+                .map(|p| format!("{},{}", p[0], p[1]))
+                .collect::<Vec<_>>()
+                .join(" "),
+        ));
+    }
+    out.push_str("  </g>\n</svg>\n");
+    out
+}
+
+fn numbers(s: &str, what: &str) -> std::result::Result<Vec<f64>, String> {
+    s.split(|c: char| c.is_whitespace() || c == ',')
+        .filter(|t| !t.is_empty())
+        .map(|t| {
+            t.parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| format!("{what}: \"{t}\" is not a number"))
+        })
+        .collect()
+}
+
+fn attr<'a>(
+    n: roxmltree::Node<'a, '_>,
+    name: &str,
+    at: &str,
+) -> std::result::Result<&'a str, String> {
+    n.attribute(name)
+        .ok_or_else(|| format!("{at} has no {name} attribute"))
+}
+
+fn counted(s: &str, what: &str, n: usize) -> std::result::Result<Vec<f64>, String> {
+    let v = numbers(s, what)?;
+    if v.len() != n {
+        return Err(format!("{what} has {} numbers, expected {n}", v.len()));
+    }
+    Ok(v)
+}
+
+/// Nearest 15° step of the direction from `a` to `b`.
+fn step_of(a: [f64; 2], b: [f64; 2]) -> i64 {
+    let ang = (b[1] - a[1]).atan2(b[0] - a[0]);
+    (ang / (PI / 12.0)).round() as i64
+}
+
+/// An affine map (a, b, c, d, e, f): (x, y) → (a x + c y + e, b x + d y + f), as SVG's.
+type Affine = [f64; 6];
+
+fn compose(m: &Affine, n: &Affine) -> Affine {
+    [
+        m[0] * n[0] + m[2] * n[1],
+        m[1] * n[0] + m[3] * n[1],
+        m[0] * n[2] + m[2] * n[3],
+        m[1] * n[2] + m[3] * n[3],
+        m[0] * n[4] + m[2] * n[5] + m[4],
+        m[1] * n[4] + m[3] * n[5] + m[5],
+    ]
+}
+
+fn apply(m: &Affine, p: [f64; 2]) -> [f64; 2] {
+    [
+        m[0] * p[0] + m[2] * p[1] + m[4],
+        m[1] * p[0] + m[3] * p[1] + m[5],
+    ]
+}
+
+/// Parses an SVG transform list (matrix, translate, scale, rotate, skewX, skewY).
+fn parse_transform(t: &str) -> std::result::Result<Affine, String> {
+    let mut m: Affine = [1.0, 0.0, 0.0, 1.0, 0.0, 0.0];
+    let mut rest = t.trim();
+    while !rest.is_empty() {
+        let open = rest
+            .find('(')
+            .ok_or_else(|| format!("transform \"{t}\": expected name(numbers)"))?;
+        let close = rest[open..]
+            .find(')')
+            .ok_or_else(|| format!("transform \"{t}\": missing ')'"))?
+            + open;
+        let name = rest[..open].trim().trim_start_matches(',').trim();
+        let v = numbers(&rest[open + 1..close], &format!("transform \"{t}\""))?;
+        let bad = || format!("transform \"{t}\": {name} with {} numbers", v.len());
+        let rad = |a: f64| a * PI / 180.0;
+        let op: Affine = match (name, v.len()) {
+            ("matrix", 6) => [v[0], v[1], v[2], v[3], v[4], v[5]],
+            ("translate", 1) => [1.0, 0.0, 0.0, 1.0, v[0], 0.0],
+            ("translate", 2) => [1.0, 0.0, 0.0, 1.0, v[0], v[1]],
+            ("scale", 1) => [v[0], 0.0, 0.0, v[0], 0.0, 0.0],
+            ("scale", 2) => [v[0], 0.0, 0.0, v[1], 0.0, 0.0],
+            ("rotate", 1 | 3) => {
+                let (s, c) = rad(v[0]).sin_cos();
+                let r = [c, s, -s, c, 0.0, 0.0];
+                if v.len() == 3 {
+                    let to = [1.0, 0.0, 0.0, 1.0, v[1], v[2]];
+                    let back = [1.0, 0.0, 0.0, 1.0, -v[1], -v[2]];
+                    compose(&compose(&to, &r), &back)
+                } else {
+                    r
+                }
+            }
+            ("skewX", 1) => [1.0, 0.0, rad(v[0]).tan(), 1.0, 0.0, 0.0],
+            ("skewY", 1) => [1.0, rad(v[0]).tan(), 0.0, 1.0, 0.0, 0.0],
+            _ => return Err(bad()),
+        };
+        m = compose(&m, &op);
+        rest = rest[close + 1..].trim();
+    }
+    Ok(m)
+}
+
+/// The transform from an element's coordinates to the root's (its own and its ancestors',
+/// as an editor's moves leave them).
+fn transform_of(n: roxmltree::Node) -> std::result::Result<Affine, String> {
+    let mut m: Affine = [1.0, 0.0, 0.0, 1.0, 0.0, 0.0];
+    let chain: Vec<roxmltree::Node> = n.ancestors().filter(|a| a.is_element()).collect();
+    // Outermost first; the root <svg> has no transform attribute.
+    for a in chain.iter().rev() {
+        if let Some(t) = a.attribute("transform") {
+            m = compose(&m, &parse_transform(t)?);
+        }
+    }
+    Ok(m)
+}
+
+fn parse_svg(text: &str) -> std::result::Result<Sketch, String> {
+    let doc = roxmltree::Document::parse(text).map_err(|e| format!("malformed XML: {e}"))?;
+    let root = doc.root_element();
+    if root.tag_name().name() != "svg" {
+        return Err(format!(
+            "not an SVG file: the root element is <{}>",
+            root.tag_name().name()
+        ));
+    }
+    if root.attribute("data-cz-format") != Some(FORMAT_NAME) {
+        return Err(
+            "not a coif sketch: the <svg> element has no data-cz-format=\"coif-sketch\"".into(),
+        );
+    }
+    let version = root.attribute("data-cz-version").unwrap_or("");
+    if version != VERSION.to_string() {
+        return Err(format!(
+            "unsupported sketch version \"{version}\" (this build reads {VERSION})"
+        ));
+    }
+    let int = |name: &str| -> std::result::Result<u64, String> {
+        let t = attr(root, name, "<svg>")?;
+        t.trim()
+            .parse::<u64>()
+            .map_err(|_| format!("<svg> {name}=\"{t}\" is not a whole number"))
+    };
+    let (w, h, seed) = (int("width")?, int("height")?, int("data-seed")?);
+    if w == 0 || h == 0 || w > u32::MAX as u64 || h > u32::MAX as u64 {
+        return Err(format!("<svg> has an unusable size {w}x{h}"));
+    }
+    let (w, h) = (w as u32, h as u32);
+    let r = counted(attr(root, "data-rho-off", "<svg>")?, "data-rho-off", 6)?;
+    let mean = counted(
+        attr(root, "data-shading-mean", "<svg>")?,
+        "data-shading-mean",
+        1,
+    )?[0];
+    let col = counted(
+        attr(root, "data-colour", "<svg>")?,
+        "data-colour",
+        2 * COLOUR_BINS,
+    )?;
+    let mut curves = Vec::new();
+    let mut bases = Vec::new();
+    for n in root.descendants().filter(|n| n.is_element()) {
+        match n.tag_name().name() {
+            "polyline" => {
+                let at = format!(
+                    "curve {} (line {})",
+                    curves.len(),
+                    doc.text_pos_at(n.range().start).row
+                );
+                let class = attr(n, "class", &at)?;
+                let kind = class
+                    .split_whitespace()
+                    .find_map(|c| {
+                        c.strip_prefix("cz-")
+                            .filter(|k| k.len() == 1)
+                            .and_then(|k| k.chars().next())
+                            .and_then(Kind::from_letter)
+                    })
+                    .ok_or_else(|| format!("{at}: class \"{class}\" names no kind cz-a..cz-e"))?;
+                let m = transform_of(n).map_err(|e| format!("{at}: {e}"))?;
+                let d = counted(attr(n, "data-dirs", &at)?, &format!("{at}: data-dirs"), 2)?;
+                let dirs = [d[0], d[1]].map(|v| v.signum() as i8 * (v != 0.0) as i8);
+                let pts = numbers(attr(n, "points", &at)?, &format!("{at}: points"))?;
+                if pts.len() % 2 != 0 || pts.len() < 6 {
+                    return Err(format!(
+                        "{at}: points needs a lead-in point, the centres and a lead-out point \
+                         ({} numbers)",
+                        pts.len()
+                    ));
+                }
+                let pts: Vec<[f64; 2]> = pts.chunks(2).map(|c| apply(&m, [c[0], c[1]])).collect();
+                let np = pts.len() - 2;
+                let sides = counted(
+                    attr(n, "data-sides", &at)?,
+                    &format!("{at}: data-sides"),
+                    2 * np,
+                )?;
+                let rho = counted(attr(n, "data-rho", &at)?, &format!("{at}: data-rho"), np)?;
+                let mut prims = Vec::new();
+                let mut prev = 0i64;
+                for k in 0..np {
+                    let a = step_of(pts[k], pts[k + 1]);
+                    if k > 0 {
+                        let t = (a - prev).rem_euclid(24);
+                        if t != 0 && t != 1 && t != 23 {
+                            return Err(format!(
+                                "{at}, primitive {k}: the curve turns by {}°; it turns by \
+                                 −15°, 0 or +15° per primitive",
+                                if t > 12 { t - 24 } else { t } * 15
+                            ));
+                        }
+                    }
+                    prev = a;
+                    prims.push(Primitive {
+                        x: pts[k + 1][0] as f32,
+                        y: pts[k + 1][1] as f32,
+                        axis: axis_of(a.rem_euclid(24) as u8),
+                        rho: rho[k] as f32,
+                        side: [deg_to_rad(sides[2 * k]), deg_to_rad(sides[2 * k + 1])],
+                    });
+                }
+                curves.push(Curve { kind, prims, dirs });
+            }
+            "ellipse" => {
+                let at = format!(
+                    "shading base {} (line {})",
+                    bases.len(),
+                    doc.text_pos_at(n.range().start).row
+                );
+                let num = |name: &str| -> std::result::Result<f64, String> {
+                    Ok(counted(attr(n, name, &at)?, &format!("{at}: {name}"), 1)?[0])
+                };
+                let m = transform_of(n).map_err(|e| format!("{at}: {e}"))?;
+                let (cx, cy) = (num("cx")?, num("cy")?);
+                let c = apply(&m, [cx, cy]);
+                // The ellipse's own axes through the transforms: θ along its x axis.
+                let ax = [m[0], m[1]];
+                let ay = [m[2], m[3]];
+                let theta = ax[1].atan2(ax[0]).rem_euclid(PI);
+                bases.push(Base {
+                    x: c[0] as f32,
+                    y: c[1] as f32,
+                    theta: theta as f32,
+                    sx: (num("rx")? * ax[0].hypot(ax[1])) as f32,
+                    sy: (num("ry")? * ay[0].hypot(ay[1])) as f32,
+                    amp: num("data-amp")? as f32,
+                });
+            }
+            _ => {}
+        }
+    }
+    let sketch = Sketch {
+        width: w,
+        height: h,
+        seed,
+        curves,
+        rho_off: RhoPrior {
+            weight: [r[0] as f32, r[1] as f32],
+            mean: [r[2] as f32, r[3] as f32],
+            sigma: [r[4] as f32, r[5] as f32],
+        },
+        shading: Shading {
+            mean: mean as f32,
+            bases,
+        },
+        colour: ColourMap {
+            uv: col.chunks(2).map(|c| [c[0] as f32, c[1] as f32]).collect(),
+        },
+    };
+    Ok(quantise(&sketch))
+}
+
+/// Reads `sketch.svg` text; `path` names it in errors. Curves are read from the polylines'
+/// points through any transforms an editor added (snapped to the lattice, so a curve moved
+/// in Inkscape moves), their labels, side angles and contrasts from the data attributes;
+/// bases from the ellipses' geometry and `data-amp`.
+pub fn from_svg(text: &str, path: &Path) -> Result<Sketch> {
+    parse_svg(text).map_err(|m| Error::bad_file(path, m))
+}
+
+// ---------------------------------------------------------------------------------------
+// Files
+
+/// Reads a sketch from `hair.czs`, `sketch.json` or `sketch.svg`, by extension.
+pub fn load(path: &Path) -> Result<Sketch> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase());
+    let text = || std::fs::read_to_string(path).map_err(|e| Error::io(path, e));
+    match ext.as_deref() {
+        Some("czs") => {
+            let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+            from_czs(&bytes, path)
+        }
+        Some("json") => from_json(&text()?, path),
+        Some("svg") => from_svg(&text()?, path),
+        _ => Err(Error::bad_file(
+            path,
+            "unknown sketch file type: expected a .czs, .json or .svg extension",
+        )),
+    }
+}
+
+/// Writes `s` (quantised) to `path` atomically, in the format its extension names.
+pub fn save(s: &Sketch, path: &Path) -> Result<()> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase());
+    let bytes = match ext.as_deref() {
+        Some("czs") => to_czs(s),
+        Some("json") => to_json(s).into_bytes(),
+        Some("svg") => to_svg(s).into_bytes(),
+        _ => {
+            return Err(Error::Invalid(format!(
+                "{}: unknown sketch file type: expected a .czs, .json or .svg extension",
+                path.display()
+            )))
+        }
+    };
+    crate::io::write_atomic(path, &bytes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_code_snaps_back_to_its_value() {
+        for d in 0..4u8 {
+            for r in 0..16u8 {
+                let deg = side_deg(d, r);
+                let (d2, r2) = snap_side((deg_to_rad(deg) as f64).to_degrees());
+                assert_eq!(side_deg(d2, r2), deg, "side ({d}, {r})");
+            }
+        }
+        for k in 0..16u8 {
+            assert_eq!(snap_rho(RHO_LEVELS[k as usize]), k);
+        }
+        for k in 0..=255u8 {
+            assert_eq!(snap_prior(prior_value(k)), k, "prior {k}");
+        }
+        for k in 0..SIGMAS.len() as u8 {
+            assert_eq!(sigma_code(SIGMAS[k as usize]), k);
+        }
+        for k in 0..=1023u16 {
+            assert_eq!(mean_code(mean_of(k)), k);
+        }
+        for a in 0..AXIS_STEPS as u8 {
+            let c = curve_codes(
+                &Curve {
+                    kind: Kind::Stream,
+                    prims: vec![Primitive {
+                        x: 1.0,
+                        y: 1.0,
+                        axis: axis_of(a),
+                        rho: 0.0,
+                        side: [0.0; 2],
+                    }],
+                    dirs: [1, 1],
+                },
+                4,
+                4,
+            )
+            .unwrap();
+            assert_eq!(c.axis, a);
+            // The cosine table agrees with the library's cosine.
+            let t = a as f64 * PI / 12.0;
+            assert!((cos15(a as i64) - t.cos()).abs() < 1e-15);
+            assert!((sin15(a as i64) - t.sin()).abs() < 1e-15);
+        }
+    }
+
+    #[test]
+    fn bit_io_and_checksum() {
+        let mut w = BitWriter::new();
+        for v in 1..300u64 {
+            w.gamma(v);
+            w.put(v & 0x1f, 5);
+        }
+        let mut r = BitReader {
+            data: &w.bytes,
+            pos: 0,
+        };
+        for v in 1..300u64 {
+            assert_eq!(r.gamma("v").unwrap(), v);
+            assert_eq!(r.get(5, "v").unwrap(), v & 0x1f);
+        }
+        assert!(r.left() < 8);
+        // The standard CRC-32 check value.
+        assert_eq!(crc32(b"123456789"), 0xCBF4_3926);
+    }
+}
