@@ -25,6 +25,7 @@
 //! traversal, so reversing a curve changes nothing but flips nothing either: the vectors
 //! reverse with the axis and the labels stay.
 
+pub mod fill;
 pub mod prim;
 
 use serde::{Deserialize, Serialize};
