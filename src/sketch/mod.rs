@@ -26,6 +26,7 @@
 //! reverse with the axis and the labels stay.
 
 pub mod fill;
+pub mod oracle;
 pub mod prim;
 
 use serde::{Deserialize, Serialize};
