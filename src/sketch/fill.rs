@@ -226,14 +226,8 @@ impl FillState {
     /// Sequential BFS, one pass over the image: CPU.
     fn drop_unreached(&mut self) {
         let (w, h) = (self.width as usize, self.height as usize);
-        let mut seen = vec![false; w * h];
-        let mut queue: VecDeque<usize> = VecDeque::new();
-        for k in 0..w * h {
-            if self.kind[k] == cz_fill::CLAMPED {
-                seen[k] = true;
-                queue.push_back(k);
-            }
-        }
+        let mut seen: Vec<bool> = self.kind.iter().map(|&c| c == cz_fill::CLAMPED).collect();
+        let mut queue: VecDeque<usize> = (0..w * h).filter(|&k| seen[k]).collect();
         while let Some(k) = queue.pop_front() {
             let (x, y) = (k % w, k / w);
             let nb = [
@@ -249,9 +243,9 @@ impl FillState {
                 }
             }
         }
-        for k in 0..w * h {
-            if !seen[k] {
-                self.kind[k] = cz_fill::OFF;
+        for (kind, seen) in self.kind.iter_mut().zip(seen) {
+            if !seen {
+                *kind = cz_fill::OFF;
             }
         }
     }
@@ -408,7 +402,7 @@ pub fn sample_rho(
     check_inputs(painted, hair, rho_off)?;
     let (w, h) = (painted.width, painted.height);
     let n = hair.len();
-    let mut rng = Rng::new(seed).fork(0x7268_6f);
+    let mut rng = Rng::new(seed).fork(0x0072_686f);
     let p0 = rho_off.weight[0] / (rho_off.weight[0] + rho_off.weight[1]);
     let mut rho = vec![f32::NAN; n];
     let mut drawn = vec![0.0f32; n];
@@ -488,9 +482,9 @@ pub fn fill_report(
         let mut c = diffuse(engine, &mut s, p)?;
         c.unreached = (0..n).filter(|&k| hair[k] && !s.is_set(k)).count();
         report.orientation = Some(c);
-        for k in 0..n {
-            if theta[k].is_nan() {
-                theta[k] = s.angle(k);
+        for (k, t) in theta.iter_mut().enumerate() {
+            if t.is_nan() {
+                *t = s.angle(k);
             }
         }
     }
