@@ -26,7 +26,9 @@
 //! reverse with the axis and the labels stay.
 
 pub mod bands;
+pub mod fill;
 pub mod format;
+pub mod oracle;
 pub mod prim;
 pub mod samples;
 pub mod shading;

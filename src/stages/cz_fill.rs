@@ -1,0 +1,139 @@
+//! One red-black half-sweep of CZ06's fill-in of the vector field from the sketch (§3.1,
+//! Eq. 16-17): nonlinear Gauss-Seidel on the angle, τ_v = arg Σ_{u∈∂v} w(u) e^{iτ_u}, with the
+//! growing weight schedule w_v ← w_v + 0.2 (mean_{u∈∂v} w(u) − w_v). See `wgsl/cz_fill.wgsl`;
+//! the host is `crate::sketch::fill`.
+
+use crate::gpu::engine::{Bind, CpuBinding, StageDef};
+use rayon::prelude::*;
+use std::f32::consts::PI;
+
+pub const STAGE: StageDef = StageDef {
+    name: "cz_fill",
+    wgsl: include_str!("../../wgsl/cz_fill.wgsl"),
+    bindings: &[
+        Bind::Uniform,
+        Bind::Read,
+        Bind::Read,
+        Bind::ReadWrite,
+        Bind::ReadWrite,
+        Bind::ReadWrite,
+    ],
+    cpu: cz_fill_cpu,
+};
+
+/// Pixel classes (the `kind` binding).
+pub const OFF: u32 = 0;
+pub const FREE: u32 = 1;
+pub const CLAMPED: u32 = 2;
+/// Orientation known, direction free: the angle is `cons` or `cons` + π.
+pub const AXIS: u32 = 3;
+
+#[derive(Clone, Copy, Debug, Default, encase::ShaderType)]
+pub struct Config {
+    pub width: u32,
+    pub height: u32,
+    /// Which pixels this half-sweep updates: those with (x + y) & 1 == colour.
+    pub colour: u32,
+    /// 1: the angles are doubled orientations 2θ; 0: directions τ.
+    pub doubled: u32,
+}
+
+pub fn workgroups(cfg: &Config) -> [u32; 3] {
+    [
+        crate::gpu::engine::groups(cfg.width.div_ceil(2), 8),
+        crate::gpu::engine::groups(cfg.height, 8),
+        1,
+    ]
+}
+
+fn wrap_2pi(a: f32) -> f32 {
+    let two_pi = 2.0 * PI;
+    let r = a - two_pi * (a / two_pi).floor();
+    if !(0.0..two_pi).contains(&r) {
+        0.0
+    } else {
+        r
+    }
+}
+
+fn cz_fill_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
+    let cfg: Config = b[0].uniform();
+    let (g_kind, g_cons) = (b[1].get::<u32>(), b[2].get::<f32>());
+    let (kind, cons): (&[u32], &[f32]) = (&g_kind, &g_cons);
+    let mut ang = b[3].get_mut::<f32>();
+    let mut wt = b[4].get_mut::<f32>();
+    let mut delta = b[5].get_mut::<f32>();
+    let (w, h) = (cfg.width as usize, cfg.height as usize);
+    // Only this colour's pixels are written and only the other colour's are read, so the
+    // shader updates in place; here the reads come from copies so rows can run in parallel.
+    let (ang_src, wt_src) = (ang[..w * h].to_vec(), wt[..w * h].to_vec());
+    ang[..w * h]
+        .par_chunks_mut(w)
+        .zip(wt[..w * h].par_chunks_mut(w))
+        .zip(delta[..w * h].par_chunks_mut(w))
+        .enumerate()
+        .for_each(|(y, ((ang_row, wt_row), delta_row))| {
+            let first = (y + cfg.colour as usize) & 1;
+            for x in (first..w).step_by(2) {
+                let i = y * w + x;
+                let c = kind[i];
+                if c == OFF || c == CLAMPED {
+                    continue;
+                }
+                let (mut s, mut sw, mut n) = ([0.0f32; 2], 0.0f32, 0.0f32);
+                let mut gather = |j: usize| {
+                    if kind[j] == OFF {
+                        return;
+                    }
+                    n += 1.0;
+                    let wu = wt_src[j];
+                    if wu > 0.0 {
+                        let a = ang_src[j];
+                        sw += wu;
+                        s[0] += wu * a.cos();
+                        s[1] += wu * a.sin();
+                    }
+                };
+                if x > 0 {
+                    gather(i - 1);
+                }
+                if x + 1 < w {
+                    gather(i + 1);
+                }
+                if y > 0 {
+                    gather(i - w);
+                }
+                if y + 1 < h {
+                    gather(i + w);
+                }
+                if n == 0.0 {
+                    continue;
+                }
+                let w_old = wt_row[x];
+                let mut d = 0.0f32;
+                if sw > 0.0 {
+                    let mut a = s[1].atan2(s[0]);
+                    if c == AXIS {
+                        let t = cons[i];
+                        a = t;
+                        if s[0] * t.cos() + s[1] * t.sin() < 0.0 {
+                            a = t + PI;
+                        }
+                    }
+                    a = wrap_2pi(a);
+                    d = if w_old > 0.0 {
+                        let e = (a - ang_row[x]).abs();
+                        e.min(2.0 * PI - e)
+                    } else {
+                        PI
+                    };
+                    if cfg.doubled == 1 {
+                        d *= 0.5;
+                    }
+                    ang_row[x] = a;
+                }
+                delta_row[x] = d;
+                wt_row[x] = w_old + 0.2 * (sw / n - w_old);
+            }
+        });
+}
