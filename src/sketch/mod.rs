@@ -26,6 +26,9 @@
 //! reverse with the axis and the labels stay.
 
 pub mod prim;
+pub mod pursuit;
+pub mod rho;
+pub mod theta;
 
 use serde::{Deserialize, Serialize};
 use std::f32::consts::PI;

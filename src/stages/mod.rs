@@ -4,6 +4,8 @@
 //! shaders share live in `wgsl/shared/` (see [`crate::gpu::wgsl`]) and, on the CPU side, in
 //! the modules without a stage (`field_cfg`, `pm_common`, `raster_common`, `base::colour`).
 
+pub mod cz_theta_gs;
+pub mod cz_window_sums;
 pub mod density_splat;
 pub mod depth_raster;
 pub mod dir_diffuse;
@@ -79,6 +81,8 @@ pub const ALL: &[&StageDef] = &[
     &flow_warp::STAGE,
     &flow_solve::STAGE,
     &flow_up::STAGE,
+    &cz_theta_gs::STAGE,
+    &cz_window_sums::STAGE,
 ];
 
 /// Every registered render pass; the host is `crate::render::raster`.
