@@ -3,8 +3,9 @@
 // where k_p is a known vector with confidence c_p (0 where nothing is known). With
 // `use_orient`, the result is projected on the local orientation line t_p = (cos θ, sin θ):
 // the field then stays ± the image orientation and the sweeps only choose and spread the
-// sign (the dense growth direction of C13 §2.1). Without it this is the plain vector-field
-// fill-in of Chen and Zhu 2006 Eq. (16)-(17).
+// sign (the dense growth direction of C13 §2.1). Without it this is a plain linear
+// vector-field diffusion: it is not CZ06's fill-in (Eq. 16-17 diffuse the angle τ
+// nonlinearly with a growing weight schedule), which is the `cz_fill` pass.
 
 struct Config {
     width: u32,

@@ -1,5 +1,6 @@
-//! One Jacobi sweep of constrained vector-field diffusion (C13 §2.1 dense direction; the
-//! same sweep fills vector fields for CZ06 Eq. 16-17).
+//! One Jacobi sweep of constrained linear vector-field diffusion (C13 §2.1 dense direction).
+//! CZ06's fill-in (Eq. 16-17: nonlinear in the angle, with a growing weight schedule) is a
+//! different pass, `cz_fill`.
 
 use crate::gpu::engine::{Bind, CpuBinding, StageDef};
 use rayon::prelude::*;

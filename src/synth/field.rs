@@ -36,6 +36,21 @@ pub(super) enum Field {
     /// Straight out of a crown point above the head silhouette (so no singularity on hair),
     /// turned by a small twist.
     Radial { ox: f32, oy: f32, twist: f32 },
+    /// A fringe lying over side hair (CZ06 Fig. 10): inside the ellipse centred (ex, ey) with
+    /// radii (erx, ery) the hair sweeps sideways across the forehead, towards x·`sweep`
+    /// (±1), at β0 + β1·u below the horizontal (u = sweep·(x − ex)/erx); outside it, the
+    /// `rest` field. The ellipse's arc inside the hair is the seam, where the orientation
+    /// jumps.
+    Fringe {
+        ex: f32,
+        ey: f32,
+        erx: f32,
+        ery: f32,
+        sweep: f32,
+        beta0: f32,
+        beta1: f32,
+        rest: Box<Field>,
+    },
 }
 
 impl Field {
@@ -99,6 +114,32 @@ impl Field {
                 let (s, c) = twist.sin_cos();
                 normalize([rx * c - ry * s, rx * s + ry * c])
             }
+            Field::Fringe {
+                ex,
+                erx,
+                sweep,
+                beta0,
+                beta1,
+                ref rest,
+                ..
+            } => {
+                if !self.in_fringe(x, y) {
+                    return rest.dir(x, y);
+                }
+                let u = (sweep * (x - ex) / erx).clamp(-1.5, 1.5);
+                let beta = beta0 + beta1 * u;
+                [sweep * beta.cos(), beta.sin()]
+            }
+        }
+    }
+
+    /// Whether (x, y) lies on the fringe's side of its seam (false for other fields).
+    pub(super) fn in_fringe(&self, x: f32, y: f32) -> bool {
+        match *self {
+            Field::Fringe {
+                ex, ey, erx, ery, ..
+            } => ((x - ex) / erx).powi(2) + ((y - ey) / ery).powi(2) < 1.0,
+            _ => false,
         }
     }
 

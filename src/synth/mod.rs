@@ -40,10 +40,18 @@ pub enum Style {
     SidePart,
     /// Crew-cut-like short strands radiating from the crown.
     Short,
+    /// A fringe swept sideways across the forehead over side hair that falls from the crown:
+    /// the orientation jumps by ≥ 45° along a known seam inside the hair (CZ06 Fig. 10); see
+    /// [`seam`]. 2D only (not in [`Style::ALL`], no 3D or video version).
+    Fringe,
 }
 
 impl Style {
+    /// The styles every 2D, 3D and video test iterates over.
     pub const ALL: [Style; 4] = [Style::Long, Style::Whorl, Style::SidePart, Style::Short];
+    /// Further 2D styles, named and parsed like the others but kept out of [`Style::ALL`] so
+    /// the figures of the tests over it stay what they were.
+    pub const EXTRA: [Style; 1] = [Style::Fringe];
 
     pub fn name(self) -> &'static str {
         match self {
@@ -51,7 +59,13 @@ impl Style {
             Style::Whorl => "whorl",
             Style::SidePart => "sidepart",
             Style::Short => "short",
+            Style::Fringe => "fringe",
         }
+    }
+
+    /// Whether the 3D synth (and so the synthetic video) has this style.
+    pub fn has_3d(self) -> bool {
+        Style::ALL.contains(&self)
     }
 }
 
@@ -66,12 +80,18 @@ impl FromStr for Style {
     fn from_str(s: &str) -> Result<Style> {
         Style::ALL
             .iter()
+            .chain(Style::EXTRA.iter())
             .copied()
             .find(|st| st.name() == s)
             .ok_or_else(|| {
+                let names: Vec<&str> = Style::ALL
+                    .iter()
+                    .chain(Style::EXTRA.iter())
+                    .map(|st| st.name())
+                    .collect();
                 Error::Invalid(format!(
                     "unknown style \"{s}\" (expected one of {})",
-                    Style::ALL.map(|st| st.name()).join(", ")
+                    names.join(", ")
                 ))
             })
     }
@@ -154,6 +174,141 @@ pub fn mask_interior(mask: &GrayImage, min_dist: f32) -> Vec<bool> {
     // Offsets strictly closer than `min_dist`: any non-hair pixel there disqualifies.
     let offs = crate::base::mask::disc(min_dist, true);
     crate::base::mask::erode_by(&hair, w, h, &offs, false)
+}
+
+/// The seam of a style with an orientation discontinuity inside the hair ([`Style::Fringe`]).
+#[derive(Clone, Debug)]
+pub struct Seam {
+    /// W*H: hair pixels on the fringe's side of the seam.
+    pub fringe: Vec<bool>,
+    /// W*H: the seam's pixels: hair pixels with a 4-neighbour hair pixel on the other side.
+    pub on: Vec<bool>,
+    /// W*H: distance from each hair pixel's centre to the nearest seam pixel's centre, px
+    /// (0 on the seam); NaN off hair.
+    pub distance: Vec<f32>,
+}
+
+/// The seam of `p`'s portrait (the case [`synth`] makes from the same params), or None for
+/// styles without one.
+pub fn seam(p: &SynthParams) -> Option<Seam> {
+    if p.style != Style::Fringe {
+        return None;
+    }
+    let [mut geo_rng, mut look_rng, ..] = streams(p, style_salt(p.style));
+    let scene = Scene::new(p, &mut geo_rng, &mut look_rng);
+    let (w, h) = (p.width as usize, p.height as usize);
+    let mut hair = vec![false; w * h];
+    let mut fringe = vec![false; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            let (px, py) = (x as f32 + 0.5, y as f32 + 0.5);
+            let k = y * w + x;
+            hair[k] = scene.hair_sdf(px, py) < 0.0;
+            fringe[k] = hair[k] && scene.field.in_fringe(px, py);
+        }
+    }
+    let mut on = vec![false; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            let k = y * w + x;
+            if !hair[k] {
+                continue;
+            }
+            let nb = [
+                (x > 0).then(|| k - 1),
+                (x + 1 < w).then(|| k + 1),
+                (y > 0).then(|| k - w),
+                (y + 1 < h).then(|| k + w),
+            ];
+            on[k] = nb
+                .into_iter()
+                .flatten()
+                .any(|j| hair[j] && fringe[j] != fringe[k]);
+        }
+    }
+    let d = distance_to(&on, w, h);
+    let distance = (0..w * h)
+        .map(|k| if hair[k] { d[k] } else { f32::NAN })
+        .collect();
+    Some(Seam {
+        fringe,
+        on,
+        distance,
+    })
+}
+
+/// Exact Euclidean distance from every pixel centre to the nearest pixel of `set` (W*H,
+/// row-major), px; +∞ everywhere when `set` is empty (Felzenszwalb and Huttenlocher's
+/// separable transform).
+pub fn distance_to(set: &[bool], w: usize, h: usize) -> Vec<f32> {
+    assert_eq!(set.len(), w * h, "set has the image's size");
+    const INF: f64 = 1e20;
+    // Squared distances along each column, then along each row.
+    let mut d2: Vec<f64> = set.iter().map(|&s| if s { 0.0 } else { INF }).collect();
+    let mut col = vec![0.0f64; h];
+    for x in 0..w {
+        for y in 0..h {
+            col[y] = d2[y * w + x];
+        }
+        let out = dt_1d(&col);
+        for y in 0..h {
+            d2[y * w + x] = out[y];
+        }
+    }
+    for y in 0..h {
+        let out = dt_1d(&d2[y * w..(y + 1) * w]);
+        d2[y * w..(y + 1) * w].copy_from_slice(&out);
+    }
+    d2.iter()
+        .map(|&v| {
+            if v >= INF {
+                f32::INFINITY
+            } else {
+                v.sqrt() as f32
+            }
+        })
+        .collect()
+}
+
+/// 1D squared distance transform: min over q of (p − q)² + f(q) (lower envelope of parabolas).
+fn dt_1d(f: &[f64]) -> Vec<f64> {
+    let n = f.len();
+    let mut out = vec![f64::INFINITY; n];
+    // Parabolas with a finite apex only: an all-infinite line stays infinite.
+    let finite: Vec<usize> = (0..n).filter(|&q| f[q] < 1e20).collect();
+    if finite.is_empty() {
+        return f.to_vec();
+    }
+    let mut v = vec![0usize; finite.len()];
+    let mut z = vec![0.0f64; finite.len() + 1];
+    let mut k = 0usize;
+    v[0] = finite[0];
+    z[0] = f64::NEG_INFINITY;
+    z[1] = f64::INFINITY;
+    let inter = |q: usize, p: usize| -> f64 {
+        let (qf, pf) = (q as f64, p as f64);
+        ((f[q] + qf * qf) - (f[p] + pf * pf)) / (2.0 * (qf - pf))
+    };
+    for &q in &finite[1..] {
+        let mut s = inter(q, v[k]);
+        while s <= z[k] {
+            k -= 1;
+            s = inter(q, v[k]);
+        }
+        k += 1;
+        v[k] = q;
+        z[k] = s;
+        z[k + 1] = f64::INFINITY;
+    }
+    k = 0;
+    for (p, o) in out.iter_mut().enumerate() {
+        while z[k + 1] < p as f64 {
+            k += 1;
+        }
+        let d = p as f64 - v[k] as f64;
+        *o = d * d + f[v[k]];
+    }
+    out
 }
 
 /// Smallest angle between two orientations (mod pi), in degrees.
@@ -266,6 +421,7 @@ fn style_salt(s: Style) -> u64 {
         Style::Whorl => 0x5768_6f72,
         Style::SidePart => 0x5369_6465,
         Style::Short => 0x5368_6f72,
+        Style::Fringe => 0x4672_696e,
     }
 }
 
@@ -416,6 +572,7 @@ mod tests {
                     Style::Whorl => (0.05, 0.12),
                     Style::SidePart => (0.06, 0.13),
                     Style::Short => (0.04, 0.09),
+                    Style::Fringe => unreachable!("not in Style::ALL"),
                 };
                 println!("{style} seed {seed}: hair {:.1}% of the image", 100.0 * f);
                 assert!((lo..=hi).contains(&f), "{style} seed {seed}: {f}");
@@ -715,6 +872,79 @@ mod tests {
             report.join("\n")
         );
         assert!(worst < 4.0, "mean error up to {worst:.2} deg");
+    }
+
+    #[test]
+    fn fringe_has_a_seam_with_a_large_jump() {
+        assert_eq!("fringe".parse::<Style>().unwrap(), Style::Fringe);
+        assert!(!Style::ALL.contains(&Style::Fringe) && !Style::Fringe.has_3d());
+        for seed in 1..=3 {
+            let p = SynthParams::new(Style::Fringe, seed);
+            let c = synth(&p);
+            let sm = seam(&p).expect("the fringe has a seam");
+            let (w, h) = (c.width as usize, c.height as usize);
+            let hair: Vec<bool> = c.mask.as_raw().iter().map(|&v| v > 127).collect();
+            assert_eq!(components(&c), 1, "seed {seed}: mask not connected");
+            for name in crate::io::annot::REQUIRED_LANDMARKS {
+                let q = c.landmarks.get(name).unwrap();
+                assert!(!c.is_hair(q[0] as u32, q[1] as u32), "{name} on hair");
+            }
+            c.strokes.validate(Some((c.width, c.height))).unwrap();
+            let (mut pairs, mut least) = (0usize, f32::INFINITY);
+            for y in 0..h {
+                for x in 0..w {
+                    let k = y * w + x;
+                    for j in [(x + 1 < w).then(|| k + 1), (y + 1 < h).then(|| k + w)]
+                        .into_iter()
+                        .flatten()
+                    {
+                        if hair[k] && hair[j] && sm.fringe[k] != sm.fringe[j] {
+                            pairs += 1;
+                            least = least.min(orientation_error_deg(c.gt_theta[k], c.gt_theta[j]));
+                        }
+                    }
+                }
+            }
+            let n_hair = hair.iter().filter(|&&b| b).count();
+            let n_fringe = sm.fringe.iter().filter(|&&b| b).count();
+            let n_on = sm.on.iter().filter(|&&b| b).count();
+            println!(
+                "fringe seed {seed}: hair {:.1}% of the image, fringe {:.1}% of the hair, \
+                 {n_on} seam px, {pairs} pairs across it, least jump {least:.1} deg",
+                100.0 * n_hair as f64 / (w * h) as f64,
+                100.0 * n_fringe as f64 / n_hair as f64
+            );
+            assert!(least >= 45.0, "seed {seed}: jump only {least} deg");
+            assert!(pairs >= 200, "seed {seed}: seam only {pairs} pairs long");
+            assert!((0.1..0.5).contains(&(n_fringe as f64 / n_hair as f64)));
+            for k in 0..w * h {
+                assert_eq!(sm.distance[k].is_nan(), !hair[k]);
+                assert_eq!(sm.distance[k] == 0.0, sm.on[k]);
+            }
+        }
+        assert!(seam(&SynthParams::new(Style::Long, 1)).is_none());
+    }
+
+    #[test]
+    fn distance_to_matches_brute_force() {
+        let (w, h) = (23, 17);
+        let mut set = vec![false; w * h];
+        for (x, y) in [(3, 4), (20, 1), (11, 15), (12, 15)] {
+            set[y * w + x] = true;
+        }
+        let d = distance_to(&set, w, h);
+        for y in 0..h {
+            for x in 0..w {
+                let want = (0..w * h)
+                    .filter(|&j| set[j])
+                    .map(|j| ((j % w) as f32 - x as f32).hypot((j / w) as f32 - y as f32))
+                    .fold(f32::INFINITY, f32::min);
+                assert!((d[y * w + x] - want).abs() < 1e-4, "({x}, {y})");
+            }
+        }
+        assert!(distance_to(&[false; 6], 3, 2)
+            .iter()
+            .all(|v| v.is_infinite()));
     }
 
     #[test]

@@ -177,6 +177,41 @@ impl Scene {
                 };
                 (region, field, None, (15.0 * s, 40.0 * s), 3.0 * s.max(0.5))
             }
+            Style::Fringe => {
+                let ry = b * g.range_f32(1.32, 1.4);
+                // The side hair falls from a crown well above the head, so it is steep
+                // (≥ 60° from horizontal) all along the seam, while the fringe sweeps within
+                // 16° of horizontal: the orientation jumps by ≥ 45° across the seam.
+                let rest = Field::Radial {
+                    ox: cx + g.range_f32(-0.15, 0.15) * a,
+                    oy: hy - ry - g.range_f32(0.5, 0.7) * b,
+                    twist: side * g.range_f32(0.0, 0.08),
+                };
+                let field = Field::Fringe {
+                    ex: cx,
+                    ey: cy - g.range_f32(0.12, 0.18) * b,
+                    erx: a * g.range_f32(1.0, 1.05),
+                    ery: b * g.range_f32(0.8, 0.85),
+                    sweep: side,
+                    beta0: g.range_f32(6.0, 10.0).to_radians(),
+                    beta1: g.range_f32(3.0, 6.0).to_radians(),
+                    rest: Box::new(rest),
+                };
+                // The fringe covers the forehead down to a line that drops towards the side
+                // it sweeps to.
+                let region = Region::Cap {
+                    rx: a * g.range_f32(1.28, 1.36),
+                    ry,
+                    y_cut: cy + g.range_f32(0.1, 0.25) * b,
+                    fringe: Some(Fringe {
+                        x_near: cx - side * 0.9 * a,
+                        x_far: cx + side * 0.9 * a,
+                        y_near: cy - g.range_f32(0.55, 0.62) * b,
+                        y_far: cy - g.range_f32(0.4, 0.46) * b,
+                    }),
+                };
+                (region, field, None, (30.0 * s, 100.0 * s), 3.0 * s.max(0.5))
+            }
         };
 
         let look = Look::new(look);

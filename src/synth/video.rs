@@ -96,6 +96,12 @@ impl VideoParams {
 
     /// Clear errors for what cannot be generated.
     pub fn validate(&self) -> Result<()> {
+        if !self.synth.style.has_3d() {
+            return Err(Error::Invalid(format!(
+                "the {} style is 2D only: there is no synthetic video of it",
+                self.synth.style
+            )));
+        }
         if !(2..=Self::MAX_FRAMES).contains(&self.frames) {
             return Err(Error::Invalid(format!(
                 "--frames {} is outside 2..={}",
@@ -216,6 +222,7 @@ fn style_tag(s: Style) -> u64 {
         Style::Whorl => 2,
         Style::SidePart => 3,
         Style::Short => 4,
+        Style::Fringe => 5,
     }
 }
 

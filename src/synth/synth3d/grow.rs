@@ -127,6 +127,7 @@ impl StyleSpec {
                     cut_front: 0.03,
                 }
             }
+            Style::Fringe => unreachable!("2D only, refused by Synth3dScene::new"),
         }
     }
 

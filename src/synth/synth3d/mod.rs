@@ -192,8 +192,13 @@ pub struct Synth3dFrame {
 
 impl Synth3dScene {
     /// Grows the scene; deterministic for (params, options). Panics if a side is below
-    /// [`SynthParams::MIN_SIZE`].
+    /// [`SynthParams::MIN_SIZE`] or the style has no 3D version ([`Style::has_3d`]).
     pub fn new(p: &SynthParams, o: &Synth3dOptions) -> Synth3dScene {
+        assert!(
+            p.style.has_3d(),
+            "the {} style is 2D only: it has no 3D synth",
+            p.style
+        );
         let [mut geo, mut look_rng, mut strand_rng, stroke_rng] = streams(p, style_salt(p.style));
 
         let head = Head::default();
@@ -403,5 +408,6 @@ fn style_salt(s: Style) -> u64 {
         Style::Whorl => 0x3344_5768,
         Style::SidePart => 0x3344_5369,
         Style::Short => 0x3344_5368,
+        Style::Fringe => unreachable!("2D only, refused by Synth3dScene::new"),
     }
 }
