@@ -34,6 +34,9 @@ pub mod samples;
 pub mod shading;
 pub mod swc;
 pub mod vis;
+pub mod pursuit;
+pub mod rho;
+pub mod theta;
 
 use serde::{Deserialize, Serialize};
 use std::f32::consts::PI;

@@ -5,6 +5,8 @@
 //! the modules without a stage (`field_cfg`, `pm_common`, `raster_common`, `base::colour`).
 
 pub mod cz_fill;
+pub mod cz_theta_gs;
+pub mod cz_window_sums;
 pub mod density_splat;
 pub mod depth_raster;
 pub mod dir_diffuse;
@@ -81,6 +83,8 @@ pub const ALL: &[&StageDef] = &[
     &flow_solve::STAGE,
     &flow_up::STAGE,
     &cz_fill::STAGE,
+    &cz_theta_gs::STAGE,
+    &cz_window_sums::STAGE,
 ];
 
 /// Every registered render pass; the host is `crate::render::raster`.
