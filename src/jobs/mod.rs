@@ -19,8 +19,11 @@ use serde_json::json;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+mod sketch;
 mod video;
 
+use sketch::run_sketch;
+pub use sketch::{HairRegion, SketchJob};
 use video::{run_synth_video, run_transfer, run_video};
 pub use video::{ClipSource, SynthVideoJob, TransferJob, VideoJob};
 
@@ -44,6 +47,7 @@ pub enum Job {
     Convert(ConvertJob),
     Video(VideoJob),
     Transfer(TransferJob),
+    Sketch(SketchJob),
 }
 
 /// A synthetic portrait with its ground truth (`coif synth`).
@@ -173,6 +177,7 @@ impl Job {
                 | Job::Edit(_)
                 | Job::Video(_)
                 | Job::Transfer(_)
+                | Job::Sketch(_)
         )
     }
 
@@ -193,6 +198,7 @@ impl Job {
             Job::Convert(j) => ("convert", &j.output),
             Job::Video(j) => ("video", &j.out),
             Job::Transfer(j) => ("transfer", &j.out),
+            Job::Sketch(j) => ("sketch", &j.out),
         };
         format!("{what} {}", path.display())
     }
@@ -214,6 +220,7 @@ pub fn run(engine: &Engine, job: &Job) -> anyhow::Result<Report> {
         Job::Import(j) => run_import(j),
         Job::Video(j) => run_video(engine, j),
         Job::Transfer(j) => run_transfer(engine, j),
+        Job::Sketch(j) => run_sketch(engine, j),
         Job::Convert(j) => run_convert(j),
     }
 }
@@ -410,6 +417,13 @@ fn run_synth(j: &SynthJob) -> anyhow::Result<Report> {
         if !(64..=4096).contains(&side) {
             return Err(Error::Invalid(format!("--size {side} is outside 64..=4096")).into());
         }
+    }
+    if j.gt3d && !p.style.has_3d() {
+        return Err(Error::Invalid(format!(
+            "--style {} has no 3D ground truth (drop --gt3d)",
+            p.style
+        ))
+        .into());
     }
     let what = if j.gt3d {
         let c = synth3d::synth3d(p);

@@ -30,13 +30,14 @@ pub mod fill;
 pub mod format;
 pub mod oracle;
 pub mod prim;
+pub mod pursuit;
+pub mod rho;
+pub mod run;
 pub mod samples;
 pub mod shading;
 pub mod swc;
-pub mod vis;
-pub mod pursuit;
-pub mod rho;
 pub mod theta;
+pub mod vis;
 
 use serde::{Deserialize, Serialize};
 use std::f32::consts::PI;

@@ -41,8 +41,8 @@ pub fn sketch_picture(backdrop: &RgbImage, s: &Sketch) -> RgbImage {
     for c in &s.curves {
         let hair = c.kind.hair_sides();
         for p in &c.prims {
-            for side in 0..2 {
-                if !hair[side] {
+            for (side, &has_hair) in hair.iter().enumerate() {
+                if !has_hair {
                     continue;
                 }
                 let n = p.left_normal();

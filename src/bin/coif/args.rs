@@ -73,6 +73,10 @@ pub enum Command {
     /// with orientation-field flow (Eq. 6-7). The output is a model folder with an
     /// animation that `render`, `export` and `transfer` read; a stopped run resumes.
     Video(VideoArgs),
+    /// A hair image to its generative sketch (Chen and Zhu 2006 §4): curves of directed
+    /// primitives (hair.czs, sketch.json, sketch.svg), the vector field filled in from them,
+    /// shading bases and colour map, pictures and a report.
+    Sketch(SketchArgs),
     /// Hair replacement (C13 §4): another model's strands carried through a tracked clip
     /// (each follows its nearest tracked strand) and rendered into every frame.
     Transfer(TransferArgs),
@@ -122,6 +126,47 @@ pub struct VideoArgs {
     /// Scalp roots drawn for the reference model.
     #[arg(long, default_value_t = coif::model::ModelParams::default().roots)]
     roots: usize,
+    #[command(flatten)]
+    backend: BackendArgs,
+}
+
+#[derive(Args)]
+pub struct SketchArgs {
+    /// Hair image (PNG or JPEG, 8-bit).
+    #[arg(long)]
+    image: PathBuf,
+    /// Hair mask of the image's size (> 127 on hair).
+    #[arg(long, conflicts_with = "whole")]
+    mask: Option<PathBuf>,
+    /// Direction strokes (strokes.json, LabelMe or SVG): segment the hair from them when no
+    /// mask is given, and clamp the directions of the curves they run along.
+    #[arg(long)]
+    strokes: Option<PathBuf>,
+    /// Take every pixel as hair (a crop of hair or fur), with neither mask nor strokes.
+    #[arg(long)]
+    whole: bool,
+    /// Output folder (created).
+    #[arg(long)]
+    out: PathBuf,
+    /// Curve penalty λ_NC of Eq. 5 (larger: fewer curves).
+    #[arg(long, default_value_t = coif::sketch::pursuit::PursuitParams::default().lambda_nc)]
+    curve_penalty: f32,
+    /// How directions are chosen: swc (Swendsen-Wang cuts, CZ06 §4.2), icm, or prior (each
+    /// curve by the direction prior alone; the ablation baselines).
+    #[arg(long, default_value = "swc")]
+    directions: String,
+    /// Swendsen-Wang proposals.
+    #[arg(long, default_value_t = coif::sketch::swc::SwcParams::default().sweeps)]
+    sweeps: usize,
+    /// Shading bases K_L.
+    #[arg(long, default_value_t = 10)]
+    bases: usize,
+    /// σ of the low band (px).
+    #[arg(long, default_value_t = 8.0)]
+    sigma_low: f32,
+    /// Seed of the sampler and of the draws synthesis makes from the sketch.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
     #[command(flatten)]
     backend: BackendArgs,
 }
@@ -697,6 +742,40 @@ impl Command {
                 params.strands = a.strands;
                 params.fps = a.fps;
                 Request::one(Job::SynthVideo(SynthVideoJob { out: a.out, params }), cpu)
+            }
+            Command::Sketch(a) => {
+                use coif::jobs::{HairRegion, SketchJob};
+                let region = match (a.mask, a.whole, &a.strokes) {
+                    (Some(m), _, _) => HairRegion::Mask(m),
+                    (None, true, _) => HairRegion::Whole,
+                    (None, false, Some(s)) => HairRegion::Strokes(s.clone()),
+                    (None, false, None) => {
+                        return Err(coif::Error::Invalid(
+                            "coif sketch needs the hair region: --mask, --strokes or --whole"
+                                .into(),
+                        )
+                        .into())
+                    }
+                };
+                let mut params = coif::sketch::run::SketchParams::default();
+                params.pursuit.lambda_nc = a.curve_penalty;
+                params.method = a.directions.parse()?;
+                params.swc.sweeps = a.sweeps;
+                params.bases = a.bases;
+                params.sigma_l = a.sigma_low;
+                params.seed = a.seed;
+                Request::Jobs {
+                    jobs: vec![Job::Sketch(SketchJob {
+                        image: a.image,
+                        region,
+                        strokes: a.strokes,
+                        out: a.out,
+                        params,
+                    })],
+                    backend: a.backend.backend,
+                    max_binding_bytes: None,
+                    banner: None,
+                }
             }
             Command::Orient(a) => Request::Jobs {
                 jobs: vec![Job::Orient(OrientJob {

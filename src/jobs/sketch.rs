@@ -1,0 +1,133 @@
+//! The sketch model's jobs (`coif sketch`): inputs and the run that ties the command line
+//! to `crate::sketch`.
+
+use super::Report;
+use crate::error::Error;
+use crate::gpu::engine::Engine;
+use crate::io::images;
+use crate::sketch::run::{analyse, write, SketchInputs, SketchParams};
+use anyhow::Context;
+use serde_json::json;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Where the hair region comes from.
+#[derive(Clone, Debug)]
+pub enum HairRegion {
+    /// A mask image of the photo's size, > 127 on hair.
+    Mask(PathBuf),
+    /// Segmented from direction strokes (which also clamp the curves they run along).
+    Strokes(PathBuf),
+    /// Every pixel is hair (a crop of fur or hair).
+    Whole,
+}
+
+/// A hair image to its sketch (`coif sketch`, CZ06 §4).
+#[derive(Clone, Debug)]
+pub struct SketchJob {
+    pub image: PathBuf,
+    pub region: HairRegion,
+    /// Direction strokes that clamp directions without segmenting (with `--mask`).
+    pub strokes: Option<PathBuf>,
+    pub out: PathBuf,
+    pub params: SketchParams,
+}
+
+pub(super) fn run_sketch(engine: &Engine, j: &SketchJob) -> anyhow::Result<Report> {
+    let t0 = Instant::now();
+    let photo = images::load_rgb(&j.image)?;
+    let (w, h) = photo.dimensions();
+    let n = w as usize * h as usize;
+    let stroke_path = match &j.region {
+        HairRegion::Strokes(s) => Some(s.clone()),
+        _ => j.strokes.clone(),
+    };
+    let strokes = match &stroke_path {
+        Some(s) => Some(crate::io::import::load_strokes(s, (w, h))?),
+        None => None,
+    };
+    let hair: Vec<bool> = match &j.region {
+        HairRegion::Mask(m) => images::load_mask(m, w, h, &j.image)?
+            .into_iter()
+            .map(|v| v != 0)
+            .collect(),
+        HairRegion::Strokes(s) => {
+            let seg = crate::analyze::segment::segment(
+                &photo,
+                strokes.as_ref().expect("loaded above"),
+                &Default::default(),
+            )
+            .with_context(|| {
+                format!(
+                    "segmenting the hair of {} from {}",
+                    j.image.display(),
+                    s.display()
+                )
+            })?;
+            seg.as_raw().iter().map(|&v| v > 127).collect()
+        }
+        HairRegion::Whole => vec![true; n],
+    };
+    if !hair.iter().any(|&m| m) {
+        let what = match &j.region {
+            HairRegion::Mask(m) => m.display().to_string(),
+            HairRegion::Strokes(s) => format!("the segmentation from {}", s.display()),
+            HairRegion::Whole => j.image.display().to_string(),
+        };
+        return Err(
+            Error::Invalid(format!("{what}: the hair mask is empty, nothing to sketch")).into(),
+        );
+    }
+    let gray_span = {
+        let mut lo = u8::MAX;
+        let mut hi = 0u8;
+        for (p, &m) in photo.pixels().zip(&hair) {
+            if m {
+                let l = p[0].max(p[1]).max(p[2]);
+                lo = lo.min(l);
+                hi = hi.max(l);
+            }
+        }
+        hi.saturating_sub(lo)
+    };
+    if gray_span < 4 {
+        return Err(Error::bad_file(
+            &j.image,
+            "the hair region is uniform (no texture to sketch)",
+        )
+        .into());
+    }
+    let inp = SketchInputs {
+        image: &photo,
+        hair: &hair,
+        strokes: strokes.as_ref(),
+    };
+    let r = analyse(engine, &inp, &j.params)
+        .with_context(|| format!("sketching {}", j.image.display()))?;
+    let extra = json!({
+        "image": j.image,
+        "backend": engine.describe(),
+        "hair_pixels": hair.iter().filter(|&&m| m).count(),
+        "method": j.params.method.name(),
+        "seed": j.params.seed,
+    });
+    write(&j.out, &photo, &r, extra)?;
+    let sizes = crate::sketch::format::czs_sizes(&r.sketch);
+    Ok(Report {
+        summary: format!(
+            "sketch: {} curves, {} B (.czs; sketch part {} B) -> {} ({:.1} s on {})",
+            r.sketch.curves.len(),
+            sizes.total,
+            sizes.curves,
+            j.out.display(),
+            t0.elapsed().as_secs_f64(),
+            engine.describe()
+        ),
+        details: r
+            .seconds
+            .iter()
+            .map(|(k, s)| format!("{k:<16} {s:.2} s"))
+            .collect(),
+        warnings: Vec::new(),
+    })
+}

@@ -1,0 +1,334 @@
+//! `coif sketch` end to end (CZ06 §4, issue 16): the whole analysis on synthetic portraits
+//! with ground truth and on real photographs, the figures the issue asks for printed, the
+//! command's files and its errors.
+
+mod common;
+
+use coif::eval::metrics::{erode, orient_diff};
+use coif::gpu::engine::Engine;
+use coif::sketch::run::{analyse, SketchInputs, SketchParams, SketchResult};
+use coif::sketch::samples::{self, Sample};
+use coif::sketch::{format, swc};
+use coif::synth::{synth, Style, SynthCase, SynthParams};
+use std::path::Path;
+use std::process::Command;
+
+fn case(style: Style, seed: u64) -> SynthCase {
+    synth(&SynthParams {
+        style,
+        seed,
+        width: 256,
+        height: 256,
+    })
+}
+
+fn hair_of(c: &SynthCase) -> Vec<bool> {
+    c.mask.pixels().map(|p| p[0] > 127).collect()
+}
+
+fn run(c: &SynthCase, strokes: bool) -> SketchResult {
+    let hair = hair_of(c);
+    let inp = SketchInputs {
+        image: &c.image,
+        hair: &hair,
+        strokes: strokes.then_some(&c.strokes),
+    };
+    analyse(&Engine::cpu(), &inp, &SketchParams::default()).unwrap()
+}
+
+/// Mean orientation error (degrees) of `theta` against `truth` over `keep`; unset counts 90°.
+fn mean_err(theta: &[f32], truth: &[f32], keep: &[bool]) -> (f64, usize) {
+    let (mut s, mut n) = (0.0f64, 0usize);
+    for i in 0..keep.len() {
+        if keep[i] && truth[i].is_finite() {
+            s += if theta[i].is_finite() {
+                orient_diff(theta[i], truth[i]).to_degrees() as f64
+            } else {
+                90.0
+            };
+            n += 1;
+        }
+    }
+    (s / n.max(1) as f64, n)
+}
+
+/// Share of hair pixels whose growth direction agrees (positive dot product) with the truth;
+/// an undecided pixel disagrees.
+fn dir_agreement(dir: &[[f32; 2]], gt_dir: &[f32], hair: &[bool]) -> f64 {
+    let (mut good, mut n) = (0usize, 0usize);
+    for i in 0..hair.len() {
+        let g = [gt_dir[2 * i], gt_dir[2 * i + 1]];
+        if !hair[i] || !g[0].is_finite() {
+            continue;
+        }
+        n += 1;
+        let d = dir[i];
+        good += (d[0] * g[0] + d[1] * g[1] > 0.0) as usize;
+    }
+    good as f64 / n.max(1) as f64
+}
+
+#[test]
+fn synthetic_cases_sketch_fill_and_directions() {
+    println!(
+        "{:<9} {:>6} {:>6} {:>6} {:>8} {:>8} {:>8} {:>9} {:>9} {:>9}",
+        "style",
+        "curves",
+        "czs B",
+        "curv B",
+        "fill err",
+        "dir",
+        "dir+strk",
+        "E swc",
+        "E icm",
+        "E prior"
+    );
+    for style in [Style::Long, Style::SidePart, Style::Short, Style::Whorl] {
+        let c = case(style, 1);
+        let hair = hair_of(&c);
+        let r = run(&c, false);
+        let sizes = format::czs_sizes(&r.sketch);
+        let inner = erode(&c.mask, 5);
+        let (fill_err, _) = mean_err(&r.field.theta, &c.gt_theta, &inner);
+        let agree = dir_agreement(&r.field.dir, &c.gt_dir, &hair);
+        let with = run(&c, true);
+        let agree_strokes = dir_agreement(&with.field.dir, &c.gt_dir, &hair);
+        let e = |m| {
+            swc::directions(
+                &r.undirected,
+                &r.theta,
+                &hair,
+                256,
+                256,
+                &[],
+                &SketchParams::default().swc,
+                m,
+            )
+            .unwrap()
+            .energy
+        };
+        let (es, ei, ep) = (
+            e(swc::Method::Swc),
+            e(swc::Method::Icm),
+            e(swc::Method::Prior),
+        );
+        println!(
+            "{:<9} {:>6} {:>6} {:>6} {:>7.2}° {:>7.1}% {:>7.1}% {:>9.1} {:>9.1} {:>9.1}",
+            style.name(),
+            r.sketch.curves.len(),
+            sizes.total,
+            sizes.curves,
+            fill_err,
+            100.0 * agree,
+            100.0 * agree_strokes,
+            es,
+            ei,
+            ep
+        );
+        assert!(sizes.total <= 1024, "{style}: {} B", sizes.total);
+        assert!(
+            es <= ei + 1e-6 && es <= ep + 1e-6,
+            "{style}: {es} {ei} {ep}"
+        );
+    }
+}
+
+#[test]
+fn real_photos_stay_small_and_the_fill_follows_the_dense_field() {
+    for s in Sample::ALL {
+        let img = samples::load(s).unwrap();
+        let inp = SketchInputs {
+            image: &img.image,
+            hair: &img.hair,
+            strokes: None,
+        };
+        let r = analyse(&Engine::cpu(), &inp, &SketchParams::default()).unwrap();
+        let (w, h) = img.image.dimensions();
+        let mask = image::GrayImage::from_fn(w, h, |x, y| {
+            image::Luma([if img.hair[(y * w + x) as usize] {
+                255
+            } else {
+                0
+            }])
+        });
+        let inner = erode(&mask, 5);
+        let (err, n) = mean_err(&r.field.theta, &r.theta, &inner);
+        let sizes = format::czs_sizes(&r.sketch);
+        let png = png_bytes_of_hair(&img.image, &img.hair);
+        println!(
+            "{:<10} {}x{}: {} curves, .czs {} B (sketch {} B), hair PNG {} B ({:.0}x), fill vs dense Θ {:.2}° over {} px",
+            img.name,
+            w,
+            h,
+            r.sketch.curves.len(),
+            sizes.total,
+            sizes.curves,
+            png,
+            png as f64 / sizes.total as f64,
+            err,
+            n
+        );
+        assert!(sizes.total <= 1024, "{}: {} B", img.name, sizes.total);
+    }
+}
+
+/// The PNG size of the photo's hair region (non-hair black), the issue's reference for the
+/// sketch's compactness.
+fn png_bytes_of_hair(img: &image::RgbImage, hair: &[bool]) -> usize {
+    let w = img.width();
+    let masked = image::RgbImage::from_fn(w, img.height(), |x, y| {
+        if hair[(y * w + x) as usize] {
+            *img.get_pixel(x, y)
+        } else {
+            image::Rgb([0, 0, 0])
+        }
+    });
+    let mut buf = std::io::Cursor::new(Vec::new());
+    masked.write_to(&mut buf, image::ImageFormat::Png).unwrap();
+    buf.into_inner().len()
+}
+
+fn coif() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_coif"))
+}
+
+fn write_case(dir: &Path) -> SynthCase {
+    let c = case(Style::Long, 1);
+    c.write(dir).unwrap();
+    c
+}
+
+#[test]
+fn the_command_writes_every_file_and_they_agree() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    write_case(&d.join("case"));
+    let out = coif()
+        .args(["sketch", "--backend", "cpu", "--image"])
+        .arg(d.join("case/image.png"))
+        .arg("--mask")
+        .arg(d.join("case/mask.png"))
+        .arg("--out")
+        .arg(d.join("sk"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    println!("{}", String::from_utf8_lossy(&out.stdout));
+    for f in [
+        "hair.czs",
+        "sketch.json",
+        "sketch.svg",
+        "theta.npy",
+        "vector.npy",
+        "rho.npy",
+        "sketch.png",
+        "field.png",
+        "energy.png",
+        "shading.png",
+        "report.json",
+    ] {
+        assert!(d.join("sk").join(f).is_file(), "{f} missing");
+    }
+    let a = format::load(&d.join("sk/hair.czs")).unwrap();
+    let b = format::load(&d.join("sk/sketch.json")).unwrap();
+    let c = format::load(&d.join("sk/sketch.svg")).unwrap();
+    assert_eq!(a, b);
+    assert_eq!(a, c);
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("sk/report.json")).unwrap()).unwrap();
+    assert_eq!(report["curves"].as_u64().unwrap() as usize, a.curves.len());
+    assert_eq!(
+        report["bytes"]["total"].as_u64().unwrap(),
+        std::fs::metadata(d.join("sk/hair.czs")).unwrap().len()
+    );
+}
+
+fn fails_with(args: &[&std::ffi::OsStr], needle: &str) {
+    let out = coif().args(args).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "succeeded: {args:?}");
+    assert!(
+        err.contains(needle),
+        "{args:?}: expected {needle:?} in: {err}"
+    );
+}
+
+#[test]
+fn bad_inputs_are_refused_with_the_file_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    write_case(&d.join("case"));
+    let img = d.join("case/image.png");
+    let os = |p: &Path| p.as_os_str().to_owned();
+    // An empty mask.
+    let empty = d.join("empty.png");
+    image::GrayImage::new(256, 256).save(&empty).unwrap();
+    let out = d.join("o");
+    fails_with(
+        &[
+            "sketch".as_ref(),
+            "--backend".as_ref(),
+            "cpu".as_ref(),
+            "--image".as_ref(),
+            &os(&img),
+            "--mask".as_ref(),
+            &os(&empty),
+            "--out".as_ref(),
+            &os(&out),
+        ],
+        "empty",
+    );
+    // A mask of another size.
+    let small = d.join("small.png");
+    image::GrayImage::from_pixel(100, 80, image::Luma([255]))
+        .save(&small)
+        .unwrap();
+    fails_with(
+        &[
+            "sketch".as_ref(),
+            "--backend".as_ref(),
+            "cpu".as_ref(),
+            "--image".as_ref(),
+            &os(&img),
+            "--mask".as_ref(),
+            &os(&small),
+            "--out".as_ref(),
+            &os(&out),
+        ],
+        "small.png",
+    );
+    // A uniform image.
+    let flat = d.join("flat.png");
+    image::RgbImage::from_pixel(64, 64, image::Rgb([90, 60, 40]))
+        .save(&flat)
+        .unwrap();
+    fails_with(
+        &[
+            "sketch".as_ref(),
+            "--backend".as_ref(),
+            "cpu".as_ref(),
+            "--image".as_ref(),
+            &os(&flat),
+            "--whole".as_ref(),
+            "--out".as_ref(),
+            &os(&out),
+        ],
+        "uniform",
+    );
+    // No hair region at all.
+    fails_with(
+        &[
+            "sketch".as_ref(),
+            "--image".as_ref(),
+            &os(&img),
+            "--out".as_ref(),
+            &os(&out),
+        ],
+        "--mask, --strokes or --whole",
+    );
+    assert!(!out.exists(), "a refused run left {}", out.display());
+}
