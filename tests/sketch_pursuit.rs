@@ -128,8 +128,14 @@ fn summary(c: &Case, out: &Pursuit, secs: f64) -> String {
     for k in &out.curves {
         kinds[k.kind.code() as usize] += 1;
     }
+    let mut rise = 0.0f64;
+    let mut last = out.energy_empty;
+    for &e in &out.energy {
+        rise = rise.max(e - last);
+        last = e;
+    }
     format!(
-        "{}: {} curves ({} primitives; a/b/c/d/e {:?}), E {:.0} → {:.0} (final Θ {:.0}), \
+        "{}: {} curves ({} primitives; a/b/c/d/e {:?}), E {:.0} → {:.0} (final Θ {:.0}, largest rise {rise:.3}), \
          Θ err {:.2}° (Gabor {:.2}°), σθ² {:.3}, {:.2} s, {:?}",
         c.name,
         out.curves.len(),
@@ -273,4 +279,132 @@ fn explore_theta() {
             println!("   [Gabor {:.2}°]", mean_err(&c.gabor, &c.gt, &c.hair));
         }
     }
+}
+
+/// Mean orientation error over hair pixels within `d` px of the seam.
+fn seam_error(theta: &[f32], gt: &[f32], dist: &[f32], d: f32) -> f32 {
+    let (mut s, mut n) = (0.0f64, 0usize);
+    for i in 0..theta.len() {
+        if dist[i] <= d && gt[i].is_finite() && theta[i].is_finite() {
+            s += angle_err_deg(theta[i], gt[i]) as f64;
+            n += 1;
+        }
+    }
+    (s / n.max(1) as f64) as f32
+}
+
+#[test]
+#[ignore = "exploration"]
+fn explore_fringe() {
+    let e = Engine::cpu();
+    let size: u32 = std::env::var("SIZE")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(256);
+    for seed in 1..=3 {
+        let sp = SynthParams {
+            style: Style::Fringe,
+            seed,
+            width: size,
+            height: size,
+        };
+        let sc = synth(&sp);
+        let seam = coif::synth::seam(&sp).unwrap();
+        let c = case_from_synth(&e, &sc, &format!("fringe-{seed}@{size}"));
+        let lambda: f32 = std::env::var("LAMBDA")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(30.0);
+        let p = PursuitParams {
+            lambda_nc: lambda,
+            ..Default::default()
+        };
+        let (out, secs) = run_pursuit(&e, &c, &p);
+        let empty = theta::diffuse(
+            &e,
+            &c.high,
+            c.w,
+            c.h,
+            &c.hair,
+            None,
+            &c.gabor,
+            &ThetaParams {
+                sigma2: Some(out.sigma2),
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        println!("{}", summary(&c, &out, secs));
+        println!(
+            "  seam ≤4 px: with S {:.2}°, S=∅ {:.2}°, Gabor {:.2}°",
+            seam_error(&out.theta, &c.gt, &seam.distance, 4.0),
+            seam_error(&empty, &c.gt, &seam.distance, 4.0),
+            seam_error(&c.gabor, &c.gt, &seam.distance, 4.0)
+        );
+        let prof = |t: &[f32]| -> String {
+            (0..6)
+                .map(|d| {
+                    let (mut s, mut n) = (0.0f64, 0);
+                    for i in 0..t.len() {
+                        let di = seam.distance[i];
+                        if di.is_finite()
+                            && di.round() as i32 == d
+                            && c.gt[i].is_finite()
+                            && t[i].is_finite()
+                        {
+                            s += angle_err_deg(t[i], c.gt[i]) as f64;
+                            n += 1;
+                        }
+                    }
+                    format!("{:.1}", s / n.max(1) as f64)
+                })
+                .collect::<Vec<_>>()
+                .join(" ")
+        };
+        println!(
+            "  by distance 0..5: S {} | ∅ {} | Gabor {}",
+            prof(&out.theta),
+            prof(&empty),
+            prof(&c.gabor)
+        );
+        if let Ok(dir) = std::env::var("DUMP") {
+            dump(&format!("{dir}/{}.png", c.name), &c, &out);
+        }
+    }
+}
+
+#[test]
+#[ignore = "exploration"]
+fn explore_seam_picture() {
+    let sp = SynthParams {
+        style: Style::Fringe,
+        seed: 1,
+        width: 256,
+        height: 256,
+    };
+    let sc = synth(&sp);
+    let seam = coif::synth::seam(&sp).unwrap();
+    let (x0, y0, w, h) = (100u32, 60u32, 60u32, 40u32);
+    let mut img = image::RgbImage::new(w * 2, h);
+    for y in 0..h {
+        for x in 0..w {
+            let i = ((y0 + y) * 256 + x0 + x) as usize;
+            let p = *sc.image.get_pixel(x0 + x, y0 + y);
+            img.put_pixel(x, y, p);
+            let t = sc.gt_theta[i];
+            let c = if t.is_finite() {
+                [
+                    (128.0 + 127.0 * (2.0 * t).cos()) as u8,
+                    (128.0 + 127.0 * (2.0 * t).sin()) as u8,
+                    if seam.on[i] { 255 } else { 0 },
+                ]
+            } else {
+                [0, 0, 0]
+            };
+            img.put_pixel(w + x, y, image::Rgb(c));
+        }
+    }
+    image::imageops::resize(&img, w * 16, h * 8, image::imageops::FilterType::Nearest)
+        .save("/tmp/pp/seam.png")
+        .unwrap();
 }

@@ -10,18 +10,33 @@
 //!   + λ_NC N_C + Σ_consecutive (1 − cos 2Δaxis)/4λθ²
 //! (an edge between two sketch pixels costs nothing, Λ_sk the pixels whose flow the
 //! sketch paints). Adding a primitive fixes the pixels of its window that no primitive took
-//! before to its sides' orientations, so its δ is a sum over those pixels and the edges
-//! leaving them. Births are screened on all positions of a lattice by the WGSL pass
-//! `cz_window_sums` (oriented box sums of per-pixel maps, δ linear in them, with the window
-//! border approximated by a ring); the best candidates are then scored exactly here, pixel
-//! by pixel, lazily (a score stays valid until a primitive changes pixels near it), and only
-//! exact scores decide. The heap, the tracing and the bookkeeping are light, branchy and
-//! sequential: they stay on the CPU.
+//! before to its sides' orientations.
+//!
+//! Scoring. The paper keeps Θ+ ≈ Θ around a new primitive; taken literally (the window's
+//! border edges then cost the mismatch between the primitive and a field diffused without
+//! it) that rejects exactly the primitives the sketch is for: at an orientation seam Θ∅ is
+//! blurred over a few pixels, and a primitive with the two true orientations clashes with
+//! the blur around it (on `coif synth` fringe every seam window scored below zero before
+//! λ_NC). So candidates are ranked by the paper's approximation (the border edges left as
+//! they are: δ = the E1, contrast and inner-edge terms of the window, linear in oriented box
+//! sums, Eq. 26-27), and the best few are then scored exactly: the primitive is painted and
+//! the free pixels within 6 px of its window relaxed by a few Gauss-Seidel sweeps (the
+//! diffusion's own update), and δ is the exact drop of E. An accepted primitive keeps that
+//! relaxed field, so every recorded energy is exact and falls with each accepted curve.
+//!
+//! Births are screened at every position of a lattice by the WGSL pass `cz_window_sums`
+//! (the ranking score, best kind and variant per position); the best positions are then
+//! scored exactly here, lazily (a score stays valid until a primitive changes pixels near
+//! it). The heap, the tracing and the bookkeeping are light, branchy and sequential: they
+//! stay on the CPU.
 //!
 //! Curves live on the lattice `.czs` stores: the start rounded to integer pixel coordinates
 //! (sketch coordinates; a pixel's centre is at +0.5), axes on 24 steps of 15°, consecutive
-//! axes differing by −1, 0 or +1 step, centres chained by [`chain`]. A traced curve is
-//! translated so its start is an integer and scored again as placed before it is kept.
+//! axes differing by −1, 0 or +1 step, each centre STEP px from the previous one along its
+//! own axis ([`chain`]); side angles the dictionary {0, π/3, π/2, 2π/3} refined by
+//! (k − 8)·3.75°, k in 0..16, toward the orientation that fits the window best (the
+//! tensor's closed form; off with `refine_sides`). A traced curve is translated so its start
+//! is an integer and scored again as placed before it is kept.
 //!
 //! The contrast priors p_sk / p_nsk are fitted first to the hair's ρ split at a quantile,
 //! and (by default) refitted once from the first pursuit's sketch, after which the pursuit
@@ -42,8 +57,10 @@ use std::time::Instant;
 /// it does not release); the defaults are ours, see each field.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct PursuitParams {
-    /// λ_NC, the cost of a curve (Eq. 22), in units of the per-pixel energies. Default 30
-    /// (the reading notes' proposal; see the module tests for the curve counts it gives).
+    /// λ_NC, the cost of a curve (Eq. 22), in units of the per-pixel energies. Default 20:
+    /// on `coif synth` at 512² (seed 1) it gives 58 / 25 / 26 / 24 curves on long / whorl /
+    /// sidepart / short, inside the 20-80 the reading notes aim for; their proposal of 30
+    /// gives 43 / 11 / 19 / 21 and 10 gives 98 / 42 / 37 / 34.
     pub lambda_nc: f32,
     /// Θ is diffused again, and births screened again, after this many new curves. Default 4.
     pub rebuild_every: u32,
@@ -62,11 +79,13 @@ pub struct PursuitParams {
     pub spill: f32,
     /// a, b: the least share of their hair side's pixels that must be hair. Default 0.5.
     pub hair_min: f32,
-    /// Before any sketch, p_sk is fitted to the ρ above this quantile of the hair's ρ and
-    /// p_nsk to those below. Default 0.8.
+    /// Before any sketch, p_sk is fitted to the ρ of the hair pixels whose local contrast is
+    /// above this quantile, p_nsk to the rest (see `rho::fit_split`). Default 0.8.
     pub split_quantile: f32,
     /// Refit p_sk and p_nsk from the first pursuit's sketch and pursue again. Default true.
     pub refit: bool,
+    /// Refine side angles by up to ±30° (3.75° steps) around the dictionary. Default true.
+    pub refine_sides: bool,
     /// The diffusion of Θ∅ and of the final Θ.
     pub theta: ThetaParams,
 }
@@ -74,7 +93,7 @@ pub struct PursuitParams {
 impl Default for PursuitParams {
     fn default() -> Self {
         PursuitParams {
-            lambda_nc: 30.0,
+            lambda_nc: 20.0,
             rebuild_every: 4,
             rebuild_sweeps: 60,
             min_prims: 3,
@@ -85,6 +104,7 @@ impl Default for PursuitParams {
             hair_min: 0.5,
             split_quantile: 0.8,
             refit: true,
+            refine_sides: true,
             theta: ThetaParams::default(),
         }
     }
@@ -183,22 +203,61 @@ pub struct Pursuit {
     pub stats: PursuitStats,
 }
 
-/// Primitive centres of a curve from its start and its axes in lattice steps (unwrapped:
-/// consecutive ones differ by −1, 0 or +1): c_{i+1} = c_i + STEP (cos m, sin m) with m the
-/// mean of the two axes, a_i + ½ (a_{i+1} − a_i) steps. f32 arithmetic in this order, so a
-/// file storing the start and the turns gives back these centres bit for bit.
-pub fn chain(start: [f32; 2], axes: &[i32]) -> Vec<[f32; 2]> {
-    let mut out = Vec::with_capacity(axes.len());
-    let mut c = start;
-    for (i, &a) in axes.iter().enumerate() {
-        if i > 0 {
-            let prev = axes[i - 1];
-            let m = (prev as f32 + 0.5 * (a - prev) as f32) * AXIS_QUANTUM;
-            c = [c[0] + STEP * m.cos(), c[1] + STEP * m.sin()];
-        }
-        out.push(c);
+/// cos(k·15°) from square roots, so every platform gets the same bits (the `.czs` reader
+/// decodes centres with the same values).
+fn cos15(k: i64) -> f64 {
+    let (s6, s2) = (6f64.sqrt(), 2f64.sqrt());
+    let c = [
+        1.0,
+        (s6 + s2) / 4.0,
+        3f64.sqrt() / 2.0,
+        s2 / 2.0,
+        0.5,
+        (s6 - s2) / 4.0,
+        0.0,
+    ];
+    let k = k.rem_euclid(24) as usize;
+    match k {
+        0..=6 => c[k],
+        7..=12 => -c[12 - k],
+        13..=18 => -c[k - 12],
+        _ => c[24 - k],
     }
-    out
+}
+
+fn sin15(k: i64) -> f64 {
+    cos15(6 - k)
+}
+
+/// Primitive centres of a curve from its start and its axes in 15° steps: each centre is
+/// the previous one plus STEP along its own axis, in f64 with exact 15° cosines, then
+/// rounded to f32 (the `.czs` lattice: a file storing the start and the turns gives these
+/// centres back bit for bit).
+pub fn chain(start: [f32; 2], axes: &[i32]) -> Vec<[f32; 2]> {
+    let (mut x, mut y) = (start[0] as f64, start[1] as f64);
+    axes.iter()
+        .enumerate()
+        .map(|(k, &a)| {
+            if k > 0 {
+                x += STEP as f64 * cos15(a as i64);
+                y += STEP as f64 * sin15(a as i64);
+            }
+            [x as f32, y as f32]
+        })
+        .collect()
+}
+
+/// The side-angle dictionary of CZ06 §2.1 in degrees, and in 3.75° units.
+const DICT_DEG: [f64; 4] = [0.0, 60.0, 90.0, 120.0];
+const DICT_FINE: [i32; 4] = [0, 16, 24, 32];
+/// Refinement codes are 0..16, offsets (code − 8)·3.75°.
+const NO_REFINE: u8 = 8;
+
+/// A side angle in radians from its dictionary index and refinement code (the `.czs`
+/// decoding: degrees in f64, then f32).
+pub fn side_angle(dict: u8, code: u8) -> f32 {
+    let deg = DICT_DEG[dict as usize] + (code as f64 - NO_REFINE as f64) * 3.75;
+    (deg * (std::f64::consts::PI / 180.0)) as f32
 }
 
 /// E3's cost between consecutive primitives whose axes differ by `d` steps, e²/2λθ² with
@@ -207,46 +266,52 @@ pub fn turn_cost(d: i32) -> f32 {
     0.25 * (1.0 - (2.0 * d as f32 * AXIS_QUANTUM).cos())
 }
 
-/// Side angles of the dictionary (π/3, π/2, 2π/3) in lattice steps.
-const PHI: [i32; 3] = [4, 6, 8];
-
-/// A candidate primitive: kind, centre, axis and side angles in lattice steps.
+/// A candidate primitive: kind, centre, axis in 15° steps, and per side the dictionary
+/// index and refinement code of its angle.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Cand {
     kind: Kind,
     x: f32,
     y: f32,
     axis: i32,
-    sides: [i32; 2],
+    dict: [u8; 2],
+    code: [u8; 2],
 }
 
 impl Cand {
     fn prim(&self) -> Primitive {
+        let hair = self.kind.hair_sides();
         Primitive {
             x: self.x,
             y: self.y,
             axis: self.axis.rem_euclid(AXIS_STEPS as i32) as f32 * AXIS_QUANTUM,
             rho: 0.0,
-            side: self.sides.map(|s| s as f32 * AXIS_QUANTUM),
+            side: [0, 1].map(|s| {
+                if hair[s] {
+                    side_angle(self.dict[s], self.code[s])
+                } else {
+                    0.0
+                }
+            }),
         }
     }
 }
 
-/// Side variants a kind may take, as side angles in steps. An occluding line keeps which of
-/// its sides runs along it (`along_left`).
-fn variants(kind: Kind, along_left: Option<bool>) -> Vec<[i32; 2]> {
+/// Dictionary pairs a kind may take. An occluding line keeps which of its sides runs along
+/// it (`along_left`).
+fn variants(kind: Kind, along_left: Option<bool>) -> Vec<[u8; 2]> {
     match kind {
         Kind::Boundary | Kind::Stream => vec![[0, 0]],
-        Kind::Source => PHI.iter().map(|&p| [p, 0]).collect(),
-        Kind::Dividing => PHI.iter().map(|&p| [p, p]).collect(),
+        Kind::Source => (1..4).map(|d| [d, 0]).collect(),
+        Kind::Dividing => (1..4).map(|d| [d, d]).collect(),
         Kind::Occluding => {
             let mut v = Vec::new();
-            for &p in &PHI {
+            for d in 1..4 {
                 if along_left != Some(false) {
-                    v.push([0, p]);
+                    v.push([0, d]);
                 }
                 if along_left != Some(true) {
-                    v.push([p, 0]);
+                    v.push([d, 0]);
                 }
             }
             v
@@ -344,9 +409,18 @@ impl Ord for Entry {
 }
 
 /// Cells of the staleness map, pixels; a change marks the cells within 2 of its own, i.e.
-/// every birth position within ≥ 16 px, more than a window's reach (≈ 5 px) plus the edges
-/// leaving it plus the window of a position scored there (≈ 5 px).
+/// every birth position within ≥ 16 px: more than the reach of a position's exact score
+/// (its window, ≈ 5 px, plus the relaxed margin and the edges leaving it, 7 px).
 const CELL: usize = 8;
+
+/// Free pixels within this many px of a new primitive's window are relaxed when it is
+/// scored exactly, by this many Gauss-Seidel sweeps.
+const RELAX_MARGIN: usize = 6;
+const RELAX_SWEEPS: usize = 6;
+/// Candidates scored exactly per birth position and per extension step (the best by the
+/// ranking score).
+const RELAX_BIRTHS: usize = 3;
+const RELAX_EXTENSIONS: usize = 2;
 
 /// The search state of one pursuit.
 struct Search<'a> {
@@ -364,8 +438,8 @@ struct Search<'a> {
     cells_x: usize,
     mark: Vec<u32>,
     gen: u32,
-    /// (cos, sin) of j·15°.
-    trig: Vec<[f32; 2]>,
+    /// (cos 2θ, sin 2θ) of θ = j·3.75°.
+    ztab: Vec<[f32; 2]>,
     nx: u32,
     heap: BinaryHeap<Entry>,
     best_at: Vec<Option<Cand>>,
@@ -403,7 +477,7 @@ impl<'a> Search<'a> {
             cells_x,
             mark: vec![0; n],
             gen: 0,
-            trig: ws::trig(),
+            ztab: ws::ztab(),
             nx,
             heap: BinaryHeap::new(),
             best_at: vec![None; (nx * ny) as usize],
@@ -412,9 +486,9 @@ impl<'a> Search<'a> {
         }
     }
 
-    /// (cos 2θ, sin 2θ) of θ = j·15°.
+    /// (cos 2θ, sin 2θ) of θ = j·3.75°.
     fn z_of(&self, j: i32) -> [f32; 2] {
-        self.trig[(2 * j).rem_euclid(24) as usize]
+        self.ztab[j.rem_euclid(ws::FINE) as usize]
     }
 
     fn win(&self, kind: Kind, p: &Primitive) -> Win {
@@ -450,12 +524,23 @@ impl<'a> Search<'a> {
         out
     }
 
-    /// Exact δ (before λ_NC or the turn cost) of painting `win` as a `kind` primitive with
-    /// axis `a` and side angles `sides` (steps), Θ elsewhere unchanged.
-    fn delta(&mut self, win: &Win, kind: Kind, a: i32, sides: [i32; 2]) -> f32 {
+    /// The ranking score (the paper's approximation, before λ_NC or the turn cost) of
+    /// painting `win` as a `kind` primitive with axis `a` (15° steps) and side angles from
+    /// the dictionary indices `dict`: the E1 and contrast terms of the pixels it takes and
+    /// the edges among them, Θ elsewhere and the window's border edges unchanged. Each side's
+    /// refinement (when `refine_sides`) turns it toward the best orientation for E1 and the
+    /// border edges (both linear in z = e^{2iθ}, so the best is ½ arg of their coefficient
+    /// and the nearest allowed refinement is the best allowed). Returns the score, the
+    /// refinement codes and the sides' double-angle vectors.
+    fn delta(
+        &mut self,
+        win: &Win,
+        kind: Kind,
+        a: i32,
+        dict: [u8; 2],
+    ) -> (f32, [u8; 2], [[f32; 2]; 2]) {
         let f = self.f;
         let hair_sides = kind.hair_sides();
-        let zb = [self.z_of(a - sides[0]), self.z_of(a + sides[1])];
         self.gen = self.gen.wrapping_add(1);
         let gen = self.gen;
         for &(i, s) in &win.px {
@@ -467,6 +552,52 @@ impl<'a> Search<'a> {
             }
         }
         let (w, h) = (f.width as usize, f.height as usize);
+        let nbrs = |i: usize| {
+            let (x, y) = (i % w, i / w);
+            [
+                (x > 0).then(|| i - 1),
+                (x + 1 < w).then(|| i + 1),
+                (y > 0).then(|| i - w),
+                (y + 1 < h).then(|| i + w),
+            ]
+        };
+        // Dictionary orientation of each side in 3.75° units, and the sign a refinement
+        // turns it by (θ = axis − angle on the left, axis + angle on the right).
+        let base = [
+            4 * a - DICT_FINE[dict[0] as usize],
+            4 * a + DICT_FINE[dict[1] as usize],
+        ];
+        let sign = [-1, 1];
+        let mut code = [NO_REFINE; 2];
+        if self.p.refine_sides {
+            let mut g = [[0.0f32; 2]; 2];
+            for &(i, s) in &win.px {
+                let i = i as usize;
+                if self.mark[i] != gen {
+                    continue;
+                }
+                let k = s.index().expect("marked pixels lie on a side");
+                g[k][0] += f.data[i][0];
+                g[k][1] += f.data[i][1];
+                for j in nbrs(i).into_iter().flatten() {
+                    if f.hair[j] && self.mark[j] != gen && !self.fixed[j] {
+                        g[k][0] += 0.5 * f.smooth * self.z[j][0];
+                        g[k][1] += 0.5 * f.smooth * self.z[j][1];
+                    }
+                }
+            }
+            for k in 0..2 {
+                if !hair_sides[k] {
+                    continue;
+                }
+                let jstar = g[k][1].atan2(g[k][0]) * (24.0 / std::f32::consts::PI);
+                let mut o = jstar - base[k] as f32;
+                o -= 48.0 * ((o + 24.0) / 48.0).floor();
+                let r = ((sign[k] as f32 * o + 0.5).floor() as i32).clamp(-8, 7);
+                code[k] = (r + NO_REFINE as i32) as u8;
+            }
+        }
+        let zb = [0, 1].map(|k| self.z_of(base[k] + sign[k] * (code[k] as i32 - NO_REFINE as i32)));
         let mut d = 0.0f32;
         for &(i, s) in &win.px {
             let i = i as usize;
@@ -477,31 +608,148 @@ impl<'a> Search<'a> {
             let zo = self.z[i];
             d += f.e1(i, zo) - f.e1(i, zn);
             d += self.sk.at(f.rho(i, zn)) - self.nsk.at(f.rho(i, zo));
-            let (x, y) = (i % w, i / w);
-            let nbrs = [
-                (x > 0).then(|| i - 1),
-                (x + 1 < w).then(|| i + 1),
-                (y > 0).then(|| i - w),
-                (y + 1 < h).then(|| i + w),
-            ];
-            for j in nbrs.into_iter().flatten() {
-                if !f.hair[j] {
-                    continue;
-                }
-                let zj = self.z[j];
-                let old = f.edge(zj, zo);
-                if self.mark[j] == gen {
-                    // Both ends join the sketch: the edge stops costing; count it once.
-                    if j > i {
-                        d += old;
-                    }
-                } else {
-                    let new = if self.fixed[j] { 0.0 } else { f.edge(zj, zn) };
-                    d += old - new;
+            for j in nbrs(i).into_iter().flatten() {
+                // Both ends join the sketch: the edge stops costing; count it once.
+                if f.hair[j] && self.mark[j] == gen && j > i {
+                    d += f.edge(self.z[j], zo);
                 }
             }
         }
-        d
+        (d, code, zb)
+    }
+
+    /// The sides' double-angle vectors of candidate `c` (its refinement codes as they are).
+    fn zb_of(&self, c: &Cand) -> [[f32; 2]; 2] {
+        let base = [
+            4 * c.axis - DICT_FINE[c.dict[0] as usize],
+            4 * c.axis + DICT_FINE[c.dict[1] as usize],
+        ];
+        [0, 1].map(|k| {
+            let r = c.code[k] as i32 - NO_REFINE as i32;
+            self.z_of(base[k] + if k == 0 { -r } else { r })
+        })
+    }
+
+    /// E over the hair pixels of the box [x0, x1) × [y0, y1) and the edges with an end in it.
+    fn local_energy(&self, x0: usize, y0: usize, x1: usize, y1: usize) -> f64 {
+        let f = self.f;
+        let w = f.width as usize;
+        let inside = |j: usize| (x0..x1).contains(&(j % w)) && (y0..y1).contains(&(j / w));
+        let mut e = 0.0f64;
+        for y in y0..y1 {
+            for x in x0..x1 {
+                let i = y * w + x;
+                if !f.hair[i] {
+                    continue;
+                }
+                let zi = self.z[i];
+                let r = f.rho(i, zi);
+                let lp = if self.fixed[i] {
+                    self.sk.at(r)
+                } else {
+                    self.nsk.at(r)
+                };
+                e += (f.e1(i, zi) - lp) as f64;
+                let nb = [
+                    (x > 0).then(|| i - 1),
+                    (x + 1 < w).then(|| i + 1),
+                    (y > 0).then(|| i - w),
+                    (y + 1 < f.height as usize).then(|| i + w),
+                ];
+                for j in nb.into_iter().flatten() {
+                    if f.hair[j] && !(self.fixed[i] && self.fixed[j]) && (!inside(j) || j > i) {
+                        e += f.edge(zi, self.z[j]) as f64;
+                    }
+                }
+            }
+        }
+        e
+    }
+
+    /// The exact δ (before λ_NC or the turn cost) of painting `win` with `zb` and relaxing
+    /// the free pixels within [`RELAX_MARGIN`] px of it by [`RELAX_SWEEPS`] Gauss-Seidel
+    /// sweeps; returns δ and the relaxed values (the state is left as it was).
+    fn relax(&mut self, win: &Win, kind: Kind, zb: [[f32; 2]; 2]) -> (f32, Vec<(u32, [f32; 2])>) {
+        let f = self.f;
+        let (w, h) = (f.width as usize, f.height as usize);
+        let hair_sides = kind.hair_sides();
+        let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
+        let mut taken: Vec<(usize, [f32; 2])> = Vec::with_capacity(win.px.len());
+        for &(i, s) in &win.px {
+            let i = i as usize;
+            let (x, y) = (i % w, i / w);
+            (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x + 1), y1.max(y + 1));
+            if let Some(k) = s.index() {
+                if hair_sides[k] && f.hair[i] && !self.on[i] {
+                    taken.push((i, zb[k]));
+                }
+            }
+        }
+        if win.px.is_empty() {
+            return (0.0, Vec::new());
+        }
+        let (x0, y0) = (
+            x0.saturating_sub(RELAX_MARGIN),
+            y0.saturating_sub(RELAX_MARGIN),
+        );
+        let (x1, y1) = ((x1 + RELAX_MARGIN).min(w), (y1 + RELAX_MARGIN).min(h));
+        let before = self.local_energy(x0, y0, x1, y1);
+        let saved: Vec<[f32; 2]> = taken.iter().map(|&(i, _)| self.z[i]).collect();
+        for &(i, z) in &taken {
+            self.z[i] = z;
+            self.fixed[i] = true;
+        }
+        let mut free = Vec::new();
+        for y in y0..y1 {
+            for x in x0..x1 {
+                let i = y * w + x;
+                if f.hair[i] && !self.fixed[i] {
+                    free.push(i);
+                }
+            }
+        }
+        let old: Vec<[f32; 2]> = free.iter().map(|&i| self.z[i]).collect();
+        let half = 0.5 * f.smooth;
+        for _ in 0..RELAX_SWEEPS {
+            for parity in 0..2 {
+                for &i in &free {
+                    let (x, y) = (i % w, i / w);
+                    if (x + y) % 2 != parity {
+                        continue;
+                    }
+                    let mut s = f.data[i];
+                    for j in [
+                        (x > 0).then(|| i - 1),
+                        (x + 1 < w).then(|| i + 1),
+                        (y > 0).then(|| i - w),
+                        (y + 1 < h).then(|| i + w),
+                    ]
+                    .into_iter()
+                    .flatten()
+                    {
+                        if f.hair[j] {
+                            s[0] += half * self.z[j][0];
+                            s[1] += half * self.z[j][1];
+                        }
+                    }
+                    let n2 = s[0] * s[0] + s[1] * s[1];
+                    if n2 > 1e-24 {
+                        let n = n2.sqrt();
+                        self.z[i] = [s[0] / n, s[1] / n];
+                    }
+                }
+            }
+        }
+        let after = self.local_energy(x0, y0, x1, y1);
+        let relaxed: Vec<(u32, [f32; 2])> = free.iter().map(|&i| (i as u32, self.z[i])).collect();
+        for (k, &i) in free.iter().enumerate() {
+            self.z[i] = old[k];
+        }
+        for (k, &(i, _)) in taken.iter().enumerate() {
+            self.z[i] = saved[k];
+            self.fixed[i] = false;
+        }
+        ((before - after) as f32, relaxed)
     }
 
     /// Marks the staleness cells around pixel i with the current epoch.
@@ -516,10 +764,16 @@ impl<'a> Search<'a> {
         }
     }
 
-    /// Paints `win` (pixels not yet taken); returns the mean ρ on the pixels it fixed.
-    fn apply(&mut self, win: &Win, kind: Kind, a: i32, sides: [i32; 2]) -> f32 {
+    /// Paints `win` (pixels not yet taken) with the sides' double-angle vectors `zb` and
+    /// sets the relaxed pixels around it; returns the mean ρ on the pixels it fixed.
+    fn apply(
+        &mut self,
+        win: &Win,
+        kind: Kind,
+        zb: [[f32; 2]; 2],
+        relaxed: &[(u32, [f32; 2])],
+    ) -> f32 {
         let hair_sides = kind.hair_sides();
-        let zb = [self.z_of(a - sides[0]), self.z_of(a + sides[1])];
         self.epoch += 1;
         let (mut rho, mut n) = (0.0f32, 0u32);
         let mut last_cell = usize::MAX;
@@ -552,6 +806,24 @@ impl<'a> Search<'a> {
                 last_cell = cell;
             }
         }
+        for &(i, z) in relaxed {
+            let i = i as usize;
+            self.log.push((
+                Undo {
+                    i: i as u32,
+                    z: self.z[i],
+                    fixed: self.fixed[i],
+                },
+                self.on[i],
+            ));
+            self.z[i] = z;
+            let cell = (i / self.f.width as usize / CELL) * self.cells_x
+                + (i % self.f.width as usize) / CELL;
+            if cell != last_cell {
+                self.touch(i);
+                last_cell = cell;
+            }
+        }
         if n > 0 {
             rho / n as f32
         } else {
@@ -576,51 +848,67 @@ impl<'a> Search<'a> {
     /// side variant the mask allows there.
     fn best_birth(&mut self, x: i32, y: i32) -> Option<(f32, Cand)> {
         let mut best: Option<(f32, Cand)> = None;
+        let mut ranked: Vec<(f32, Cand)> = Vec::with_capacity(256);
         let (hair_min, spill, lambda) = (self.p.hair_min, self.p.spill, self.p.lambda_nc);
-        let consider = |d: f32, c: Cand, best: &mut Option<(f32, Cand)>| {
-            if best.is_none_or(|(b, _)| d > b) {
-                *best = Some((d, c));
-            }
-        };
         for a in 0..AXIS_STEPS as i32 {
-            let mk = |kind, sides| Cand {
+            let mk = |kind, dict, code| Cand {
                 kind,
                 x: x as f32,
                 y: y as f32,
                 axis: a,
-                sides,
+                dict,
+                code,
             };
-            let w5 = self.win(Kind::Stream, &mk(Kind::Stream, [0, 0]).prim());
+            let mut kinds: Vec<(Kind, bool)> = Vec::with_capacity(5);
+            let w5 = self.win(
+                Kind::Stream,
+                &mk(Kind::Stream, [0, 0], [NO_REFINE; 2]).prim(),
+            );
             if w5.at_edge(hair_min, spill) {
-                for kind in [Kind::Boundary, Kind::Source] {
-                    for s in variants(kind, None) {
-                        let d = self.delta(&w5, kind, a, s) - lambda;
-                        consider(d, mk(kind, s), &mut best);
-                    }
-                }
+                kinds.push((Kind::Boundary, false));
+                kinds.push((Kind::Source, false));
             }
             // c, d, e look the same from either end: half the axes suffice.
-            if a >= AXIS_STEPS as i32 / 2 {
-                continue;
+            let half = a < AXIS_STEPS as i32 / 2;
+            if half && w5.inside() {
+                kinds.push((Kind::Stream, false));
+                kinds.push((Kind::Occluding, false));
             }
-            if w5.inside() {
-                for kind in [Kind::Stream, Kind::Occluding] {
-                    for s in variants(kind, None) {
-                        let d = self.delta(&w5, kind, a, s) - lambda;
-                        consider(d, mk(kind, s), &mut best);
-                    }
+            for (kind, _) in kinds {
+                for dict in variants(kind, None) {
+                    let (d, code, _) = self.delta(&w5, kind, a, dict);
+                    ranked.push((d, mk(kind, dict, code)));
                 }
             }
-            let w6 = self.win(Kind::Dividing, &mk(Kind::Dividing, [0, 0]).prim());
-            if w6.inside() {
-                for s in variants(Kind::Dividing, None) {
-                    let d = self.delta(&w6, Kind::Dividing, a, s) - lambda;
-                    consider(d, mk(Kind::Dividing, s), &mut best);
+            if half {
+                let w6 = self.win(
+                    Kind::Dividing,
+                    &mk(Kind::Dividing, [1, 1], [NO_REFINE; 2]).prim(),
+                );
+                if w6.inside() {
+                    for dict in variants(Kind::Dividing, None) {
+                        let (d, code, _) = self.delta(&w6, Kind::Dividing, a, dict);
+                        ranked.push((d, mk(Kind::Dividing, dict, code)));
+                    }
                 }
             }
         }
         self.stats.exact_births += 1;
+        ranked.sort_by(|a, b| b.0.total_cmp(&a.0));
+        for &(_, c) in ranked.iter().take(RELAX_BIRTHS) {
+            let d = self.exact(&c).0 - lambda;
+            if best.is_none_or(|(b, _)| d > b) {
+                best = Some((d, c));
+            }
+        }
         best
+    }
+
+    /// The exact δ of candidate `c` (its refinement as it is), with its relaxed field.
+    fn exact(&mut self, c: &Cand) -> (f32, Vec<(u32, [f32; 2])>) {
+        let win = self.win(c.kind, &c.prim());
+        let zb = self.zb_of(c);
+        self.relax(&win, c.kind, zb)
     }
 
     /// Whether the mask allows `kind` with this window.
@@ -681,12 +969,16 @@ impl<'a> Search<'a> {
     }
 
     /// The best extension of a curve at either end: (δ − turn cost, candidate, at the end).
+    /// Ahead of the last primitive the new one turns by −1, 0 or +1 step and sits STEP px
+    /// along its own axis; behind the first it sits STEP px back along the first's axis
+    /// (the chain rule of [`chain`]) and its axis turns into the first's.
     fn best_extension(&mut self, curve: &VecDeque<Cand>) -> Option<(f32, Cand, bool)> {
         let (w, h) = (self.f.width as f32, self.f.height as f32);
         let first = curve[0];
-        let along_left = (first.kind == Kind::Occluding).then_some(first.sides[0] == 0);
+        let along_left = (first.kind == Kind::Occluding).then_some(first.dict[0] == 0);
         let vars = variants(first.kind, along_left);
-        let mut best: Option<(f32, Cand, bool)> = None;
+        let smooth = self.f.smooth;
+        let mut ranked: Vec<(f32, Cand, bool, i32)> = Vec::new();
         for at_end in [true, false] {
             let end = if at_end {
                 *curve.back().expect("a curve has a primitive")
@@ -694,15 +986,15 @@ impl<'a> Search<'a> {
                 first
             };
             for turn in -1..=1 {
-                // Ahead: the new axis is end + turn and the step follows the mean axis;
-                // behind: the new primitive's axis turns into the end's.
-                let (axis, m, sign) = if at_end {
-                    (end.axis + turn, end.axis as f32 + 0.5 * turn as f32, 1.0)
+                let (axis, step_axis, sign) = if at_end {
+                    (end.axis + turn, end.axis + turn, 1.0)
                 } else {
-                    (end.axis - turn, end.axis as f32 - 0.5 * turn as f32, -1.0)
+                    (end.axis - turn, end.axis, -1.0)
                 };
-                let m = m * AXIS_QUANTUM;
-                let (x, y) = (end.x + sign * STEP * m.cos(), end.y + sign * STEP * m.sin());
+                let (x, y) = (
+                    end.x + sign * STEP * cos15(step_axis as i64) as f32,
+                    end.y + sign * STEP * sin15(step_axis as i64) as f32,
+                );
                 if !(0.0..=w).contains(&x) || !(0.0..=h).contains(&y) {
                     continue;
                 }
@@ -711,21 +1003,81 @@ impl<'a> Search<'a> {
                     x,
                     y,
                     axis,
-                    sides: vars[0],
+                    dict: vars[0],
+                    code: [NO_REFINE; 2],
                 };
                 let win = self.win(first.kind, &c0.prim());
                 if !self.allowed(first.kind, &win) {
                     continue;
                 }
-                for &s in &vars {
-                    let d = self.delta(&win, first.kind, axis, s) - self.f.smooth * turn_cost(turn);
-                    if best.as_ref().is_none_or(|b| d > b.0) {
-                        best = Some((d, Cand { sides: s, ..c0 }, at_end));
-                    }
+                for &dict in &vars {
+                    let (d, code, _) = self.delta(&win, first.kind, axis, dict);
+                    ranked.push((
+                        d - smooth * turn_cost(turn),
+                        Cand { dict, code, ..c0 },
+                        at_end,
+                        turn,
+                    ));
                 }
             }
         }
+        ranked.sort_by(|a, b| b.0.total_cmp(&a.0));
+        let mut best: Option<(f32, Cand, bool)> = None;
+        for &(_, c, at_end, turn) in ranked.iter().take(RELAX_EXTENSIONS) {
+            let d = self.exact(&c).0 - smooth * turn_cost(turn);
+            if best.as_ref().is_none_or(|b| d > b.0) {
+                best = Some((d, c, at_end));
+            }
+        }
         best
+    }
+
+    /// Paints candidate `c` with its refinement as it is; returns its exact δ (before λ_NC
+    /// and turns) and ρ.
+    fn place(&mut self, c: &Cand) -> (f32, f32) {
+        let win = self.win(c.kind, &c.prim());
+        let zb = self.zb_of(c);
+        let (d, relaxed) = self.relax(&win, c.kind, zb);
+        (d, self.apply(&win, c.kind, zb, &relaxed))
+    }
+
+    /// Paints candidate `c` with its refinement scored again where it sits.
+    fn place_refined(&mut self, c: &Cand) -> (f32, Cand, f32) {
+        let win = self.win(c.kind, &c.prim());
+        let (_, code, _) = self.delta(&win, c.kind, c.axis, c.dict);
+        let c = Cand { code, ..*c };
+        let (d, rho) = self.place(&c);
+        (d, c, rho)
+    }
+
+    /// Paints a traced curve from an integer `start` on the lattice; returns its exact δ
+    /// (λ_NC and turns included) and its primitives.
+    fn lay(
+        &mut self,
+        curve: &VecDeque<Cand>,
+        axes: &[i32],
+        start: [f32; 2],
+    ) -> (f32, Vec<Primitive>) {
+        let centres = chain(start, axes);
+        let mut prims = Vec::with_capacity(curve.len());
+        let mut delta = -self.p.lambda_nc;
+        for (k, (c, xy)) in curve.iter().zip(&centres).enumerate() {
+            let c = Cand {
+                x: xy[0],
+                y: xy[1],
+                ..*c
+            };
+            let (d, placed, rho) = self.place_refined(&c);
+            delta += d;
+            if k > 0 {
+                delta -= self.f.smooth * turn_cost(c.axis - axes[k - 1]);
+            }
+            prims.push(Primitive {
+                rho,
+                ..placed.prim()
+            });
+        }
+        (delta, prims)
     }
 
     /// Traces a curve from a birth, then places it on the lattice and scores it as placed.
@@ -733,8 +1085,7 @@ impl<'a> Search<'a> {
     fn trace(&mut self, birth: Cand) -> Option<(Curve, f32)> {
         let mark = self.log.len();
         let mut curve = VecDeque::from([birth]);
-        let w0 = self.win(birth.kind, &birth.prim());
-        self.apply(&w0, birth.kind, birth.axis, birth.sides);
+        self.place(&birth);
         while curve.len() < self.p.max_prims {
             let Some((d, c, at_end)) = self.best_extension(&curve) else {
                 break;
@@ -742,8 +1093,7 @@ impl<'a> Search<'a> {
             if d <= 0.0 {
                 break;
             }
-            let win = self.win(c.kind, &c.prim());
-            self.apply(&win, c.kind, c.axis, c.sides);
+            self.place(&c);
             if at_end {
                 curve.push_back(c);
             } else {
@@ -755,26 +1105,35 @@ impl<'a> Search<'a> {
             self.stats.dropped_short += 1;
             return None;
         }
-        // On the lattice: integer start, centres chained from it.
+        // On the lattice: an integer start, centres chained from it, each primitive placed
+        // in curve order (a pixel keeps the first primitive that reaches it, as in Eq. 8's
+        // painting) with its refinement scored again where it now sits. The start is
+        // rounded down or up in x and y, whichever of the four scores best: the whole curve
+        // moves with it, and a seam is missed by a pixel row as easily as by a metre.
         let axes: Vec<i32> = curve.iter().map(|c| c.axis).collect();
-        let start = [curve[0].x.round(), curve[0].y.round()];
-        let centres = chain(start, &axes);
-        let mut prims = Vec::with_capacity(curve.len());
-        let mut delta = -self.p.lambda_nc;
-        for (k, (c, xy)) in curve.iter().zip(&centres).enumerate() {
-            let c = Cand {
-                x: xy[0],
-                y: xy[1],
-                ..*c
-            };
-            let win = self.win(c.kind, &c.prim());
-            delta += self.delta(&win, c.kind, c.axis, c.sides);
-            if k > 0 {
-                delta -= self.f.smooth * turn_cost(c.axis - axes[k - 1]);
+        let (fx, fy) = (curve[0].x.floor(), curve[0].y.floor());
+        let (w, h) = (self.f.width as f32, self.f.height as f32);
+        let mut best: Option<(f32, [f32; 2])> = None;
+        for start in [
+            [fx, fy],
+            [fx + 1.0, fy],
+            [fx, fy + 1.0],
+            [fx + 1.0, fy + 1.0],
+        ] {
+            if start[0] > w || start[1] > h || start[0] < 0.0 || start[1] < 0.0 {
+                continue;
             }
-            let rho = self.apply(&win, c.kind, c.axis, c.sides);
-            prims.push(Primitive { rho, ..c.prim() });
+            let (d, _) = self.lay(&curve, &axes, start);
+            self.undo_to(mark);
+            if best.is_none_or(|(b, _)| d > b) {
+                best = Some((d, start));
+            }
         }
+        let Some((_, start)) = best else {
+            self.stats.dropped_snapped += 1;
+            return None;
+        };
+        let (delta, prims) = self.lay(&curve, &axes, start);
         if delta <= 0.0 {
             self.undo_to(mark);
             self.stats.dropped_snapped += 1;
@@ -803,9 +1162,13 @@ impl<'a> Search<'a> {
             if !f.hair[i] {
                 continue;
             }
+            m[ws::MAP_HAIR * n + i] = 1.0;
+            if self.on[i] {
+                continue;
+            }
             let (x, y) = (i % w, i / w);
             let zi = self.z[i];
-            let (mut sm, mut deg) = (0.0f32, 0u32);
+            let mut sm = 0.0f32;
             for j in [
                 (x > 0).then(|| i - 1),
                 (x + 1 < w).then(|| i + 1),
@@ -815,31 +1178,16 @@ impl<'a> Search<'a> {
             .into_iter()
             .flatten()
             {
-                if !f.hair[j] {
-                    continue;
-                }
-                deg += 1;
-                if !(self.fixed[i] && self.fixed[j]) {
+                if f.hair[j] && !self.fixed[j] {
                     sm += f.edge(zi, self.z[j]);
                 }
             }
-            if !self.on[i] {
-                let (gx, gy) = (f.gx[i], f.gy[i]);
-                m[ws::MAP_TXX * n + i] = gx * gx * k;
-                m[ws::MAP_TXY * n + i] = gx * gy * k;
-                m[ws::MAP_TYY * n + i] = gy * gy * k;
-                let r = f.rho(i, zi);
-                m[ws::MAP_BASE * n + i] = f.e1(i, zi) + 0.5 * sm + self.sk.at(r) - self.nsk.at(r);
-            }
-            m[ws::MAP_HAIR * n + i] = 1.0;
-            if !self.fixed[i] {
-                m[ws::MAP_RING_N * n + i] = 1.0;
-                m[ws::MAP_RING_C * n + i] = zi[0];
-                m[ws::MAP_RING_S * n + i] = zi[1];
-            }
-            if deg > 0 {
-                m[ws::MAP_RING_OLD * n + i] = 0.5 * sm / deg as f32;
-            }
+            let (gx, gy) = (f.gx[i], f.gy[i]);
+            m[ws::MAP_TXX * n + i] = gx * gx * k;
+            m[ws::MAP_TXY * n + i] = gx * gy * k;
+            m[ws::MAP_TYY * n + i] = gy * gy * k;
+            let r = f.rho(i, zi);
+            m[ws::MAP_BASE * n + i] = f.e1(i, zi) + 0.5 * sm + self.sk.at(r) - self.nsk.at(r);
         }
         m
     }
@@ -997,7 +1345,7 @@ pub fn window_pass(
         lambda_nc: p.lambda_nc,
         spill: p.spill,
         hair_min: p.hair_min,
-        smooth: f.smooth,
+        refine: p.refine_sides as u32,
         ..Default::default()
     };
     let (runs, table) = ws::stencils();
@@ -1011,7 +1359,7 @@ pub fn window_pass(
     );
     let rb = rec.upload("coif.cz_window.runs", &runs);
     let sb = rec.upload("coif.cz_window.stencils", &table);
-    let tb = rec.upload("coif.cz_window.trig", &ws::trig());
+    let tb = rec.upload("coif.cz_window.ztab", &ws::ztab());
     let best = rec.alloc("coif.cz_window.best", 4 * nx as u64 * ny as u64, sentinel);
     let code = rec.alloc("coif.cz_window.code", 4 * nx as u64 * ny as u64, sentinel);
     for mode in [0, 1] {
@@ -1078,7 +1426,7 @@ pub fn pursue(
     stats.sweeps_empty = empty.sweeps;
     stats.seconds_theta += t.elapsed().as_secs_f64();
     let rho_empty = rho::rho_field(&f.gx, &f.gy, &theta::theta_of(&empty.z, &fl0));
-    let mut prior = rho::fit_split(&rho_empty, hair, p.split_quantile)?;
+    let mut prior = rho::fit_split(&rho_empty, hair, width, height, p.split_quantile)?;
     let passes = if p.refit { 2 } else { 1 };
     let mut out = None;
     for pass in 0..passes {
@@ -1136,18 +1484,27 @@ mod tests {
     use super::*;
 
     #[test]
-    fn chain_steps_along_the_mean_axis() {
-        let c = chain([10.0, 20.0], &[0, 0, 1, 0, -1]);
+    fn chain_steps_along_each_axis() {
+        let c = chain([10.0, 20.0], &[0, 0, 1, 0, -1, -24]);
         assert_eq!(c[0], [10.0, 20.0]);
-        assert!((c[1][0] - 15.0).abs() < 1e-5 && (c[1][1] - 20.0).abs() < 1e-5);
-        // A turn of one step moves along 7.5°.
-        let m = 0.5 * AXIS_QUANTUM;
-        assert!((c[2][0] - (15.0 + 5.0 * m.cos())).abs() < 1e-5);
-        assert!((c[2][1] - (20.0 + 5.0 * m.sin())).abs() < 1e-5);
+        assert_eq!(c[1], [15.0, 20.0]);
+        let a = AXIS_QUANTUM as f64;
+        assert!((c[2][0] as f64 - (15.0 + 5.0 * a.cos())).abs() < 1e-5);
+        assert!((c[2][1] as f64 - (20.0 + 5.0 * a.sin())).abs() < 1e-5);
         for k in 1..c.len() {
             let d = ((c[k][0] - c[k - 1][0]).powi(2) + (c[k][1] - c[k - 1][1]).powi(2)).sqrt();
             assert!((d - STEP).abs() < 1e-4);
         }
+        // Axis −24 is axis 0 a turn later: the same step.
+        assert!((c[5][0] - c[4][0] - 5.0).abs() < 1e-5);
+    }
+
+    #[test]
+    fn side_angles_are_the_dictionary_plus_refinement() {
+        assert_eq!(side_angle(0, NO_REFINE), 0.0);
+        assert!((side_angle(2, NO_REFINE) - std::f32::consts::FRAC_PI_2).abs() < 1e-7);
+        assert!((side_angle(0, 0) + 30f32.to_radians()).abs() < 1e-6);
+        assert!((side_angle(3, 15) - (120.0f32 + 26.25).to_radians()).abs() < 1e-6);
     }
 
     #[test]

@@ -119,24 +119,86 @@ pub fn rho_field(gx: &[f32], gy: &[f32], theta: &[f32]) -> Vec<f32> {
         .collect()
 }
 
-/// (p_sk, p_nsk) before any sketch: ρ over the hair split at its `quantile` (e.g. 0.8),
-/// the values above standing for the sketch.
-pub fn fit_split(rho: &[f32], hair: &[bool], quantile: f32) -> Result<(RhoPrior, RhoPrior)> {
-    let mut v: Vec<f32> = rho
-        .iter()
-        .zip(hair)
-        .filter(|(r, &h)| h && r.is_finite())
-        .map(|(&r, _)| r)
+/// Mean of `v` over the hair pixels of the (2r+1)² box around each pixel (NaN where the
+/// box holds no hair pixel with a number).
+pub fn local_mean(v: &[f32], hair: &[bool], width: u32, height: u32, r: usize) -> Vec<f32> {
+    let (w, h) = (width as usize, height as usize);
+    let ok = |i: usize| hair[i] && v[i].is_finite();
+    // Row sums then column sums of (value, count).
+    let mut rows = vec![(0.0f64, 0u32); w * h];
+    for y in 0..h {
+        for x in 0..w {
+            let (mut s, mut n) = (0.0f64, 0u32);
+            for xx in x.saturating_sub(r)..(x + r + 1).min(w) {
+                let i = y * w + xx;
+                if ok(i) {
+                    s += v[i] as f64;
+                    n += 1;
+                }
+            }
+            rows[y * w + x] = (s, n);
+        }
+    }
+    (0..w * h)
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            let (mut s, mut n) = (0.0f64, 0u32);
+            for yy in y.saturating_sub(r)..(y + r + 1).min(h) {
+                let (a, b) = rows[yy * w + x];
+                s += a;
+                n += b;
+            }
+            if n > 0 {
+                (s / n as f64) as f32
+            } else {
+                f32::NAN
+            }
+        })
+        .collect()
+}
+
+/// (p_sk, p_nsk) before any sketch: the hair pixels split at the `quantile` (e.g. 0.8) of
+/// their local contrast (the mean ρ over the 5×5 box, about a primitive's window), p_sk
+/// fitted to the ρ of the pixels above it and p_nsk to the rest. A split of the pixels'
+/// own ρ would leave p_sk without a lower tail (its fit sees only the top values), and a
+/// sketch window always holds low-ρ pixels (a strand's ridge, the gaps): at 256² on `coif
+/// synth` hair one such pixel then costs ~25 energy units and no window can join the sketch.
+pub fn fit_split(
+    rho: &[f32],
+    hair: &[bool],
+    width: u32,
+    height: u32,
+    quantile: f32,
+) -> Result<(RhoPrior, RhoPrior)> {
+    let local = local_mean(rho, hair, width, height, 2);
+    let mut l: Vec<f32> = (0..rho.len())
+        .filter(|&i| hair[i] && rho[i].is_finite() && local[i].is_finite())
+        .map(|i| local[i])
         .collect();
-    if v.len() < 4 {
+    if l.len() < 8 {
         return Err(Error::Invalid(format!(
-            "contrast prior: {} hair pixels with a contrast, need at least 4",
-            v.len()
+            "contrast prior: {} hair pixels with a contrast, need at least 8",
+            l.len()
         )));
     }
-    v.sort_by(f32::total_cmp);
-    let cut = ((v.len() as f32 * quantile) as usize).clamp(1, v.len() - 1);
-    Ok((RhoPrior::fit_em(&v[cut..])?, RhoPrior::fit_em(&v[..cut])?))
+    l.sort_by(f32::total_cmp);
+    let cut = l[((l.len() as f32 * quantile) as usize).clamp(1, l.len() - 1)];
+    let on: Vec<bool> = local.iter().map(|&v| v >= cut).collect();
+    let (sk, nsk): (Vec<f32>, Vec<f32>) = {
+        let pick = |want: bool| -> Vec<f32> {
+            (0..rho.len())
+                .filter(|&i| hair[i] && rho[i].is_finite() && local[i].is_finite() && on[i] == want)
+                .map(|i| rho[i])
+                .collect()
+        };
+        (pick(true), pick(false))
+    };
+    if sk.len() < 4 || nsk.len() < 4 {
+        return Err(Error::Invalid(
+            "contrast prior: the hair's contrast is uniform; cannot split it".into(),
+        ));
+    }
+    Ok((RhoPrior::fit_em(&sk)?, RhoPrior::fit_em(&nsk)?))
 }
 
 /// (p_sk, p_nsk) refitted from a sketch: ρ on the hair pixels `on` marks, and on the rest.

@@ -25,22 +25,18 @@ pub const STAGE: StageDef = StageDef {
 };
 
 /// Per-pixel maps the pass sums, in this order (see the shader's header).
-pub const N_MAPS: usize = 9;
+pub const N_MAPS: usize = 5;
 pub const MAP_TXX: usize = 0;
 pub const MAP_TXY: usize = 1;
 pub const MAP_TYY: usize = 2;
 pub const MAP_BASE: usize = 3;
 pub const MAP_HAIR: usize = 4;
-pub const MAP_RING_N: usize = 5;
-pub const MAP_RING_C: usize = 6;
-pub const MAP_RING_S: usize = 7;
-pub const MAP_RING_OLD: usize = 8;
-/// First map the ring (outer window) sums need.
-const RING_FIRST: usize = MAP_RING_N;
 /// Axis orientations the pass scans (axes k and k + 12 share a window).
 pub const ORIENTATIONS: u32 = 12;
-/// Side angles π/3, π/2, 2π/3 in 15° steps; a code's variant indexes this.
-pub const PHI_STEPS: [u32; 3] = [4, 6, 8];
+/// Side angles π/3, π/2, 2π/3 in 3.75° units; a code's variant indexes this.
+pub const PHI_FINE: [i32; 3] = [16, 24, 32];
+/// Orientations of the refined lattice over π: 3.75° units.
+pub const FINE: i32 = 48;
 /// δ where no primitive is allowed.
 pub const NEG: f32 = -3.0e38;
 /// Code where no primitive is allowed.
@@ -59,10 +55,10 @@ pub struct Config {
     pub lambda_nc: f32,
     pub spill: f32,
     pub hair_min: f32,
-    /// 1/λθ², the weight of the smoothness terms.
-    pub smooth: f32,
+    pub _pad0: u32,
+    /// 1: refine side angles by up to ±30° in 3.75° steps; 0: the pure dictionary.
+    pub refine: u32,
     pub _pad1: u32,
-    pub _pad2: u32,
 }
 
 impl Config {
@@ -82,106 +78,111 @@ pub fn workgroups(cfg: &Config) -> [u32; 3] {
     }
 }
 
-/// Index of a stencil: orientation k (0..12), shape (0: 7×5, 1: 7×6 dividing), outer (0:
-/// the window, 1: one pixel larger each way), side (0 left, 1 right).
-pub fn stencil_index(k: u32, shape: u32, outer: u32, side: u32) -> usize {
-    (((k * 2 + shape) * 2 + outer) * 2 + side) as usize
+/// Index of a stencil: orientation k (0..12), shape (0: 7×5, 1: 7×6 dividing), side (0
+/// left, 1 right).
+pub fn stencil_index(k: u32, shape: u32, side: u32) -> usize {
+    ((k * 2 + shape) * 2 + side) as usize
 }
 
 /// The side a pixel offset falls on, for a window with its centre on a pixel corner: the
-/// same arithmetic as `sketch::prim::window`, so the inner stencils are its pixels exactly.
-/// None outside the rectangle; Some(2) on a dividing line's strip.
-fn classify(k: u32, shape: u32, outer: u32, di: i32, dj: i32) -> Option<u32> {
+/// same arithmetic as `sketch::prim::window`, so the stencils are its pixels exactly.
+/// None outside the rectangle or on a dividing line's strip.
+fn classify(k: u32, shape: u32, di: i32, dj: i32) -> Option<u32> {
     let axis = k as f32 * AXIS_QUANTUM;
     let (t, n) = ([axis.cos(), axis.sin()], [axis.sin(), -axis.cos()]);
     let across = if shape == 1 { ACROSS_DIVIDING } else { ACROSS };
-    let grow = outer as f32;
-    let (ha, hc) = (0.5 * ALONG + grow, 0.5 * across + grow);
+    let (ha, hc) = (0.5 * ALONG, 0.5 * across);
     let (dx, dy) = (di as f32 + 0.5, dj as f32 + 0.5);
     let a = dx * t[0] + dy * t[1];
     let c = dx * n[0] + dy * n[1];
-    if a.abs() >= ha || c.abs() >= hc {
+    if a.abs() >= ha || c.abs() >= hc || (shape == 1 && c.abs() < STRIP) {
         return None;
-    }
-    if shape == 1 && c.abs() < STRIP {
-        return Some(2);
     }
     Some(if c >= 0.0 { 0 } else { 1 })
 }
 
-/// The stencil table: (runs as (dy, dx0, dx1, 0), per stencil (first run, runs, pixels,
-/// ring weight bits)). A ring weight is the number of 4-neighbour edges from the side's
-/// window pixels to pixels outside the window, per pixel of the side's ring (outer minus
-/// inner), so ring sums approximate sums over the border edges.
+/// The stencil table: (runs as (dy, dx0, dx1, 0), per stencil (first run, runs, pixels, 0)).
 pub fn stencils() -> (Vec<[i32; 4]>, Vec<[u32; 4]>) {
-    const R: i32 = 8;
+    const R: i32 = 6;
     let mut runs = Vec::new();
-    let mut table = vec![[0u32; 4]; stencil_index(ORIENTATIONS, 0, 0, 0)];
+    let mut table = vec![[0u32; 4]; stencil_index(ORIENTATIONS, 0, 0)];
     for k in 0..ORIENTATIONS {
         for shape in 0..2 {
-            let inner = |di: i32, dj: i32| classify(k, shape, 0, di, dj);
-            for outer in 0..2 {
-                for side in 0..2 {
-                    let first = runs.len() as u32;
-                    let mut pixels = 0u32;
-                    for dj in -R..=R {
-                        let mut run: Option<(i32, i32)> = None;
-                        for di in -R..=R {
-                            let inside = classify(k, shape, outer, di, dj) == Some(side);
-                            if inside {
-                                pixels += 1;
-                                run = Some(match run {
-                                    Some((a, _)) => (a, di + 1),
-                                    None => (di, di + 1),
-                                });
-                            } else if let Some((a, b)) = run.take() {
-                                runs.push([dj, a, b, 0]);
-                            }
-                        }
-                        if let Some((a, b)) = run {
+            for side in 0..2 {
+                let first = runs.len() as u32;
+                let mut pixels = 0u32;
+                for dj in -R..=R {
+                    let mut run: Option<(i32, i32)> = None;
+                    for di in -R..=R {
+                        if classify(k, shape, di, dj) == Some(side) {
+                            pixels += 1;
+                            run = Some(match run {
+                                Some((a, _)) => (a, di + 1),
+                                None => (di, di + 1),
+                            });
+                        } else if let Some((a, b)) = run.take() {
                             runs.push([dj, a, b, 0]);
                         }
                     }
-                    let weight = if outer == 1 {
-                        let mut edges = 0u32;
-                        let mut ring = 0u32;
-                        for dj in -R..=R {
-                            for di in -R..=R {
-                                if inner(di, dj) == Some(side) {
-                                    for (ei, ej) in [(-1, 0), (1, 0), (0, -1), (0, 1)] {
-                                        edges += inner(di + ei, dj + ej).is_none() as u32;
-                                    }
-                                } else if inner(di, dj).is_none()
-                                    && classify(k, shape, 1, di, dj) == Some(side)
-                                {
-                                    ring += 1;
-                                }
-                            }
-                        }
-                        edges as f32 / ring.max(1) as f32
-                    } else {
-                        0.0
-                    };
-                    table[stencil_index(k, shape, outer, side)] =
-                        [first, runs.len() as u32 - first, pixels, weight.to_bits()];
+                    if let Some((a, b)) = run {
+                        runs.push([dj, a, b, 0]);
+                    }
                 }
+                table[stencil_index(k, shape, side)] =
+                    [first, runs.len() as u32 - first, pixels, 0];
             }
         }
     }
     (runs, table)
 }
 
-/// (cos, sin) of j·15° for j in 0..24.
-pub fn trig() -> Vec<[f32; 2]> {
-    (0..24)
+/// (cos 2θ, sin 2θ) of θ = j·3.75° for j in 0..48.
+pub fn ztab() -> Vec<[f32; 2]> {
+    (0..FINE)
         .map(|j| {
-            let a = j as f32 * AXIS_QUANTUM;
+            let a = j as f32 * (std::f32::consts::PI / 24.0);
             [a.cos(), a.sin()]
         })
         .collect()
 }
 
 type Sums = [f32; N_MAPS];
+
+/// A side's gain as K + G·z and the orientation maximising it, in 3.75° units.
+#[derive(Clone, Copy)]
+struct SideFit {
+    k: f32,
+    g: [f32; 2],
+    jstar: f32,
+}
+
+fn side_fit(inner: &Sums) -> SideFit {
+    let k = inner[MAP_BASE] - 0.5 * (inner[MAP_TXX] + inner[MAP_TYY]);
+    let g = [-0.5 * (inner[MAP_TXX] - inner[MAP_TYY]), -inner[MAP_TXY]];
+    SideFit {
+        k,
+        g,
+        jstar: g[1].atan2(g[0]) * (24.0 / std::f32::consts::PI),
+    }
+}
+
+/// (gain, r + 8) of a side painting dictionary orientation `base` (3.75° units) refined by
+/// sign·r; sign −1 on a left side, +1 on a right side.
+fn side_gain(f: &SideFit, base: i32, sign: i32, refine: bool, ztab: &[[f32; 2]]) -> (f32, u32) {
+    let mut r = 0i32;
+    if refine {
+        let mut o = f.jstar - base as f32;
+        o -= 48.0 * ((o + 24.0) / 48.0).floor();
+        r = ((sign as f32 * o + 0.5).floor() as i32).clamp(-8, 7);
+    }
+    let j = ((base + sign * r) % FINE + FINE) % FINE;
+    let z = ztab[j as usize];
+    (f.k + (f.g[0] * z[0] + f.g[1] * z[1]), (r + 8) as u32)
+}
+
+fn code_of(axis: u32, kind: u32, variant: u32, l: (f32, u32), r: (f32, u32)) -> u32 {
+    axis | (kind << 5) | (variant << 8) | (l.1 << 11) | (r.1 << 15)
+}
 
 /// The candidates of one orientation (at most 18), without a heap allocation.
 struct Cands {
@@ -205,33 +206,16 @@ impl Cands {
     }
 }
 
-fn gain(inner: &Sums, ring: [f32; 4], w: f32, smooth: f32, t: [f32; 2]) -> f32 {
-    let (c, s) = (t[0], t[1]);
-    let q = c * c * inner[MAP_TXX] + 2.0 * c * s * inner[MAP_TXY] + s * s * inner[MAP_TYY];
-    let c2 = c * c - s * s;
-    let s2 = 2.0 * c * s;
-    let ring_new = 0.5 * (ring[0] - (ring[1] * c2 + ring[2] * s2));
-    inner[MAP_BASE] - q - w * (smooth * ring_new - ring[3])
-}
-
-fn ring_of(inner: &Sums, outer: &Sums) -> [f32; 4] {
-    [
-        outer[5] - inner[5],
-        outer[6] - inner[6],
-        outer[7] - inner[7],
-        outer[8] - inner[8],
-    ]
-}
-
 struct Ctx<'a> {
     cfg: Config,
     prefix: &'a [f32],
     runs: &'a [[i32; 4]],
     stencils: &'a [[u32; 4]],
+    ztab: &'a [[f32; 2]],
 }
 
 impl Ctx<'_> {
-    fn box_sums(&self, st: usize, cx: i32, cy: i32, m0: usize) -> Sums {
+    fn box_sums(&self, st: usize, cx: i32, cy: i32) -> Sums {
         let mut acc = [0.0f32; N_MAPS];
         let e = self.stencils[st];
         let (w, h) = (self.cfg.width as i32, self.cfg.height as usize);
@@ -246,7 +230,7 @@ impl Ctx<'_> {
             if xb <= xa {
                 continue;
             }
-            for (m, a) in acc.iter_mut().enumerate().skip(m0) {
+            for (m, a) in acc.iter_mut().enumerate() {
                 let row = (m * h + y as usize) * (w as usize + 1);
                 *a += self.prefix[row + xb] - self.prefix[row + xa];
             }
@@ -254,80 +238,63 @@ impl Ctx<'_> {
         acc
     }
 
-    fn weight(&self, st: usize) -> f32 {
-        f32::from_bits(self.stencils[st][3])
-    }
-
     fn pixels(&self, st: usize) -> f32 {
         self.stencils[st][2] as f32
     }
 
-    fn position(&self, gx: u32, gy: u32, trig: &[[f32; 2]]) -> (f32, u32) {
+    fn position(&self, gx: u32, gy: u32) -> (f32, u32) {
         let cfg = &self.cfg;
         let cx = (gx * cfg.stride + cfg.stride / 2) as i32;
         let cy = (gy * cfg.stride + cfg.stride / 2) as i32;
         let si = stencil_index;
+        let refine = cfg.refine == 1;
+        let zt = self.ztab;
+        let gain = |f: &SideFit, base: i32, sign: i32| side_gain(f, base, sign, refine, zt);
+        let none = (0.0f32, 8u32);
         let mut top = NEG;
         let mut top_code = NO_CODE;
         for k in 0..ORIENTATIONS {
-            let t0 = trig[k as usize];
-            let il = self.box_sums(si(k, 0, 0, 0), cx, cy, 0);
-            let ir = self.box_sums(si(k, 0, 0, 1), cx, cy, 0);
-            let rl = ring_of(&il, &self.box_sums(si(k, 0, 1, 0), cx, cy, RING_FIRST));
-            let rr = ring_of(&ir, &self.box_sums(si(k, 0, 1, 1), cx, cy, RING_FIRST));
-            let (wl, wr) = (self.weight(si(k, 0, 1, 0)), self.weight(si(k, 0, 1, 1)));
-            let (nl, nr) = (self.pixels(si(k, 0, 0, 0)), self.pixels(si(k, 0, 0, 1)));
+            let a = 4 * k as i32;
+            let il = self.box_sums(si(k, 0, 0), cx, cy);
+            let ir = self.box_sums(si(k, 0, 1), cx, cy);
+            let (fl, fr) = (side_fit(&il), side_fit(&ir));
+            let (nl, nr) = (self.pixels(si(k, 0, 0)), self.pixels(si(k, 0, 1)));
             let mut cand = Cands::default();
             if il[MAP_HAIR] >= nl - 0.5 && ir[MAP_HAIR] >= nr - 0.5 {
-                cand.push((
-                    gain(&il, rl, wl, cfg.smooth, t0) + gain(&ir, rr, wr, cfg.smooth, t0),
-                    k | (4 << 5),
-                ));
-                for (f, &p) in PHI_STEPS.iter().enumerate() {
+                let (l0, r0) = (gain(&fl, a, -1), gain(&fr, a, 1));
+                cand.push((l0.0 + r0.0, code_of(k, 4, 0, l0, r0)));
+                for (f, &p) in PHI_FINE.iter().enumerate() {
                     let f = f as u32;
-                    cand.push((
-                        gain(&il, rl, wl, cfg.smooth, t0)
-                            + gain(&ir, rr, wr, cfg.smooth, trig[((k + p) % 24) as usize]),
-                        k | (2 << 5) | (f << 8),
-                    ));
-                    cand.push((
-                        gain(&il, rl, wl, cfg.smooth, trig[((k + 24 - p) % 24) as usize])
-                            + gain(&ir, rr, wr, cfg.smooth, t0),
-                        k | (2 << 5) | ((3 + f) << 8),
-                    ));
+                    let r1 = gain(&fr, a + p, 1);
+                    cand.push((l0.0 + r1.0, code_of(k, 2, f, l0, r1)));
+                    let l1 = gain(&fl, a - p, -1);
+                    cand.push((l1.0 + r0.0, code_of(k, 2, 3 + f, l1, r0)));
                 }
             }
             if il[MAP_HAIR] >= cfg.hair_min * nl && ir[MAP_HAIR] <= cfg.spill * nr {
-                cand.push((gain(&il, rl, wl, cfg.smooth, t0), k));
-                for (f, &p) in PHI_STEPS.iter().enumerate() {
-                    cand.push((
-                        gain(&il, rl, wl, cfg.smooth, trig[((k + 24 - p) % 24) as usize]),
-                        k | (1 << 5) | ((f as u32) << 8),
-                    ));
+                let l0 = gain(&fl, a, -1);
+                cand.push((l0.0, code_of(k, 0, 0, l0, none)));
+                for (f, &p) in PHI_FINE.iter().enumerate() {
+                    let l1 = gain(&fl, a - p, -1);
+                    cand.push((l1.0, code_of(k, 1, f as u32, l1, none)));
                 }
             }
             if ir[MAP_HAIR] >= cfg.hair_min * nr && il[MAP_HAIR] <= cfg.spill * nl {
-                cand.push((gain(&ir, rr, wr, cfg.smooth, t0), k + 12));
-                for (f, &p) in PHI_STEPS.iter().enumerate() {
-                    cand.push((
-                        gain(&ir, rr, wr, cfg.smooth, trig[((k + 24 - p) % 24) as usize]),
-                        (k + 12) | (1 << 5) | ((f as u32) << 8),
-                    ));
+                let l0 = gain(&fr, a, -1);
+                cand.push((l0.0, code_of(k + 12, 0, 0, l0, none)));
+                for (f, &p) in PHI_FINE.iter().enumerate() {
+                    let l1 = gain(&fr, a - p, -1);
+                    cand.push((l1.0, code_of(k + 12, 1, f as u32, l1, none)));
                 }
             }
-            let jl = self.box_sums(si(k, 1, 0, 0), cx, cy, 0);
-            let jr = self.box_sums(si(k, 1, 0, 1), cx, cy, 0);
-            let (ml, mr) = (self.pixels(si(k, 1, 0, 0)), self.pixels(si(k, 1, 0, 1)));
+            let jl = self.box_sums(si(k, 1, 0), cx, cy);
+            let jr = self.box_sums(si(k, 1, 1), cx, cy);
+            let (ml, mr) = (self.pixels(si(k, 1, 0)), self.pixels(si(k, 1, 1)));
             if jl[MAP_HAIR] >= ml - 0.5 && jr[MAP_HAIR] >= mr - 0.5 {
-                let sl = ring_of(&jl, &self.box_sums(si(k, 1, 1, 0), cx, cy, RING_FIRST));
-                let sr = ring_of(&jr, &self.box_sums(si(k, 1, 1, 1), cx, cy, RING_FIRST));
-                let (vl, vr) = (self.weight(si(k, 1, 1, 0)), self.weight(si(k, 1, 1, 1)));
-                for (f, &p) in PHI_STEPS.iter().enumerate() {
-                    cand.push((
-                        gain(&jl, sl, vl, cfg.smooth, trig[((k + 24 - p) % 24) as usize])
-                            + gain(&jr, sr, vr, cfg.smooth, trig[((k + p) % 24) as usize]),
-                        k | (3 << 5) | ((f as u32) << 8),
-                    ));
+                let (gl, gr) = (side_fit(&jl), side_fit(&jr));
+                for (f, &p) in PHI_FINE.iter().enumerate() {
+                    let (l1, r1) = (gain(&gl, a - p, -1), gain(&gr, a + p, 1));
+                    cand.push((l1.0 + r1.0, code_of(k, 3, f as u32, l1, r1)));
                 }
             }
             for &(g, c) in &cand.v[..cand.n] {
@@ -364,7 +331,7 @@ fn cz_window_sums_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
             });
         return;
     }
-    let (g_prefix, g_runs, g_st, g_trig) = (
+    let (g_prefix, g_runs, g_st, g_ztab) = (
         b[2].get::<f32>(),
         b[3].get::<[i32; 4]>(),
         b[4].get::<[u32; 4]>(),
@@ -375,12 +342,12 @@ fn cz_window_sums_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
         prefix: &g_prefix,
         runs: &g_runs,
         stencils: &g_st,
+        ztab: &g_ztab,
     };
-    let trig: &[[f32; 2]] = &g_trig;
     let (nx, ny) = (cfg.nx as usize, cfg.ny as usize);
     let out: Vec<(f32, u32)> = (0..nx * ny)
         .into_par_iter()
-        .map(|o| ctx.position((o % nx) as u32, (o / nx) as u32, trig))
+        .map(|o| ctx.position((o % nx) as u32, (o / nx) as u32))
         .collect();
     let mut best = b[6].get_mut::<f32>();
     let mut code = b[7].get_mut::<u32>();
@@ -395,7 +362,7 @@ mod tests {
     use super::*;
     use crate::sketch::{prim, Kind, Primitive};
 
-    /// The inner stencils are `prim::window`'s pixels, sides included, at every orientation.
+    /// The stencils are `prim::window`'s pixels, sides included, at every orientation.
     #[test]
     fn inner_stencils_are_the_windows() {
         let (runs, table) = stencils();
@@ -415,7 +382,7 @@ mod tests {
                     }
                 });
                 for side in 0..2u32 {
-                    let e = table[stencil_index(k, shape, 0, side)];
+                    let e = table[stencil_index(k, shape, side)];
                     let mut got = Vec::new();
                     for r in &runs[e[0] as usize..(e[0] + e[1]) as usize] {
                         for di in r[1]..r[2] {
