@@ -332,3 +332,73 @@ fn bad_inputs_are_refused_with_the_file_named() {
     );
     assert!(!out.exists(), "a refused run left {}", out.display());
 }
+
+#[test]
+fn convert_round_trips_and_refuses_damaged_files() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let c = case(Style::Long, 2);
+    let r = run(&c, false);
+    let czs = d.join("hair.czs");
+    format::save(&r.sketch, &czs).unwrap();
+    for (from, to) in [
+        ("hair.czs", "a.svg"),
+        ("a.svg", "b.json"),
+        ("b.json", "c.czs"),
+    ] {
+        let out = coif()
+            .arg("sketch-convert")
+            .arg("--sketch")
+            .arg(d.join(from))
+            .arg("--out")
+            .arg(d.join(to))
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    assert_eq!(
+        std::fs::read(&czs).unwrap(),
+        std::fs::read(d.join("c.czs")).unwrap()
+    );
+    // A truncated and a corrupted .czs, and a sketch.json that fails its schema.
+    let bytes = std::fs::read(&czs).unwrap();
+    std::fs::write(d.join("cut.czs"), &bytes[..bytes.len() / 2]).unwrap();
+    let mut flipped = bytes.clone();
+    let k = bytes.len() / 2;
+    flipped[k] ^= 0x10;
+    std::fs::write(d.join("flip.czs"), &flipped).unwrap();
+    let mut json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("b.json")).unwrap()).unwrap();
+    json["width"] = serde_json::json!("wide");
+    std::fs::write(d.join("bad.json"), json.to_string()).unwrap();
+    for bad in ["cut.czs", "flip.czs", "bad.json"] {
+        let p = d.join(bad);
+        let out = d.join(format!("{bad}.svg"));
+        fails_with(
+            &[
+                "sketch-convert".as_ref(),
+                "--sketch".as_ref(),
+                p.as_os_str(),
+                "--out".as_ref(),
+                out.as_os_str(),
+            ],
+            bad,
+        );
+        assert!(!out.exists());
+    }
+}
+
+/// `sketch.png` of a synthetic portrait at 256² on the cpu backend (the analysis is
+/// deterministic there; lavapipe rounds Θ differently and may pick other curves).
+#[test]
+fn sketch_picture_golden() {
+    let c = case(Style::Long, 1);
+    let r = run(&c, false);
+    let backdrop = coif::io::vis::dimmed(&c.image, 0.45);
+    let img = coif::sketch::vis::sketch_picture(&backdrop, &r.sketch);
+    coif::testing::check_golden_rgb("sketch_synth_long_256", &img).unwrap();
+}

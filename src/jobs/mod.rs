@@ -22,8 +22,8 @@ use std::time::Instant;
 mod sketch;
 mod video;
 
-use sketch::run_sketch;
-pub use sketch::{HairRegion, SketchJob};
+use sketch::{run_sketch, run_sketch_convert};
+pub use sketch::{HairRegion, SketchConvertJob, SketchJob};
 use video::{run_synth_video, run_transfer, run_video};
 pub use video::{ClipSource, SynthVideoJob, TransferJob, VideoJob};
 
@@ -48,6 +48,7 @@ pub enum Job {
     Video(VideoJob),
     Transfer(TransferJob),
     Sketch(SketchJob),
+    SketchConvert(SketchConvertJob),
 }
 
 /// A synthetic portrait with its ground truth (`coif synth`).
@@ -199,6 +200,7 @@ impl Job {
             Job::Video(j) => ("video", &j.out),
             Job::Transfer(j) => ("transfer", &j.out),
             Job::Sketch(j) => ("sketch", &j.out),
+            Job::SketchConvert(j) => ("sketch-convert", &j.out),
         };
         format!("{what} {}", path.display())
     }
@@ -221,6 +223,7 @@ pub fn run(engine: &Engine, job: &Job) -> anyhow::Result<Report> {
         Job::Video(j) => run_video(engine, j),
         Job::Transfer(j) => run_transfer(engine, j),
         Job::Sketch(j) => run_sketch(engine, j),
+        Job::SketchConvert(j) => run_sketch_convert(j),
         Job::Convert(j) => run_convert(j),
     }
 }

@@ -131,3 +131,31 @@ pub(super) fn run_sketch(engine: &Engine, j: &SketchJob) -> anyhow::Result<Repor
         warnings: Vec::new(),
     })
 }
+
+/// A sketch file converted to another of the three formats (`coif sketch-convert`): an
+/// Inkscape-edited `sketch.svg` back to `.czs`, a `.czs` to readable JSON.
+#[derive(Clone, Debug)]
+pub struct SketchConvertJob {
+    pub input: PathBuf,
+    pub out: PathBuf,
+}
+
+pub(super) fn run_sketch_convert(j: &SketchConvertJob) -> anyhow::Result<Report> {
+    let s = crate::sketch::format::load(&j.input)?;
+    crate::sketch::format::save(&s, &j.out)?;
+    let sizes = crate::sketch::format::czs_sizes(&s);
+    Ok(Report {
+        summary: format!(
+            "sketch-convert: {} -> {} ({}x{}, {} curves, {} primitives, {} bases; {} B as .czs)",
+            j.input.display(),
+            j.out.display(),
+            s.width,
+            s.height,
+            s.curves.len(),
+            s.curves.iter().map(|c| c.prims.len()).sum::<usize>(),
+            s.shading.bases.len(),
+            sizes.total
+        ),
+        ..Default::default()
+    })
+}

@@ -77,6 +77,9 @@ pub enum Command {
     /// primitives (hair.czs, sketch.json, sketch.svg), the vector field filled in from them,
     /// shading bases and colour map, pictures and a report.
     Sketch(SketchArgs),
+    /// Converts a sketch between its three files (.czs, .json, .svg), checking it: e.g. a
+    /// sketch.svg edited in Inkscape back to a compact hair.czs.
+    SketchConvert(SketchConvertArgs),
     /// Hair replacement (C13 §4): another model's strands carried through a tracked clip
     /// (each follows its nearest tracked strand) and rendered into every frame.
     Transfer(TransferArgs),
@@ -169,6 +172,16 @@ pub struct SketchArgs {
     seed: u64,
     #[command(flatten)]
     backend: BackendArgs,
+}
+
+#[derive(Args)]
+pub struct SketchConvertArgs {
+    /// A sketch: hair.czs, sketch.json or sketch.svg.
+    #[arg(long)]
+    sketch: PathBuf,
+    /// The file to write; its extension (.czs, .json, .svg) names the format.
+    #[arg(long)]
+    out: PathBuf,
 }
 
 #[derive(Args)]
@@ -777,6 +790,13 @@ impl Command {
                     banner: None,
                 }
             }
+            Command::SketchConvert(a) => Request::one(
+                Job::SketchConvert(coif::jobs::SketchConvertJob {
+                    input: a.sketch,
+                    out: a.out,
+                }),
+                cpu,
+            ),
             Command::Orient(a) => Request::Jobs {
                 jobs: vec![Job::Orient(OrientJob {
                     image: a.image,
