@@ -917,9 +917,9 @@ mod tests {
             assert!(least >= 45.0, "seed {seed}: jump only {least} deg");
             assert!(pairs >= 200, "seed {seed}: seam only {pairs} pairs long");
             assert!((0.1..0.5).contains(&(n_fringe as f64 / n_hair as f64)));
-            for k in 0..w * h {
-                assert_eq!(sm.distance[k].is_nan(), !hair[k]);
-                assert_eq!(sm.distance[k] == 0.0, sm.on[k]);
+            for ((d, on), hair) in sm.distance.iter().zip(&sm.on).zip(&hair) {
+                assert_eq!(d.is_nan(), !hair);
+                assert_eq!(*d == 0.0, *on);
             }
         }
         assert!(seam(&SynthParams::new(Style::Long, 1)).is_none());

@@ -187,11 +187,17 @@ impl Scene {
                     oy: hy - ry - g.range_f32(0.5, 0.7) * b,
                     twist: side * g.range_f32(0.0, 0.08),
                 };
+                // The fringe's ellipse is widest at the lowest point of the fringe line and
+                // no wider than the face there, so below it the ellipse lies inside the bare
+                // face: the fringe ends on the face, with no thin strip of it running down
+                // beside the face (where the seam would be a few pixels from the edge).
+                let ey = cy - 0.4 * b;
+                let face_half = a * (1.0 - ((ey - cy) / b).powi(2)).sqrt();
                 let field = Field::Fringe {
                     ex: cx,
-                    ey: cy - g.range_f32(0.12, 0.18) * b,
-                    erx: a * g.range_f32(1.0, 1.05),
-                    ery: b * g.range_f32(0.8, 0.85),
+                    ey,
+                    erx: 0.98 * face_half,
+                    ery: b * g.range_f32(0.53, 0.58),
                     sweep: side,
                     beta0: g.range_f32(6.0, 10.0).to_radians(),
                     beta1: g.range_f32(3.0, 6.0).to_radians(),
