@@ -92,6 +92,16 @@ struct Case {
     gt: Vec<f32>,
 }
 
+impl Case {
+    fn band(&self) -> GrayImage {
+        GrayImage {
+            width: self.w,
+            height: self.h,
+            data: self.high.clone(),
+        }
+    }
+}
+
 fn case_from_synth(engine: &Engine, c: &SynthCase, name: &str) -> Case {
     let hair: Vec<bool> = c.mask.pixels().map(|p| p[0] > 127).collect();
     Case {
@@ -133,7 +143,7 @@ fn mean_err(theta: &[f32], gt: &[f32], sel: impl Fn(usize) -> bool) -> f32 {
 
 fn run_pursuit(e: &Engine, c: &Case, p: &PursuitParams) -> (Pursuit, f64) {
     let t = Instant::now();
-    let out = pursue(e, &c.high, c.w, c.h, &c.hair, &c.gabor, p).unwrap();
+    let out = pursue(e, &c.band(), &c.hair, &c.gabor, p).unwrap();
     (out, t.elapsed().as_secs_f64())
 }
 
@@ -773,7 +783,7 @@ fn fig10_sketch_sharpens_the_fringe_seam() {
             sigma2: Some(out.sigma2),
             ..p.theta
         };
-        let empty = theta::diffuse(&e, &c.high, c.w, c.h, &c.hair, None, &c.gabor, &tp).unwrap();
+        let empty = theta::diffuse(&e, &c.band(), &c.hair, None, &c.gabor, &tp).unwrap();
         let near = |i: usize| seam.distance[i] <= 4.0;
         let (s, z, g) = (
             mean_err(&out.theta, &c.gt, near),
