@@ -2,15 +2,19 @@
 //! field Θ, greedily. From S = ∅ and Θ diffused without a sketch, the birth of the primitive
 //! with the largest energy drop δ starts a curve, which is extended at either end by the best
 //! of the candidates STEP px ahead turning −15°, 0 or +15° while that drop is positive; then
-//! back to births, until no birth lowers the energy. Θ+ ≈ Θ while a primitive is scored (the
-//! paper's approximation); Θ is diffused again with the sketch clamped every few curves.
+//! back to births, until no birth lowers the energy. Θ is diffused again with the sketch
+//! clamped every few curves.
 //!
-//! The energy is E = E1 + E2 + E3 of Eq. 19-22 over the hair:
-//!   Σ (∇_θ I_H)²/2σθ² + Σ_edges (1 − cos 2Δθ)/2λθ² − Σ_nsk log p_nsk(ρ) − Σ_sk log p_sk(ρ)
-//!   + λ_NC N_C + Σ_consecutive (1 − cos 2Δaxis)/4λθ²
-//! (an edge between two sketch pixels costs nothing, Λ_sk the pixels whose flow the
-//! sketch paints). Adding a primitive fixes the pixels of its window that no primitive took
-//! before to its sides' orientations.
+//! The energy is E = E1 + E2 + E3 of Eq. 19-22 over the hair,
+//!
+//! ```text
+//! Σ (∇_θ I_H)²/2σθ² + Σ_edges (1 − cos 2Δθ)/2λθ² − Σ_nsk log p_nsk(ρ) − Σ_sk log p_sk(ρ)
+//!     + λ_NC N_C + Σ_consecutive (1 − cos 2Δaxis)/4λθ²
+//! ```
+//!
+//! (an edge between two sketch pixels costs nothing, Λ_sk the pixels whose flow the sketch
+//! paints). Adding a primitive fixes the pixels of its window that no primitive took before
+//! to its sides' orientations.
 //!
 //! Scoring. The paper keeps Θ+ ≈ Θ around a new primitive; taken literally (the window's
 //! border edges then cost the mismatch between the primitive and a field diffused without
@@ -46,6 +50,7 @@ use super::prim::{self, Side};
 use super::rho;
 use super::theta::{self, Field, ThetaParams};
 use super::{Curve, Kind, Primitive, RhoPrior, AXIS_QUANTUM, AXIS_STEPS, STEP};
+use crate::analyze::orient::GrayImage;
 use crate::error::{Error, Result};
 use crate::gpu::engine::{Engine, Recording};
 use crate::stages::cz_theta_gs::{FIXED, FREE, OFF};
@@ -1382,20 +1387,20 @@ pub fn window_pass(
     ))
 }
 
-/// Sketch pursuit on a `width` x `height` image: `high` the high band I_H, `hair` the mask,
+/// Sketch pursuit: `high` the high band I_H (L* units), `hair` the mask,
 /// `theta0` the warm start (coif's Gabor orientation, `crate::analyze::orient::orient`,
 /// NaN allowed where it has none). σθ² is `p.theta.sigma2` or its maximum-likelihood value
 /// under `theta0`.
 pub fn pursue(
     engine: &Engine,
-    high: &[f32],
-    width: u32,
-    height: u32,
+    high: &GrayImage,
     hair: &[bool],
     theta0: &[f32],
     p: &PursuitParams,
 ) -> Result<Pursuit> {
     p.validate()?;
+    let (width, height) = (high.width, high.height);
+    let high = &high.data;
     let n = width as usize * height as usize;
     if theta0.len() != n || high.len() != n || hair.len() != n {
         return Err(Error::Invalid(format!(

@@ -21,6 +21,7 @@
 //! orientation: the mean of (∇_θ I_H)² over the hair.
 
 use super::prim::Painted;
+use crate::analyze::orient::GrayImage;
 use crate::error::{Error, Result};
 use crate::gpu::engine::{Engine, Recording};
 use crate::stages::cz_theta_gs::{self, FIXED, FREE, OFF};
@@ -204,7 +205,7 @@ pub fn sigma2_mle(gx: &[f32], gy: &[f32], hair: &[bool], theta: &[f32]) -> Resul
         }
     }
     let s = if n > 0 { sum / n as f64 } else { 0.0 };
-    if !(s > 1e-12) {
+    if s.is_nan() || s <= 1e-12 {
         return Err(Error::Invalid(
             "theta: the hair region has no texture (the band is uniform along the warm-start \
              orientation, σθ² = 0); an image of hair is needed"
@@ -466,22 +467,22 @@ pub fn theta_of(z: &[[f32; 2]], flags: &[u32]) -> Vec<f32> {
         .collect()
 }
 
-/// Θ of CZ06 Step 1 (Eq. 25 corrected) on a `width` x `height` image: `high` is the high
-/// band I_H, `hair` the mask, `painted` the sketch's V_sk (its θ clamps the field), `warm`
+/// Θ of CZ06 Step 1 (Eq. 25 corrected): `high` is the high band I_H (L* units), `hair` the
+/// mask, `painted` the sketch's V_sk (its θ clamps the field), `warm`
 /// the starting orientation (coif's Gabor field, `crate::analyze::orient::orient`). σθ² is
 /// `p.sigma2` or the maximum-likelihood value under `warm`. Returns θ in [0, π), NaN off
 /// the hair.
 pub fn diffuse(
     engine: &Engine,
-    high: &[f32],
-    width: u32,
-    height: u32,
+    high: &GrayImage,
     hair: &[bool],
     painted: Option<&Painted>,
     warm: &[f32],
     p: &ThetaParams,
 ) -> Result<Vec<f32>> {
     p.validate()?;
+    let (width, height) = (high.width, high.height);
+    let high = &high.data;
     let n = check_inputs(high, width, height, hair)?;
     if warm.len() != n {
         return Err(Error::Invalid(format!(
