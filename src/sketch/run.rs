@@ -105,7 +105,12 @@ pub fn analyse(engine: &Engine, inp: &SketchInputs, p: &SketchParams) -> Result<
     let warm = orient(engine, &gray, Some(&mask8), &OrientParams::default())?;
     lap("gabor", &mut t);
 
-    let pu = pursuit::pursue(engine, &b.high, w, h, inp.hair, &warm.theta, &p.pursuit)?;
+    let high = GrayImage {
+        width: w,
+        height: h,
+        data: b.high.clone(),
+    };
+    let pu = pursuit::pursue(engine, &high, inp.hair, &warm.theta, &p.pursuit)?;
     lap("pursuit", &mut t);
 
     let clamps = match inp.strokes {
