@@ -12,17 +12,18 @@
 //   approximation (Θ+ ≈ Θ: the field around the window is not re-diffused, and the edges
 //   leaving the window are left as they are) a side's gain is linear in its sums and in
 //   z = (cos 2θ, sin 2θ) of the orientation θ it paints (Eq. 27):
-//     gain(θ) = Σ base − t(θ)ᵀ (Σ T) t(θ) = K + G·z,
-//   base = E1 + half the smoothness + log p_sk/p_nsk of the pixels the window takes, T the
-//   structure tensor over 2σθ². θ is a dictionary angle refined by r·3.75°, r in −8..7,
+//     gain(θ) = Σ base (+ Σ llr) − t(θ)ᵀ (Σ T) t(θ) = K + G·z,
+//   base = E1 + half the smoothness of the pixels the window takes, llr = log p_sk − log
+//   p_nsk of their contrast (stream lines only unless `llr_all`), T the structure tensor
+//   over 2σθ². θ is a dictionary angle refined by r·3.75°, r in −8..7,
 //   toward ½ arg G, the tensor's along-flow eigenvector (the gain falls with the angle from
 //   it, so the allowed r nearest to it is the best). Every kind and side variant is scored
 //   and the best δ = gain − λ_NC is kept with its code: axis step (0..23) | kind << 5 |
 //   variant << 8 | (r_left + 8) << 11 | (r_right + 8) << 15. The host rescores the best
 //   positions exactly.
 //
-// Maps (each width*height): 0 Txx, 1 Txy, 2 Tyy (over 2σθ², 0 where taken), 3 base (0 where
-// taken), 4 hair (1/0).
+// Maps (each width*height): 0 Txx, 1 Txy, 2 Tyy (over 2σθ², 0 where taken), 3 base, 4 llr (0
+// where taken), 5 hair (1/0).
 
 struct Config {
     width: u32,
@@ -36,13 +37,14 @@ struct Config {
     spill: f32,
     // ... and the hair side at least this share.
     hair_min: f32,
-    _pad0: u32,
+    // 1: the contrast term scores every kind's pixels (Eq. 21 as printed); 0: stream lines'.
+    llr_all: u32,
     // 1: refine side angles by up to ±30° in 3.75° steps; 0: the pure dictionary.
     refine: u32,
     _pad1: u32,
 }
 
-const N_MAPS: u32 = 5u;
+const N_MAPS: u32 = 6u;
 const NEG: f32 = -3.0e38;
 const PI: f32 = 3.14159265358979;
 
@@ -63,8 +65,8 @@ fn stencil(k: u32, shape: u32, side: u32) -> u32 {
 }
 
 // Sums of the maps over stencil `st` at corner (cx, cy).
-fn box_sums(st: u32, cx: i32, cy: i32) -> array<f32, 5> {
-    var acc: array<f32, 5>;
+fn box_sums(st: u32, cx: i32, cy: i32) -> array<f32, 6> {
+    var acc: array<f32, 6>;
     for (var m = 0u; m < N_MAPS; m++) {
         acc[m] = 0.0;
     }
@@ -96,9 +98,12 @@ struct SideFit {
     jstar: f32,
 }
 
-fn side_fit(inner: array<f32, 5>) -> SideFit {
+fn side_fit(inner: array<f32, 6>, llr: bool) -> SideFit {
     var f: SideFit;
     f.k = inner[3] - 0.5 * (inner[0] + inner[2]);
+    if llr {
+        f.k = f.k + inner[4];
+    }
     f.g = vec2<f32>(-0.5 * (inner[0] - inner[2]), -inner[1]);
     f.jstar = atan2(f.g.y, f.g.x) * (24.0 / PI);
     return f;
@@ -156,20 +161,23 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         // Shape 0: 7 × 5, sides split at the axis.
         let il = box_sums(stencil(k, 0u, 0u), cx, cy);
         let ir = box_sums(stencil(k, 0u, 1u), cx, cy);
-        let fl = side_fit(il);
-        let fr = side_fit(ir);
+        let all = cfg.llr_all == 1u;
+        let fl = side_fit(il, all);
+        let fr = side_fit(ir, all);
         let nl = f32(stencils[stencil(k, 0u, 0u)].z);
         let nr = f32(stencils[stencil(k, 0u, 1u)].z);
         var cand = array<f32, 24>();
         var codes = array<u32, 24>();
         var n = 0u;
-        if il[4] >= nl - 0.5 && ir[4] >= nr - 0.5 {
+        if il[5] >= nl - 0.5 && ir[5] >= nr - 0.5 {
             // e: stream line, both sides along the axis (axes k and k + 12 are the same).
+            let le = side_gain(side_fit(il, true), a, -1);
+            let re = side_gain(side_fit(ir, true), a, 1);
+            cand[n] = le.x + re.x;
+            codes[n] = code_of(k, 4u, 0u, le, re);
+            n++;
             let l0 = side_gain(fl, a, -1);
             let r0 = side_gain(fr, a, 1);
-            cand[n] = l0.x + r0.x;
-            codes[n] = code_of(k, 4u, 0u, l0, r0);
-            n++;
             // c: occluding line, one side along the axis, the other turned by φ.
             for (var f = 0u; f < 3u; f++) {
                 let r1 = side_gain(fr, a + phi[f], 1);
@@ -183,7 +191,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
         }
         // a, b with hair on the left of axis k (the right is the non-hair side) ...
-        if il[4] >= cfg.hair_min * nl && ir[4] <= cfg.spill * nr {
+        if il[5] >= cfg.hair_min * nl && ir[5] <= cfg.spill * nr {
             let l0 = side_gain(fl, a, -1);
             cand[n] = l0.x;
             codes[n] = code_of(k, 0u, 0u, l0, none);
@@ -196,7 +204,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
         }
         // ... and on the left of axis k + 12, which is the right side of axis k.
-        if ir[4] >= cfg.hair_min * nr && il[4] <= cfg.spill * nl {
+        if ir[5] >= cfg.hair_min * nr && il[5] <= cfg.spill * nl {
             let l0 = side_gain(fr, a, -1);
             cand[n] = l0.x;
             codes[n] = code_of(k + 12u, 0u, 0u, l0, none);
@@ -213,9 +221,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let jr = box_sums(stencil(k, 1u, 1u), cx, cy);
         let ml = f32(stencils[stencil(k, 1u, 0u)].z);
         let mr = f32(stencils[stencil(k, 1u, 1u)].z);
-        if jl[4] >= ml - 0.5 && jr[4] >= mr - 0.5 {
-            let gl = side_fit(jl);
-            let gr = side_fit(jr);
+        if jl[5] >= ml - 0.5 && jr[5] >= mr - 0.5 {
+            let gl = side_fit(jl, all);
+            let gr = side_fit(jr, all);
             for (var f = 0u; f < 3u; f++) {
                 let l1 = side_gain(gl, a - phi[f], -1);
                 let r1 = side_gain(gr, a + phi[f], 1);

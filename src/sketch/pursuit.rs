@@ -3,7 +3,10 @@
 //! with the largest energy drop δ starts a curve, which is extended at either end by the best
 //! of the candidates STEP px ahead turning −15°, 0 or +15° while that drop is positive; then
 //! back to births, until no birth lowers the energy. Θ is diffused again with the sketch
-//! clamped every few curves.
+//! clamped every few curves. By default a birth is ranked without λ_NC and the curve pays
+//! λ_NC when it is scored whole (`birth_lookahead`): the paper's literal rule, where the
+//! first primitive alone must beat λ_NC, never starts a curve along a seam, whose windows
+//! each gain little.
 //!
 //! The energy is E = E1 + E2 + E3 of Eq. 19-22 over the hair,
 //!
@@ -12,9 +15,9 @@
 //!     + λ_NC N_C + Σ_consecutive (1 − cos 2Δaxis)/4λθ²
 //! ```
 //!
-//! (an edge between two sketch pixels costs nothing, Λ_sk the pixels whose flow the sketch
-//! paints). Adding a primitive fixes the pixels of its window that no primitive took before
-//! to its sides' orientations.
+//! (an edge between two sketch pixels costs nothing; Λ_sk in the contrast terms is the
+//! pixels stream lines paint, see `contrast_all`). Adding a primitive fixes the pixels of its
+//! window that no primitive took before to its sides' orientations.
 //!
 //! Scoring. The paper keeps Θ+ ≈ Θ around a new primitive; taken literally (the window's
 //! border edges then cost the mismatch between the primitive and a field diffused without
@@ -62,10 +65,12 @@ use std::time::Instant;
 /// it does not release); the defaults are ours, see each field.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct PursuitParams {
-    /// λ_NC, the cost of a curve (Eq. 22), in units of the per-pixel energies. Default 20:
-    /// on `coif synth` at 512² (seed 1) it gives 58 / 25 / 26 / 24 curves on long / whorl /
-    /// sidepart / short, inside the 20-80 the reading notes aim for; their proposal of 30
-    /// gives 43 / 11 / 19 / 21 and 10 gives 98 / 42 / 37 / 34.
+    /// λ_NC, the cost of a curve (Eq. 22), in units of the per-pixel energies. Default 40:
+    /// on `coif synth` at 512² (seed 1) it gives 78 / 28 / 29 / 24 curves on long / whorl /
+    /// sidepart / short (38 on fringe), inside the 20-80 the reading notes aim for; 20 gives
+    /// 117 / 42 / 44 / 31 and 80 gives 53 / 13 / 21 / 12 (`pursuit_512_timing` with
+    /// COIF_LAMBDA_NC). With the literal birth rule (`birth_lookahead` false) the scale is
+    /// different: there 20 gives 58 / 25 / 26 / 24.
     pub lambda_nc: f32,
     /// Θ is diffused again, and births screened again, after this many new curves. Default 4.
     pub rebuild_every: u32,
@@ -91,6 +96,24 @@ pub struct PursuitParams {
     pub refit: bool,
     /// Refine side angles by up to ±30° (3.75° steps) around the dictionary. Default true.
     pub refine_sides: bool,
+    /// Births are ranked by the first primitive's δ without λ_NC, and λ_NC is charged when
+    /// the traced curve is scored whole (kept only if its δ, λ_NC included, is positive);
+    /// false: the paper's literal rule, the first primitive alone must beat λ_NC. Default
+    /// true: a seam is cheap per window (on `coif synth` fringe at 256² no primitive on the
+    /// seam gains more than ~12 before λ_NC, searched over every axis, variant and
+    /// refinement) but long, so the literal rule never starts it; with the look-ahead the
+    /// error within 4 px of the seam falls by 28% / 4% / 27% (seeds 1-3) against 0% / 3% /
+    /// 6% without.
+    pub birth_lookahead: bool,
+    /// The contrast term of Eq. 21 (−log p_sk on the sketch, −log p_nsk off it) on the
+    /// pixels of every kind, as printed; false: on stream lines' pixels only, the others
+    /// keep p_nsk. Default false: the paper gives those terms the stream lines ("the
+    /// streamline primitives are distinguished from the nonsketchable part not by their
+    /// orientations but by their relatively high gradients"), and an occluding line on a
+    /// seam of ordinary contrast costs ~20 per window under p_sk, more than its orientation
+    /// terms gain; the fringe's seam error (512², seeds 1-3) falls by 17% / 13% / 21% with
+    /// the default against 3% / 1% / 0% with the term on every kind.
+    pub contrast_all: bool,
     /// The diffusion of Θ∅ and of the final Θ.
     pub theta: ThetaParams,
 }
@@ -98,7 +121,7 @@ pub struct PursuitParams {
 impl Default for PursuitParams {
     fn default() -> Self {
         PursuitParams {
-            lambda_nc: 20.0,
+            lambda_nc: 40.0,
             rebuild_every: 4,
             rebuild_sweeps: 60,
             min_prims: 3,
@@ -110,6 +133,8 @@ impl Default for PursuitParams {
             split_quantile: 0.8,
             refit: true,
             refine_sides: true,
+            birth_lookahead: true,
+            contrast_all: false,
             theta: ThetaParams::default(),
         }
     }
@@ -381,6 +406,7 @@ struct Undo {
     i: u32,
     z: [f32; 2],
     fixed: bool,
+    skrho: bool,
 }
 
 /// A heap entry: δ at a birth position, scored at `stamp` (PROXY: by the window pass).
@@ -436,6 +462,8 @@ struct Search<'a> {
     /// Double-angle field: diffused on free pixels, painted on fixed ones.
     z: Vec<[f32; 2]>,
     fixed: Vec<bool>,
+    /// Fixed pixels whose contrast is scored by p_sk (the others by p_nsk).
+    skrho: Vec<bool>,
     on: Vec<bool>,
     log: Vec<(Undo, bool)>,
     epoch: u32,
@@ -475,6 +503,7 @@ impl<'a> Search<'a> {
             nsk: Lut::new(prior.1, max_rho),
             z,
             fixed: vec![false; n],
+            skrho: vec![false; n],
             on: vec![false; n],
             log: Vec::new(),
             epoch: 0,
@@ -533,10 +562,11 @@ impl<'a> Search<'a> {
     /// painting `win` as a `kind` primitive with axis `a` (15° steps) and side angles from
     /// the dictionary indices `dict`: the E1 and contrast terms of the pixels it takes and
     /// the edges among them, Θ elsewhere and the window's border edges unchanged. Each side's
-    /// refinement (when `refine_sides`) turns it toward the best orientation for E1 and the
-    /// border edges (both linear in z = e^{2iθ}, so the best is ½ arg of their coefficient
-    /// and the nearest allowed refinement is the best allowed). Returns the score, the
-    /// refinement codes and the sides' double-angle vectors.
+    /// refinement (when `refine_sides`) turns it toward the structure tensor's along-flow
+    /// direction over the side's pixels (E1 is linear in z = e^{2iθ}, so the best is ½ arg
+    /// of its coefficient and the nearest allowed refinement is the best allowed; the field
+    /// around is left out, or a seam's side would follow the blur it is meant to replace).
+    /// Returns the score, the refinement codes and the sides' double-angle vectors.
     fn delta(
         &mut self,
         win: &Win,
@@ -584,12 +614,6 @@ impl<'a> Search<'a> {
                 let k = s.index().expect("marked pixels lie on a side");
                 g[k][0] += f.data[i][0];
                 g[k][1] += f.data[i][1];
-                for j in nbrs(i).into_iter().flatten() {
-                    if f.hair[j] && self.mark[j] != gen && !self.fixed[j] {
-                        g[k][0] += 0.5 * f.smooth * self.z[j][0];
-                        g[k][1] += 0.5 * f.smooth * self.z[j][1];
-                    }
-                }
             }
             for k in 0..2 {
                 if !hair_sides[k] {
@@ -612,7 +636,12 @@ impl<'a> Search<'a> {
             let zn = zb[s.index().expect("marked pixels lie on a side")];
             let zo = self.z[i];
             d += f.e1(i, zo) - f.e1(i, zn);
-            d += self.sk.at(f.rho(i, zn)) - self.nsk.at(f.rho(i, zo));
+            let new = if self.sk_kind(kind) {
+                &self.sk
+            } else {
+                &self.nsk
+            };
+            d += new.at(f.rho(i, zn)) - self.nsk.at(f.rho(i, zo));
             for j in nbrs(i).into_iter().flatten() {
                 // Both ends join the sketch: the edge stops costing; count it once.
                 if f.hair[j] && self.mark[j] == gen && j > i {
@@ -649,7 +678,7 @@ impl<'a> Search<'a> {
                 }
                 let zi = self.z[i];
                 let r = f.rho(i, zi);
-                let lp = if self.fixed[i] {
+                let lp = if self.fixed[i] && self.skrho[i] {
                     self.sk.at(r)
                 } else {
                     self.nsk.at(r)
@@ -700,9 +729,11 @@ impl<'a> Search<'a> {
         let (x1, y1) = ((x1 + RELAX_MARGIN).min(w), (y1 + RELAX_MARGIN).min(h));
         let before = self.local_energy(x0, y0, x1, y1);
         let saved: Vec<[f32; 2]> = taken.iter().map(|&(i, _)| self.z[i]).collect();
+        let skr = self.sk_kind(kind);
         for &(i, z) in &taken {
             self.z[i] = z;
             self.fixed[i] = true;
+            self.skrho[i] = skr;
         }
         let mut free = Vec::new();
         for y in y0..y1 {
@@ -753,11 +784,17 @@ impl<'a> Search<'a> {
         for (k, &(i, _)) in taken.iter().enumerate() {
             self.z[i] = saved[k];
             self.fixed[i] = false;
+            self.skrho[i] = false;
         }
         ((before - after) as f32, relaxed)
     }
 
     /// Marks the staleness cells around pixel i with the current epoch.
+    /// Whether a `kind` primitive's pixels have their contrast scored by p_sk.
+    fn sk_kind(&self, kind: Kind) -> bool {
+        kind == Kind::Stream || self.p.contrast_all
+    }
+
     fn touch(&mut self, i: usize) {
         let w = self.f.width as usize;
         let (cx, cy) = ((i % w) / CELL, (i / w) / CELL);
@@ -792,6 +829,7 @@ impl<'a> Search<'a> {
                     i: i as u32,
                     z: self.z[i],
                     fixed: self.fixed[i],
+                    skrho: self.skrho[i],
                 },
                 self.on[i],
             ));
@@ -799,6 +837,7 @@ impl<'a> Search<'a> {
             if let Some(k) = s.index() {
                 if hair_sides[k] && self.f.hair[i] {
                     self.fixed[i] = true;
+                    self.skrho[i] = self.sk_kind(kind);
                     self.z[i] = zb[k];
                     rho += self.f.rho(i, zb[k]);
                     n += 1;
@@ -818,6 +857,7 @@ impl<'a> Search<'a> {
                     i: i as u32,
                     z: self.z[i],
                     fixed: self.fixed[i],
+                    skrho: self.skrho[i],
                 },
                 self.on[i],
             ));
@@ -844,6 +884,7 @@ impl<'a> Search<'a> {
             let i = u.i as usize;
             self.z[i] = u.z;
             self.fixed[i] = u.fixed;
+            self.skrho[i] = u.skrho;
             self.on[i] = on;
             self.touch(i);
         }
@@ -854,7 +895,7 @@ impl<'a> Search<'a> {
     fn best_birth(&mut self, x: i32, y: i32) -> Option<(f32, Cand)> {
         let mut best: Option<(f32, Cand)> = None;
         let mut ranked: Vec<(f32, Cand)> = Vec::with_capacity(256);
-        let (hair_min, spill, lambda) = (self.p.hair_min, self.p.spill, self.p.lambda_nc);
+        let (hair_min, spill, lambda) = (self.p.hair_min, self.p.spill, birth_cost(self.p));
         for a in 0..AXIS_STEPS as i32 {
             let mk = |kind, dict, code| Cand {
                 kind,
@@ -1192,7 +1233,8 @@ impl<'a> Search<'a> {
             m[ws::MAP_TXY * n + i] = gx * gy * k;
             m[ws::MAP_TYY * n + i] = gy * gy * k;
             let r = f.rho(i, zi);
-            m[ws::MAP_BASE * n + i] = f.e1(i, zi) + 0.5 * sm + self.sk.at(r) - self.nsk.at(r);
+            m[ws::MAP_BASE * n + i] = f.e1(i, zi) + 0.5 * sm;
+            m[ws::MAP_LLR * n + i] = self.sk.at(r) - self.nsk.at(r);
         }
         m
     }
@@ -1264,7 +1306,7 @@ impl<'a> Search<'a> {
             let zi = self.z[i];
             let r = f.rho(i, zi);
             e += f.e1(i, zi) as f64;
-            e -= if self.fixed[i] {
+            e -= if self.fixed[i] && self.skrho[i] {
                 self.sk.at(r)
             } else {
                 self.nsk.at(r)
@@ -1347,10 +1389,11 @@ pub fn window_pass(
         stride: p.birth_stride,
         nx,
         ny,
-        lambda_nc: p.lambda_nc,
+        lambda_nc: birth_cost(p),
         spill: p.spill,
         hair_min: p.hair_min,
         refine: p.refine_sides as u32,
+        llr_all: p.contrast_all as u32,
         ..Default::default()
     };
     let (runs, table) = ws::stencils();
@@ -1463,7 +1506,9 @@ pub fn pursue(
         let theta = theta::theta_of(&s.z, &fl);
         let rho = rho::rho_field(&f.gx, &f.gy, &theta);
         if pass + 1 < passes {
-            let on: Vec<bool> = s.fixed.clone();
+            let on: Vec<bool> = (0..s.fixed.len())
+                .map(|i| s.fixed[i] && s.skrho[i])
+                .collect();
             prior = rho::fit_sets(&rho, hair, &on, prior)?;
         }
         out = Some(Pursuit {
@@ -1544,5 +1589,14 @@ mod tests {
         ] {
             assert!(bad.validate().is_err(), "{bad:?}");
         }
+    }
+}
+/// What a birth must pay up front: λ_NC as the paper writes it, nothing with the look-ahead
+/// (the curve pays λ_NC when it is finished).
+fn birth_cost(p: &PursuitParams) -> f32 {
+    if p.birth_lookahead {
+        0.0
+    } else {
+        p.lambda_nc
     }
 }

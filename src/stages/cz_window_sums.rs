@@ -25,12 +25,13 @@ pub const STAGE: StageDef = StageDef {
 };
 
 /// Per-pixel maps the pass sums, in this order (see the shader's header).
-pub const N_MAPS: usize = 5;
+pub const N_MAPS: usize = 6;
 pub const MAP_TXX: usize = 0;
 pub const MAP_TXY: usize = 1;
 pub const MAP_TYY: usize = 2;
 pub const MAP_BASE: usize = 3;
-pub const MAP_HAIR: usize = 4;
+pub const MAP_LLR: usize = 4;
+pub const MAP_HAIR: usize = 5;
 /// Axis orientations the pass scans (axes k and k + 12 share a window).
 pub const ORIENTATIONS: u32 = 12;
 /// Side angles π/3, π/2, 2π/3 in 3.75° units; a code's variant indexes this.
@@ -55,7 +56,9 @@ pub struct Config {
     pub lambda_nc: f32,
     pub spill: f32,
     pub hair_min: f32,
-    pub _pad0: u32,
+    /// 1: the contrast term scores every kind's pixels (Eq. 21 as printed); 0: only stream
+    /// lines' (see `sketch::pursuit::PursuitParams::contrast_all`).
+    pub llr_all: u32,
     /// 1: refine side angles by up to ±30° in 3.75° steps; 0: the pure dictionary.
     pub refine: u32,
     pub _pad1: u32,
@@ -156,8 +159,11 @@ struct SideFit {
     jstar: f32,
 }
 
-fn side_fit(inner: &Sums) -> SideFit {
-    let k = inner[MAP_BASE] - 0.5 * (inner[MAP_TXX] + inner[MAP_TYY]);
+fn side_fit(inner: &Sums, llr: bool) -> SideFit {
+    let mut k = inner[MAP_BASE] - 0.5 * (inner[MAP_TXX] + inner[MAP_TYY]);
+    if llr {
+        k += inner[MAP_LLR];
+    }
     let g = [-0.5 * (inner[MAP_TXX] - inner[MAP_TYY]), -inner[MAP_TXY]];
     SideFit {
         k,
@@ -257,12 +263,15 @@ impl Ctx<'_> {
             let a = 4 * k as i32;
             let il = self.box_sums(si(k, 0, 0), cx, cy);
             let ir = self.box_sums(si(k, 0, 1), cx, cy);
-            let (fl, fr) = (side_fit(&il), side_fit(&ir));
+            let all = cfg.llr_all == 1;
+            let (fl, fr) = (side_fit(&il, all), side_fit(&ir, all));
             let (nl, nr) = (self.pixels(si(k, 0, 0)), self.pixels(si(k, 0, 1)));
             let mut cand = Cands::default();
             if il[MAP_HAIR] >= nl - 0.5 && ir[MAP_HAIR] >= nr - 0.5 {
+                let le = gain(&side_fit(&il, true), a, -1);
+                let re = gain(&side_fit(&ir, true), a, 1);
+                cand.push((le.0 + re.0, code_of(k, 4, 0, le, re)));
                 let (l0, r0) = (gain(&fl, a, -1), gain(&fr, a, 1));
-                cand.push((l0.0 + r0.0, code_of(k, 4, 0, l0, r0)));
                 for (f, &p) in PHI_FINE.iter().enumerate() {
                     let f = f as u32;
                     let r1 = gain(&fr, a + p, 1);
@@ -291,7 +300,7 @@ impl Ctx<'_> {
             let jr = self.box_sums(si(k, 1, 1), cx, cy);
             let (ml, mr) = (self.pixels(si(k, 1, 0)), self.pixels(si(k, 1, 1)));
             if jl[MAP_HAIR] >= ml - 0.5 && jr[MAP_HAIR] >= mr - 0.5 {
-                let (gl, gr) = (side_fit(&jl), side_fit(&jr));
+                let (gl, gr) = (side_fit(&jl, all), side_fit(&jr, all));
                 for (f, &p) in PHI_FINE.iter().enumerate() {
                     let (l1, r1) = (gain(&gl, a - p, -1), gain(&gr, a + p, 1));
                     cand.push((l1.0 + r1.0, code_of(k, 3, f as u32, l1, r1)));
