@@ -866,6 +866,37 @@ fn fig10_sketch_sharpens_the_fringe_seam() {
     }
 }
 
+/// The whole pursuit on lavapipe gives the CPU backend's sketch (both passes agree to the
+/// last bit or nearly; the decisions are made on the CPU from exact scores).
+#[test]
+fn pursuit_on_lavapipe_matches_cpu() {
+    let cpu = Engine::cpu();
+    let gpu = common::gpu();
+    let c = synth_case(&cpu, Style::Long, 3, 96);
+    let p = PursuitParams::default();
+    let t = Instant::now();
+    let a = pursue(&cpu, &c.band(), &c.hair, &c.gabor, &p).unwrap();
+    let tc = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let b = pursue(&gpu, &c.band(), &c.hair, &c.gabor, &p).unwrap();
+    let tg = t.elapsed().as_secs_f64();
+    let mut worst = 0.0f32;
+    for i in 0..a.theta.len() {
+        if a.theta[i].is_finite() || b.theta[i].is_finite() {
+            worst = worst.max(angle_err_deg(a.theta[i], b.theta[i]));
+        }
+    }
+    println!(
+        "{}: cpu {} curves in {tc:.2} s, lavapipe {} curves in {tg:.2} s; Θ differs by at most \
+         {worst:.4}°",
+        c.name,
+        a.curves.len(),
+        b.curves.len()
+    );
+    assert_eq!(a.curves, b.curves);
+    assert!(worst < 0.01, "{worst}°");
+}
+
 // ---------------------------------------------------------------- measurements (ignored)
 
 /// The pursuit at 512² on the cpu backend (the speed goal is ≲ 30 s of `coif sketch`'s 60 s)
@@ -873,7 +904,11 @@ fn fig10_sketch_sharpens_the_fringe_seam() {
 #[test]
 #[ignore = "timing at 512², run by hand"]
 fn pursuit_512_timing() {
-    let e = Engine::cpu();
+    // COIF_TEST_BACKEND=gpu times the pursuit on lavapipe instead.
+    let e = match std::env::var("COIF_TEST_BACKEND").as_deref() {
+        Ok("gpu") => common::gpu(),
+        _ => Engine::cpu(),
+    };
     println!("{}", e.describe());
     for style in Style::ALL.into_iter().chain([Style::Fringe]) {
         let t = Instant::now();

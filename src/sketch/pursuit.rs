@@ -66,11 +66,11 @@ use std::time::Instant;
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct PursuitParams {
     /// λ_NC, the cost of a curve (Eq. 22), in units of the per-pixel energies. Default 40:
-    /// on `coif synth` at 512² (seed 1) it gives 78 / 28 / 29 / 24 curves on long / whorl /
-    /// sidepart / short (38 on fringe), inside the 20-80 the reading notes aim for; 20 gives
-    /// 117 / 42 / 44 / 31 and 80 gives 53 / 13 / 21 / 12 (`pursuit_512_timing` with
-    /// COIF_LAMBDA_NC). With the literal birth rule (`birth_lookahead` false) the scale is
-    /// different: there 20 gives 58 / 25 / 26 / 24.
+    /// on `coif synth` at 512² (seed 1) it gives 73 / 26 / 31 / 27 curves on long / whorl /
+    /// sidepart / short (42 on fringe), inside the 20-80 the reading notes aim for; with the
+    /// contrast term on every kind, 20 gave 117 / 42 / 44 / 31 and 80 gave 53 / 13 / 21 / 12
+    /// (`pursuit_512_timing` with COIF_LAMBDA_NC). With the literal birth rule
+    /// (`birth_lookahead` false) the scale differs: there 20 gives ~25-60.
     pub lambda_nc: f32,
     /// Θ is diffused again, and births screened again, after this many new curves. Default 4.
     pub rebuild_every: u32,
@@ -101,9 +101,7 @@ pub struct PursuitParams {
     /// false: the paper's literal rule, the first primitive alone must beat λ_NC. Default
     /// true: a seam is cheap per window (on `coif synth` fringe at 256² no primitive on the
     /// seam gains more than ~12 before λ_NC, searched over every axis, variant and
-    /// refinement) but long, so the literal rule never starts it; with the look-ahead the
-    /// error within 4 px of the seam falls by 28% / 4% / 27% (seeds 1-3) against 0% / 3% /
-    /// 6% without.
+    /// refinement) but long, so the literal rule never starts a curve there.
     pub birth_lookahead: bool,
     /// The contrast term of Eq. 21 (−log p_sk on the sketch, −log p_nsk off it) on the
     /// pixels of every kind, as printed; false: on stream lines' pixels only, the others
@@ -111,8 +109,9 @@ pub struct PursuitParams {
     /// streamline primitives are distinguished from the nonsketchable part not by their
     /// orientations but by their relatively high gradients"), and an occluding line on a
     /// seam of ordinary contrast costs ~20 per window under p_sk, more than its orientation
-    /// terms gain; the fringe's seam error (512², seeds 1-3) falls by 17% / 13% / 21% with
-    /// the default against 3% / 1% / 0% with the term on every kind.
+    /// terms gain. On the fringe at 512² (seeds 1-3) the error within 4 px of the seam falls
+    /// by 21% / 23% / 28% against S = ∅ with both defaults; with the term on every kind by
+    /// 3% / 1% / 0%.
     pub contrast_all: bool,
     /// The diffusion of Θ∅ and of the final Θ.
     pub theta: ThetaParams,
@@ -1529,6 +1528,16 @@ pub fn pursue(
     Ok(out)
 }
 
+/// What a birth must pay up front: λ_NC as the paper writes it, nothing with the look-ahead
+/// (the curve pays λ_NC when it is finished).
+fn birth_cost(p: &PursuitParams) -> f32 {
+    if p.birth_lookahead {
+        0.0
+    } else {
+        p.lambda_nc
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1589,14 +1598,5 @@ mod tests {
         ] {
             assert!(bad.validate().is_err(), "{bad:?}");
         }
-    }
-}
-/// What a birth must pay up front: λ_NC as the paper writes it, nothing with the look-ahead
-/// (the curve pays λ_NC when it is finished).
-fn birth_cost(p: &PursuitParams) -> f32 {
-    if p.birth_lookahead {
-        0.0
-    } else {
-        p.lambda_nc
     }
 }

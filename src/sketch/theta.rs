@@ -1,16 +1,21 @@
 //! The orientation field Θ of CZ06 Step 1 (§4.1): the minimiser over the free hair pixels of
 //!
-//!   E1 + E2 = Σ (∇_θ I_H)² / 2σθ²  +  Σ_edges (1/2λθ²) (1 − cos 2(θu − θv))
+//! ```text
+//! E1 + E2 = Σ (∇_θ I_H)² / 2σθ²  +  Σ_edges (1/2λθ²) (1 − cos 2(θu − θv))
+//! ```
 //!
-//! (Eq. 20-21; an edge joins 4-neighbours on the hair, and costs nothing when both
-//! ends are held by the sketch), with the sketch's pixels clamped to the orientation it
-//! paints (Eq. 8) and the pixels off the hair left out. The paper's Eq. 25 has both signs
-//! wrong (as printed the flow climbs the energy); the corrected flow is
-//! dθ/dt = (s²/2σθ²) sin(2θo − 2θ) + ½ Σ sin(2θu − 2θ), θo the gradient angle + π/2, and its
-//! nonlinear Gauss-Seidel update is 2θv = arg(A e^{2iθo} + ½ Σ e^{2iθu}), A = s²/4σθ² (with
-//! λθ = 1, the paper's; ½/λθ² in general), run
-//! red-black as the WGSL pass `cz_theta_gs` (one colour's pixels never neighbour each other,
-//! so each half-sweep is an exact coordinate descent and the energy cannot rise).
+//! (Eq. 20-21; an edge joins 4-neighbours on the hair, and costs nothing when both ends are
+//! held by the sketch), with the sketch's pixels clamped to the orientation it paints (Eq. 8)
+//! and the pixels off the hair left out. With s = |∇I_H|, θo the gradient angle + π/2 and
+//! A = s²/4σθ², a pixel's terms are A (1 − cos(2θ − 2θo)) + Σ_u (1/2λθ²)(1 − cos 2(θ − θu)).
+//! The paper's Eq. 25 has both signs wrong (as printed the flow climbs this energy; the
+//! test `printed_eq25_climbs_the_energy_and_the_corrected_flow_descends` shows it); the
+//! descent is dθ/dt = 2A sin(2θo − 2θ) + (1/λθ²) Σ sin(2θu − 2θ) (the paper's coefficients,
+//! s²/4σθ² and ½ for λθ = 1, are this flow at half speed; the reading notes' corrected flow
+//! halves only the second term). Its nonlinear Gauss-Seidel update, exact per pixel, is
+//! 2θv = arg(A e^{2iθo} + (1/2λθ²) Σ e^{2iθu}), run red-black as the WGSL pass `cz_theta_gs`
+//! (one colour's pixels never neighbour each other, so each half-sweep is an exact
+//! coordinate descent and the energy cannot rise).
 //!
 //! The paper's own rewrite counts an edge between a free pixel and a sketch pixel once and
 //! an edge between two free pixels twice (Σ over v of Σ over its neighbours); here every edge
@@ -18,7 +23,9 @@
 //! (−log p(ρ), ρ depending on Θ) is left out of the diffusion, as the paper does.
 //!
 //! σθ² is the maximum-likelihood value of Eq. 20 under the warm start, coif's Gabor
-//! orientation: the mean of (∇_θ I_H)² over the hair.
+//! orientation: the mean of (∇_θ I_H)² over the hair. λθ defaults to 0.25, not the 1 the
+//! paper's rewrite implies ([`DEFAULT_LAMBDA_THETA`]); the derivative is Scharr-smoothed
+//! ([`gradients`]).
 
 use super::prim::Painted;
 use crate::analyze::orient::GrayImage;
