@@ -106,7 +106,7 @@ pub struct CzsSizes {
 
 /// cos(k·15°) from square roots (correctly rounded), so decoding gives the same bits on
 /// every platform.
-fn cos15(k: i64) -> f64 {
+pub(crate) fn cos15(k: i64) -> f64 {
     let s6 = 6f64.sqrt();
     let s2 = 2f64.sqrt();
     let c = [
@@ -127,7 +127,7 @@ fn cos15(k: i64) -> f64 {
     }
 }
 
-fn sin15(k: i64) -> f64 {
+pub(crate) fn sin15(k: i64) -> f64 {
     cos15(6 - k)
 }
 
@@ -141,6 +141,12 @@ fn side_deg(dict: u8, refine: u8) -> f64 {
 
 fn deg_to_rad(d: f64) -> f32 {
     (d * (PI / 180.0)) as f32
+}
+
+/// A side angle in radians from its dictionary index and refinement code, as decoded (the
+/// pursuit builds its candidates with this, so they sit on the lattice exactly).
+pub(crate) fn side_radians(dict: u8, refine: u8) -> f32 {
+    deg_to_rad(side_deg(dict, refine))
 }
 
 /// (dictionary index, refinement code) nearest to `deg` (the nearest dictionary angle,

@@ -49,6 +49,7 @@
 //! and (by default) refitted once from the first pursuit's sketch, after which the pursuit
 //! runs again from S = ∅ with them.
 
+use super::format::{cos15, sin15};
 use super::prim::{self, Side};
 use super::rho;
 use super::theta::{self, Field, ThetaParams};
@@ -232,32 +233,6 @@ pub struct Pursuit {
     pub stats: PursuitStats,
 }
 
-/// cos(k·15°) from square roots, so every platform gets the same bits (the `.czs` reader
-/// decodes centres with the same values).
-fn cos15(k: i64) -> f64 {
-    let (s6, s2) = (6f64.sqrt(), 2f64.sqrt());
-    let c = [
-        1.0,
-        (s6 + s2) / 4.0,
-        3f64.sqrt() / 2.0,
-        s2 / 2.0,
-        0.5,
-        (s6 - s2) / 4.0,
-        0.0,
-    ];
-    let k = k.rem_euclid(24) as usize;
-    match k {
-        0..=6 => c[k],
-        7..=12 => -c[12 - k],
-        13..=18 => -c[k - 12],
-        _ => c[24 - k],
-    }
-}
-
-fn sin15(k: i64) -> f64 {
-    cos15(6 - k)
-}
-
 /// Primitive centres of a curve from its start and its axes in 15° steps: each centre is
 /// the previous one plus STEP along its own axis, in f64 with exact 15° cosines, then
 /// rounded to f32 (the `.czs` lattice: a file storing the start and the turns gives these
@@ -276,8 +251,7 @@ pub fn chain(start: [f32; 2], axes: &[i32]) -> Vec<[f32; 2]> {
         .collect()
 }
 
-/// The side-angle dictionary of CZ06 §2.1 in degrees, and in 3.75° units.
-const DICT_DEG: [f64; 4] = [0.0, 60.0, 90.0, 120.0];
+/// The side-angle dictionary of CZ06 §2.1 (`format::SIDE_DICTIONARY_DEG`) in 3.75° units.
 const DICT_FINE: [i32; 4] = [0, 16, 24, 32];
 /// Refinement codes are 0..16, offsets (code − 8)·3.75°.
 const NO_REFINE: u8 = 8;
@@ -285,8 +259,7 @@ const NO_REFINE: u8 = 8;
 /// A side angle in radians from its dictionary index and refinement code (the `.czs`
 /// decoding: degrees in f64, then f32).
 pub fn side_angle(dict: u8, code: u8) -> f32 {
-    let deg = DICT_DEG[dict as usize] + (code as f64 - NO_REFINE as f64) * 3.75;
-    (deg * (std::f64::consts::PI / 180.0)) as f32
+    super::format::side_radians(dict, code)
 }
 
 /// E3's cost between consecutive primitives whose axes differ by `d` steps, e²/2λθ² with
