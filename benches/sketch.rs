@@ -5,7 +5,7 @@
 //! structure-tensor field in OpenCV (`benches/peers/tensor_opencv.py`, run in the same
 //! bench; needs `pip install numpy opencv-python-headless`), with the time ratio to it.
 //!
-//! Run: `cargo bench --bench sketch`. COIF_BENCH_SIZE (512), COIF_BENCH_STYLES
+//! Run: `cargo bench --bench sketch`. COIF_BENCH_SIZE (512), COIF_BENCH_SEED (1), COIF_BENCH_STYLES
 //! ("long,sidepart,whorl,short,fringe"), COIF_BENCH_GPU=1 adds lavapipe, COIF_BENCH_SAMPLES=0
 //! skips the real photographs.
 
@@ -70,6 +70,7 @@ fn peer(gray: &[f32], w: u32, h: u32) -> Option<(Vec<f32>, f64)> {
 
 fn main() {
     let size: u32 = env("COIF_BENCH_SIZE", 512);
+    let seed: u64 = env("COIF_BENCH_SEED", 1);
     let gpu = env("COIF_BENCH_GPU", 0) != 0;
     let styles: String = env(
         "COIF_BENCH_STYLES",
@@ -102,7 +103,7 @@ fn main() {
         let style: Style = name.parse().expect("style");
         let c = synth(&SynthParams {
             style,
-            seed: 1,
+            seed,
             width: size,
             height: size,
         });

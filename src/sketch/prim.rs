@@ -38,9 +38,9 @@ impl Side {
     }
 }
 
-/// Calls `f(pixel index, side)` for every pixel of `p`'s window within a w×h image: the
-/// pixels whose centres lie at most half a pixel inside the window's edges, so a window
-/// centred on a pixel centre covers 7×5 pixels and one centred on a pixel corner 6×4. A
+/// Calls `f(pixel index, side)` for every pixel of `p`'s window within a w×h image (see
+/// [`classify`]): a window centred on a pixel centre covers 7×5 pixels, one centred on a
+/// pixel corner 6×4 (centres on the edges are out). A
 /// pixel whose centre lies on the axis counts as left. The right side of a and b (non-hair) is
 /// visited too: callers decide what it means.
 pub fn window(kind: Kind, p: &Primitive, w: u32, h: u32, mut f: impl FnMut(usize, Side)) {
@@ -49,33 +49,41 @@ pub fn window(kind: Kind, p: &Primitive, w: u32, h: u32, mut f: impl FnMut(usize
     } else {
         ACROSS
     };
-    let (ha, hc) = (0.5 * ALONG, 0.5 * across);
-    let r = (ha * ha + hc * hc).sqrt().ceil() as i64 + 1;
-    // Pixel centres within half a pixel of the edge are in; the tolerance keeps rounding
-    // (sin π ≠ 0 in f32) from deciding, so a reversed curve covers the same pixels.
-    let (ba, bc) = (ha - 0.5 + EDGE_EPS, hc - 0.5 + EDGE_EPS);
+    let r = ((0.5 * ALONG).hypot(0.5 * across)).ceil() as i64 + 1;
     let t = p.tangent();
     let n = p.left_normal();
     let (cx, cy) = (p.x.floor() as i64, p.y.floor() as i64);
     for j in (cy - r).max(0)..=(cy + r).min(h as i64 - 1) {
         for i in (cx - r).max(0)..=(cx + r).min(w as i64 - 1) {
-            let dx = i as f32 + 0.5 - p.x;
-            let dy = j as f32 + 0.5 - p.y;
-            let a = dx * t[0] + dy * t[1];
-            let c = dx * n[0] + dy * n[1];
-            if a.abs() > ba || c.abs() > bc {
+            let d = [i as f32 + 0.5 - p.x, j as f32 + 0.5 - p.y];
+            let Some(side) = classify(kind == Kind::Dividing, t, n, d) else {
                 continue;
-            }
-            let side = if kind == Kind::Dividing && c.abs() < STRIP - EDGE_EPS {
-                Side::Strip
-            } else if c >= -EDGE_EPS {
-                Side::Left
-            } else {
-                Side::Right
             };
             f(j as usize * w as usize + i as usize, side);
         }
     }
+}
+
+/// Where a pixel centre at offset `d` from a primitive's centre falls in its window, given
+/// the axis's unit tangent `t` and left normal `n` (None: outside). The one rule for the
+/// windows, shared with the pursuit's window sums: pixel centres strictly inside the
+/// rectangle, a centre within a tolerance of an edge counting as outside, so f32 rounding
+/// (sin π ≠ 0) does not decide and a reversed curve covers the same pixels.
+pub fn classify(dividing: bool, t: [f32; 2], n: [f32; 2], d: [f32; 2]) -> Option<Side> {
+    let across = if dividing { ACROSS_DIVIDING } else { ACROSS };
+    let (ba, bc) = (0.5 * ALONG - EDGE_EPS, 0.5 * across - EDGE_EPS);
+    let a = d[0] * t[0] + d[1] * t[1];
+    let c = d[0] * n[0] + d[1] * n[1];
+    if a.abs() >= ba || c.abs() >= bc {
+        return None;
+    }
+    Some(if dividing && c.abs() < STRIP - EDGE_EPS {
+        Side::Strip
+    } else if c >= -EDGE_EPS {
+        Side::Left
+    } else {
+        Side::Right
+    })
 }
 
 /// V_sk: the sketch's pixels and what they carry.

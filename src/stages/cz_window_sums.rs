@@ -4,7 +4,6 @@
 //! both sides read the same table; the host is `crate::sketch::pursuit`.
 
 use crate::gpu::engine::{Bind, CpuBinding, StageDef};
-use crate::sketch::prim::{ACROSS, ACROSS_DIVIDING, ALONG, STRIP};
 use crate::sketch::AXIS_QUANTUM;
 use rayon::prelude::*;
 
@@ -87,21 +86,18 @@ pub fn stencil_index(k: u32, shape: u32, side: u32) -> usize {
     ((k * 2 + shape) * 2 + side) as usize
 }
 
-/// The side a pixel offset falls on, for a window with its centre on a pixel corner: the
-/// same arithmetic as `sketch::prim::window`, so the stencils are its pixels exactly.
-/// None outside the rectangle or on a dividing line's strip.
+/// The side a pixel offset falls on, for a window with its centre on a pixel corner:
+/// `sketch::prim::classify`, so the stencils are `prim::window`'s pixels exactly. None
+/// outside the rectangle or on a dividing line's strip.
 fn classify(k: u32, shape: u32, di: i32, dj: i32) -> Option<u32> {
     let axis = k as f32 * AXIS_QUANTUM;
     let (t, n) = ([axis.cos(), axis.sin()], [axis.sin(), -axis.cos()]);
-    let across = if shape == 1 { ACROSS_DIVIDING } else { ACROSS };
-    let (ha, hc) = (0.5 * ALONG, 0.5 * across);
-    let (dx, dy) = (di as f32 + 0.5, dj as f32 + 0.5);
-    let a = dx * t[0] + dy * t[1];
-    let c = dx * n[0] + dy * n[1];
-    if a.abs() >= ha || c.abs() >= hc || (shape == 1 && c.abs() < STRIP) {
-        return None;
+    let d = [di as f32 + 0.5, dj as f32 + 0.5];
+    match crate::sketch::prim::classify(shape == 1, t, n, d)? {
+        crate::sketch::prim::Side::Left => Some(0),
+        crate::sketch::prim::Side::Right => Some(1),
+        crate::sketch::prim::Side::Strip => None,
     }
-    Some(if c >= 0.0 { 0 } else { 1 })
 }
 
 /// The stencil table: (runs as (dy, dx0, dx1, 0), per stencil (first run, runs, pixels, 0)).
