@@ -1,0 +1,237 @@
+//! `sketch.json`: the sketch's codes as readable JSON, checked against its schema.
+
+use super::*;
+
+#[derive(Serialize, Deserialize)]
+pub(super) struct JsonPrim {
+    /// Degrees, a multiple of 15.
+    pub(super) axis: u32,
+    /// Degrees.
+    pub(super) sides: [f64; 2],
+    pub(super) rho: f32,
+}
+
+#[derive(Serialize, Deserialize)]
+pub(super) struct JsonCurve {
+    pub(super) kind: String,
+    pub(super) dirs: [i8; 2],
+    pub(super) start: [u32; 2],
+    pub(super) prims: Vec<JsonPrim>,
+}
+
+#[derive(Serialize, Deserialize)]
+pub(super) struct JsonBase {
+    pub(super) x: f32,
+    pub(super) y: f32,
+    /// Degrees.
+    pub(super) theta: f64,
+    pub(super) sx: f32,
+    pub(super) sy: f32,
+    pub(super) amp: f32,
+}
+
+#[derive(Serialize, Deserialize)]
+pub(super) struct JsonShading {
+    pub(super) mean: f32,
+    pub(super) bases: Vec<JsonBase>,
+}
+
+#[derive(Serialize, Deserialize)]
+pub(super) struct JsonSketch {
+    pub(super) format: String,
+    pub(super) version: u32,
+    pub(super) width: u32,
+    pub(super) height: u32,
+    pub(super) seed: u64,
+    pub(super) curves: Vec<JsonCurve>,
+    pub(super) rho_off: RhoPrior,
+    pub(super) shading: JsonShading,
+    pub(super) colour: ColourMap,
+}
+
+pub(super) const FORMAT_NAME: &str = "coif-sketch";
+
+pub(super) fn json_of(c: &Codes) -> JsonSketch {
+    let s = decode(c);
+    JsonSketch {
+        format: FORMAT_NAME.into(),
+        version: VERSION as u32,
+        width: c.width,
+        height: c.height,
+        seed: c.seed,
+        curves: c
+            .curves
+            .iter()
+            .zip(&s.curves)
+            .map(|(cc, cv)| {
+                let mut idx = cc.axis as i64;
+                JsonCurve {
+                    kind: cc.kind.letter().to_string(),
+                    dirs: cc.dirs,
+                    start: cc.start,
+                    prims: cc
+                        .prims
+                        .iter()
+                        .zip(&cv.prims)
+                        .enumerate()
+                        .map(|(k, (pc, p))| {
+                            if k > 0 {
+                                idx += pc.turn as i64;
+                            }
+                            JsonPrim {
+                                axis: idx.rem_euclid(AXIS_STEPS as i64) as u32 * 15,
+                                sides: [0, 1].map(|s| {
+                                    if cc.kind.hair_sides()[s] {
+                                        side_deg(pc.side[s].0, pc.side[s].1)
+                                    } else {
+                                        0.0
+                                    }
+                                }),
+                                rho: p.rho,
+                            }
+                        })
+                        .collect(),
+                }
+            })
+            .collect(),
+        rho_off: s.rho_off,
+        shading: JsonShading {
+            mean: s.shading.mean,
+            bases: c
+                .bases
+                .iter()
+                .zip(&s.shading.bases)
+                .map(|(bc, b)| JsonBase {
+                    x: b.x,
+                    y: b.y,
+                    theta: bc.theta as f64 * 180.0 / THETAS as f64,
+                    sx: b.sx,
+                    sy: b.sy,
+                    amp: b.amp,
+                })
+                .collect(),
+        },
+        colour: s.colour,
+    }
+}
+
+/// `sketch.json` of the quantised sketch (angles in degrees; see the schema).
+pub fn to_json(s: &Sketch) -> String {
+    serde_json::to_string_pretty(&json_of(&codes(s))).expect("a sketch serialises") + "\n"
+}
+
+/// Checks `v` against the schema; the message lists each failure with its JSON pointer.
+pub fn validate_json(v: &serde_json::Value) -> std::result::Result<(), String> {
+    let schema: serde_json::Value =
+        serde_json::from_str(SCHEMA).map_err(|e| format!("the built-in schema: {e}"))?;
+    let mut schemas = boon::Schemas::new();
+    let mut compiler = boon::Compiler::new();
+    compiler
+        .add_resource(SCHEMA_URL, schema)
+        .map_err(|e| format!("the built-in schema: {e}"))?;
+    let idx = compiler
+        .compile(SCHEMA_URL, &mut schemas)
+        .map_err(|e| format!("the built-in schema: {e}"))?;
+    schemas.validate(v, idx).map_err(|e| {
+        // The leaves of boon's error tree are the concrete failures.
+        fn leaves(e: &boon::ValidationError, out: &mut Vec<String>) {
+            if e.causes.is_empty() {
+                let at = e.instance_location.to_string();
+                let at = if at.is_empty() { "/".to_string() } else { at };
+                out.push(format!("at {at}: {}", e.kind));
+            }
+            for c in &e.causes {
+                leaves(c, out);
+            }
+        }
+        let mut out = Vec::new();
+        leaves(&e, &mut out);
+        out.truncate(8);
+        out.join("; ")
+    })
+}
+
+/// Reads `sketch.json` text; `path` names it in errors. The text must match the schema;
+/// the numbers are then snapped to the `.czs` lattice.
+pub fn from_json(text: &str, path: &Path) -> Result<Sketch> {
+    let bad = |m: String| Error::bad_file(path, m);
+    let v: serde_json::Value =
+        serde_json::from_str(text).map_err(|e| bad(format!("malformed JSON: {e}")))?;
+    validate_json(&v).map_err(|m| {
+        bad(format!(
+            "does not match the schema schemas/sketch.v1.schema.json: {m}"
+        ))
+    })?;
+    let j: JsonSketch = serde_json::from_value(v)
+        .map_err(|e| bad(format!("does not match the sketch format: {e}")))?;
+    let (w, h) = (j.width, j.height);
+    let mut curves = Vec::new();
+    for (ci, c) in j.curves.iter().enumerate() {
+        let kind = c
+            .kind
+            .chars()
+            .next()
+            .and_then(Kind::from_letter)
+            .ok_or_else(|| bad(format!("curve {ci}: unknown kind \"{}\"", c.kind)))?;
+        if c.start[0] > w || c.start[1] > h {
+            return Err(bad(format!(
+                "curve {ci} starts at ({}, {}), outside the {w}x{h} image",
+                c.start[0], c.start[1]
+            )));
+        }
+        let mut prims = Vec::new();
+        let mut prev = 0u32;
+        for (k, p) in c.prims.iter().enumerate() {
+            let a = p.axis / 15;
+            if k > 0 {
+                let d = (a + AXIS_STEPS - prev) % AXIS_STEPS;
+                if d != 0 && d != 1 && d != AXIS_STEPS - 1 {
+                    return Err(bad(format!(
+                        "curve {ci}, primitive {k}: the axis turns from {}° to {}°; a curve \
+                         turns by −15°, 0 or +15° per primitive",
+                        prev * 15,
+                        p.axis
+                    )));
+                }
+            }
+            prev = a;
+            prims.push(Primitive {
+                x: if k == 0 { c.start[0] as f32 } else { 0.0 },
+                y: if k == 0 { c.start[1] as f32 } else { 0.0 },
+                axis: axis_of(a as u8),
+                rho: p.rho,
+                side: p.sides.map(deg_to_rad),
+            });
+        }
+        curves.push(Curve {
+            kind,
+            prims,
+            dirs: c.dirs,
+        });
+    }
+    let sketch = Sketch {
+        width: w,
+        height: h,
+        seed: j.seed,
+        curves,
+        rho_off: j.rho_off,
+        shading: Shading {
+            mean: j.shading.mean,
+            bases: j
+                .shading
+                .bases
+                .iter()
+                .map(|b| Base {
+                    x: b.x,
+                    y: b.y,
+                    theta: deg_to_rad(b.theta),
+                    sx: b.sx,
+                    sy: b.sy,
+                    amp: b.amp,
+                })
+                .collect(),
+        },
+        colour: j.colour,
+    };
+    Ok(quantise(&sketch))
+}
