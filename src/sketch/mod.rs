@@ -29,6 +29,7 @@ pub mod bands;
 pub mod fill;
 pub mod format;
 pub mod oracle;
+pub mod pairwise;
 pub mod prim;
 pub mod pursuit;
 pub mod rho;
