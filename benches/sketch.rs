@@ -9,7 +9,7 @@
 //! ("long,sidepart,whorl,short,fringe"), COIF_BENCH_GPU=1 adds lavapipe, COIF_BENCH_SAMPLES=0
 //! skips the real photographs.
 
-use coif::eval::metrics::{erode, orient_diff};
+use coif::eval::metrics::erode;
 use coif::gpu::engine::{BackendChoice, Engine};
 use coif::sketch::format;
 use coif::sketch::run::{analyse, SketchInputs, SketchParams};
@@ -26,18 +26,7 @@ fn env<T: std::str::FromStr>(k: &str, d: T) -> T {
 }
 
 fn mean_err(theta: &[f32], truth: &[f32], keep: &[bool]) -> f64 {
-    let (mut s, mut n) = (0.0f64, 0usize);
-    for i in 0..keep.len() {
-        if keep[i] && truth[i].is_finite() {
-            s += if theta[i].is_finite() {
-                orient_diff(theta[i], truth[i]).to_degrees() as f64
-            } else {
-                90.0
-            };
-            n += 1;
-        }
-    }
-    s / n.max(1) as f64
+    coif::eval::metrics::mean_orient_error_deg(theta, truth, keep).0
 }
 
 /// The peer's field and its median milliseconds, or None when OpenCV is missing.

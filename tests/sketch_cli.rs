@@ -4,7 +4,7 @@
 
 mod common;
 
-use coif::eval::metrics::{erode, orient_diff};
+use coif::eval::metrics::erode;
 use coif::gpu::engine::Engine;
 use coif::sketch::run::{analyse, SketchInputs, SketchParams, SketchResult};
 use coif::sketch::samples::{self, Sample};
@@ -42,18 +42,7 @@ fn run(c: &SynthCase, strokes: bool) -> SketchResult {
 
 /// Mean orientation error (degrees) of `theta` against `truth` over `keep`; unset counts 90°.
 fn mean_err(theta: &[f32], truth: &[f32], keep: &[bool]) -> (f64, usize) {
-    let (mut s, mut n) = (0.0f64, 0usize);
-    for i in 0..keep.len() {
-        if keep[i] && truth[i].is_finite() {
-            s += if theta[i].is_finite() {
-                orient_diff(theta[i], truth[i]).to_degrees() as f64
-            } else {
-                90.0
-            };
-            n += 1;
-        }
-    }
-    (s / n.max(1) as f64, n)
+    coif::eval::metrics::mean_orient_error_deg(theta, truth, keep)
 }
 
 /// Share of hair pixels whose growth direction agrees (positive dot product) with the truth;

@@ -28,6 +28,23 @@ pub fn orient_diff(a: f32, b: f32) -> f32 {
     d.min(std::f32::consts::PI - d)
 }
 
+/// Mean orientation error in degrees of `theta` against `truth` over the pixels of `keep`
+/// where the truth is set (an unset `theta` counts 90°), and how many were scored.
+pub fn mean_orient_error_deg(theta: &[f32], truth: &[f32], keep: &[bool]) -> (f64, usize) {
+    let (mut s, mut n) = (0.0f64, 0usize);
+    for i in 0..keep.len() {
+        if keep[i] && truth[i].is_finite() {
+            s += if theta[i].is_finite() {
+                orient_diff(theta[i], truth[i]).to_degrees() as f64
+            } else {
+                90.0
+            };
+            n += 1;
+        }
+    }
+    (s / n.max(1) as f64, n)
+}
+
 pub fn orientation_error(
     map: &OrientMap,
     gt_theta: &[f32],
