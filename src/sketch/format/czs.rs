@@ -1,0 +1,492 @@
+//! `hair.czs`: the sketch's codes bit-packed, with its length and a CRC-32.
+
+use super::*;
+
+struct BitWriter {
+    bytes: Vec<u8>,
+    bits: usize,
+}
+
+impl BitWriter {
+    fn new() -> Self {
+        BitWriter {
+            bytes: Vec::new(),
+            bits: 0,
+        }
+    }
+
+    /// The low `n` bits of `v`, most significant first.
+    fn put(&mut self, v: u64, n: u32) {
+        for i in (0..n).rev() {
+            if self.bits.is_multiple_of(8) {
+                self.bytes.push(0);
+            }
+            if (v >> i) & 1 == 1 {
+                let last = self.bytes.len() - 1;
+                self.bytes[last] |= 0x80 >> (self.bits % 8);
+            }
+            self.bits += 1;
+        }
+    }
+
+    /// Elias gamma code of `v` ≥ 1.
+    fn gamma(&mut self, v: u64) {
+        debug_assert!(v >= 1);
+        let n = 64 - v.leading_zeros();
+        self.put(0, n - 1);
+        self.put(v, n);
+    }
+}
+
+struct BitReader<'a> {
+    data: &'a [u8],
+    pos: usize,
+}
+
+impl BitReader<'_> {
+    fn left(&self) -> usize {
+        self.data.len() * 8 - self.pos
+    }
+
+    fn get(&mut self, n: u32, what: &str) -> std::result::Result<u64, String> {
+        if self.left() < n as usize {
+            return Err(format!("corrupted: the data ends inside {what}"));
+        }
+        let mut v = 0u64;
+        for _ in 0..n {
+            let bit = (self.data[self.pos / 8] >> (7 - self.pos % 8)) & 1;
+            v = (v << 1) | bit as u64;
+            self.pos += 1;
+        }
+        Ok(v)
+    }
+
+    fn gamma(&mut self, what: &str) -> std::result::Result<u64, String> {
+        let mut zeros = 0;
+        while self.get(1, what)? == 0 {
+            zeros += 1;
+            if zeros > 40 {
+                return Err(format!("corrupted: {what} is out of range"));
+            }
+        }
+        Ok((1u64 << zeros) | self.get(zeros, what)?)
+    }
+}
+
+/// Bits needed to store values 0..=n.
+fn bits_for(n: u32) -> u32 {
+    32 - n.leading_zeros()
+}
+
+fn crc32(data: &[u8]) -> u32 {
+    let mut crc = !0u32;
+    for &b in data {
+        crc ^= b as u32;
+        for _ in 0..8 {
+            crc = if crc & 1 == 1 {
+                (crc >> 1) ^ 0xEDB8_8320
+            } else {
+                crc >> 1
+            };
+        }
+    }
+    !crc
+}
+
+fn leb128(mut v: u64) -> Vec<u8> {
+    let mut out = Vec::new();
+    loop {
+        let b = (v & 0x7f) as u8;
+        v >>= 7;
+        if v == 0 {
+            out.push(b);
+            return out;
+        }
+        out.push(b | 0x80);
+    }
+}
+
+/// Packs the payload; returns it and the bit counts of (header, curves, shading, colour).
+fn pack(c: &Codes) -> (Vec<u8>, [usize; 4]) {
+    let mut w = BitWriter::new();
+    w.gamma(c.width as u64 + 1);
+    w.gamma(c.height as u64 + 1);
+    let sb = 64 - c.seed.leading_zeros();
+    w.put(sb as u64, 7);
+    w.put(c.seed, sb);
+    let refine = c
+        .curves
+        .iter()
+        .flat_map(|cv| &cv.prims)
+        .any(|p| p.side.iter().any(|s| s.1 != 8));
+    let undecided = c
+        .curves
+        .iter()
+        .any(|cv| free_labels(cv.kind).iter().any(|&i| cv.dirs[i] == 0));
+    w.put(refine as u64, 1);
+    w.put(undecided as u64, 1);
+    for &r in &c.rho_off {
+        w.put(r as u64, 8);
+    }
+    let header = w.bits;
+
+    let (xb, yb) = (bits_for(c.width), bits_for(c.height));
+    w.gamma(c.curves.len() as u64 + 1);
+    for cv in &c.curves {
+        w.put(cv.kind.code() as u64, 3);
+        for &i in free_labels(cv.kind) {
+            let d = cv.dirs[i];
+            if undecided {
+                w.put(
+                    match d {
+                        0 => 0,
+                        1 => 1,
+                        _ => 2,
+                    },
+                    2,
+                );
+            } else {
+                w.put((d > 0) as u64, 1);
+            }
+        }
+        w.gamma(cv.prims.len() as u64);
+        w.put(cv.start[0] as u64, xb);
+        w.put(cv.start[1] as u64, yb);
+        w.put(cv.axis as u64, 5);
+        let hair = cv.kind.hair_sides();
+        for (k, p) in cv.prims.iter().enumerate() {
+            if k > 0 {
+                w.put(
+                    match p.turn {
+                        0 => 0,
+                        1 => 1,
+                        _ => 2,
+                    },
+                    2,
+                );
+            }
+            for (side, _) in p.side.iter().zip(hair).filter(|(_, h)| *h) {
+                w.put(side.0 as u64, 2);
+                if refine {
+                    w.put(side.1 as u64, 4);
+                }
+            }
+            w.put(p.rho as u64, 4);
+        }
+    }
+    let curves = w.bits - header;
+
+    let (bx, by) = (
+        bits_for(blocks(c.width).saturating_sub(1)),
+        bits_for(blocks(c.height).saturating_sub(1)),
+    );
+    w.put(c.mean as u64, 10);
+    w.gamma(c.bases.len() as u64 + 1);
+    for b in &c.bases {
+        w.put(b.x as u64, bx);
+        w.put(b.y as u64, by);
+        w.put(b.theta as u64, 3);
+        w.put(b.sx as u64, 3);
+        w.put(b.sy as u64, 3);
+        w.put(b.amp as u8 as u64, 8);
+    }
+    let shading = w.bits - header - curves;
+
+    for k in &c.colour.k {
+        w.put(k[0] as u64, 6);
+        w.put(k[1] as u64, 6);
+    }
+    let colour = w.bits - header - curves - shading;
+    (w.bytes, [header, curves, shading, colour])
+}
+
+fn assemble(c: &Codes) -> (Vec<u8>, [usize; 4]) {
+    let (payload, bits) = pack(c);
+    // The total length includes its own varint: find the fixed point.
+    let mut total = 4 + payload.len() + 4 + 1;
+    loop {
+        let t = 4 + leb128(total as u64).len() + payload.len() + 4;
+        if t == total {
+            break;
+        }
+        total = t;
+    }
+    let mut out = Vec::with_capacity(total);
+    out.extend_from_slice(MAGIC);
+    out.push(VERSION);
+    out.extend(leb128(total as u64));
+    out.extend(&payload);
+    let crc = crc32(&out);
+    out.extend(crc.to_le_bytes());
+    (out, bits)
+}
+
+/// The `.czs` bytes of the quantised sketch.
+pub fn to_czs(s: &Sketch) -> Vec<u8> {
+    assemble(&codes(s)).0
+}
+
+/// Bytes per part of `s`'s `.czs`.
+pub fn czs_sizes(s: &Sketch) -> CzsSizes {
+    let (bytes, bits) = assemble(&codes(s));
+    let part = |b: usize| b.div_ceil(8);
+    let (curves, shading, colour) = (part(bits[1]), part(bits[2]), part(bits[3]));
+    CzsSizes {
+        header: bytes.len() - curves - shading - colour,
+        curves,
+        shading,
+        colour,
+        total: bytes.len(),
+    }
+}
+
+fn unpack(data: &[u8]) -> std::result::Result<Codes, String> {
+    let mut r = BitReader { data, pos: 0 };
+    let dim = |r: &mut BitReader, what: &str| -> std::result::Result<u32, String> {
+        let v = r.gamma(what)? - 1;
+        if v == 0 || v > u32::MAX as u64 {
+            return Err(format!("corrupted: the image {what} is {v}"));
+        }
+        Ok(v as u32)
+    };
+    let width = dim(&mut r, "width")?;
+    let height = dim(&mut r, "height")?;
+    let sb = r.get(7, "the seed")? as u32;
+    if sb > 64 {
+        return Err(format!("corrupted: a seed of {sb} bits"));
+    }
+    let seed = r.get(sb, "the seed")?;
+    let refine = r.get(1, "the flags")? == 1;
+    let undecided = r.get(1, "the flags")? == 1;
+    let mut rho_off = [0u8; 5];
+    for v in &mut rho_off {
+        *v = r.get(8, "the contrast prior")? as u8;
+    }
+
+    let (xb, yb) = (bits_for(width), bits_for(height));
+    let n_curves = r.gamma("the curve count")? - 1;
+    let mut curves = Vec::new();
+    for ci in 0..n_curves {
+        let at = format!("curve {ci}");
+        let code = r.get(3, &at)? as u8;
+        let kind =
+            Kind::from_code(code).ok_or_else(|| format!("corrupted: {at} has kind code {code}"))?;
+        let mut dirs = [0i8; 2];
+        for &i in free_labels(kind) {
+            dirs[i] = if undecided {
+                match r.get(2, &at)? {
+                    0 => 0,
+                    1 => 1,
+                    2 => -1,
+                    _ => return Err(format!("corrupted: {at} has label code 3")),
+                }
+            } else if r.get(1, &at)? == 1 {
+                1
+            } else {
+                -1
+            };
+        }
+        // The labels a kind fixes (d outward, e shared).
+        let dirs = match kind {
+            Kind::Dividing => [1, 1],
+            Kind::Stream => [dirs[0], dirs[0]],
+            _ => dirs,
+        };
+        let n = r.gamma(&at)?;
+        let start = [r.get(xb, &at)? as u32, r.get(yb, &at)? as u32];
+        if start[0] > width || start[1] > height {
+            return Err(format!(
+                "corrupted: {at} starts at ({}, {}), outside the {width}x{height} image",
+                start[0], start[1]
+            ));
+        }
+        let axis = r.get(5, &at)? as u8;
+        if axis as u32 >= AXIS_STEPS {
+            return Err(format!("corrupted: {at} has axis code {axis}"));
+        }
+        let hair = kind.hair_sides();
+        let mut prims = Vec::new();
+        for k in 0..n {
+            let turn = if k == 0 {
+                0
+            } else {
+                match r.get(2, &at)? {
+                    0 => 0,
+                    1 => 1,
+                    2 => -1,
+                    _ => return Err(format!("corrupted: {at}, primitive {k} has turn code 3")),
+                }
+            };
+            let mut side = [(0u8, 8u8); 2];
+            for s in 0..2 {
+                if hair[s] {
+                    side[s].0 = r.get(2, &at)? as u8;
+                    if refine {
+                        side[s].1 = r.get(4, &at)? as u8;
+                    }
+                }
+            }
+            let rho = r.get(4, &at)? as u8;
+            prims.push(PrimCodes { turn, side, rho });
+        }
+        curves.push(CurveCodes {
+            kind,
+            dirs,
+            start,
+            axis,
+            prims,
+        });
+    }
+
+    let (wc, hc) = (blocks(width), blocks(height));
+    let (bx, by) = (bits_for(wc - 1), bits_for(hc - 1));
+    let mean = r.get(10, "the shading mean")? as u16;
+    if mean > 1023 {
+        return Err("corrupted: shading mean".into());
+    }
+    let n_bases = r.gamma("the base count")? - 1;
+    let mut bases = Vec::new();
+    for bi in 0..n_bases {
+        let at = format!("shading base {bi}");
+        let b = BaseCodes {
+            x: r.get(bx, &at)? as u32,
+            y: r.get(by, &at)? as u32,
+            theta: r.get(3, &at)? as u8,
+            sx: r.get(3, &at)? as u8,
+            sy: r.get(3, &at)? as u8,
+            amp: r.get(8, &at)? as u8 as i8,
+        };
+        if b.x >= wc || b.y >= hc {
+            return Err(format!("corrupted: {at} lies outside the image"));
+        }
+        bases.push(b);
+    }
+
+    let mut k = Vec::new();
+    for _ in 0..COLOUR_BINS {
+        k.push([
+            r.get(6, "the colour map")? as u8,
+            r.get(6, "the colour map")? as u8,
+        ]);
+    }
+    if r.left() >= 8 {
+        return Err(format!(
+            "corrupted: {} bytes left over after the colour map",
+            r.left() / 8
+        ));
+    }
+    if r.left() > 0 && r.get(r.left() as u32, "the padding")? != 0 {
+        return Err("corrupted: the padding bits are not zero".into());
+    }
+    Ok(Codes {
+        width,
+        height,
+        seed,
+        curves,
+        rho_off,
+        mean,
+        bases,
+        colour: ColourCodes { k },
+    })
+}
+
+/// Reads a `.czs` file's bytes; `path` names it in errors.
+pub fn from_czs(bytes: &[u8], path: &Path) -> Result<Sketch> {
+    let bad = |m: String| Error::bad_file(path, m);
+    if bytes.is_empty() {
+        return Err(bad("empty file, not a .czs sketch".into()));
+    }
+    let n = bytes.len().min(3);
+    if bytes[..n] != MAGIC[..n] {
+        return Err(bad(
+            "not a .czs sketch (it does not start with \"CZS\")".into()
+        ));
+    }
+    if bytes.len() < 5 {
+        return Err(bad(format!(
+            "truncated: {} bytes, shorter than the header",
+            bytes.len()
+        )));
+    }
+    if bytes[3] != VERSION {
+        return Err(bad(format!(
+            "unsupported .czs version {} (this build reads version {VERSION})",
+            bytes[3]
+        )));
+    }
+    let mut total = 0u64;
+    let mut at = 4;
+    loop {
+        let Some(&b) = bytes.get(at) else {
+            return Err(bad(format!(
+                "truncated: {} bytes, shorter than the header",
+                bytes.len()
+            )));
+        };
+        if at - 4 >= 5 {
+            return Err(bad("corrupted: the length field is too long".into()));
+        }
+        total |= ((b & 0x7f) as u64) << (7 * (at - 4));
+        at += 1;
+        if b & 0x80 == 0 {
+            break;
+        }
+    }
+    if bytes.len() as u64 != total && bytes.len() >= at + 4 {
+        // A complete file whose length field was damaged still checks out.
+        let (body, tail) = bytes.split_at(bytes.len() - 4);
+        if crc32(body).to_le_bytes() == tail {
+            return Err(bad(format!(
+                "corrupted: the length field says {total} bytes, the file has {}",
+                bytes.len()
+            )));
+        }
+    }
+    if (bytes.len() as u64) < total {
+        return Err(bad(format!(
+            "truncated: {} of the {total} bytes its header announces",
+            bytes.len()
+        )));
+    }
+    if bytes.len() as u64 > total {
+        return Err(bad(format!(
+            "{} bytes after the end of the sketch (its header announces {total} bytes)",
+            bytes.len() as u64 - total
+        )));
+    }
+    if total < at as u64 + 4 {
+        return Err(bad(format!("corrupted: a length of {total} bytes")));
+    }
+    let body = &bytes[..bytes.len() - 4];
+    let stored = u32::from_le_bytes(bytes[bytes.len() - 4..].try_into().expect("4 bytes"));
+    if crc32(body) != stored {
+        return Err(bad("checksum mismatch: the file is corrupted".into()));
+    }
+    let c = unpack(&body[at..]).map_err(bad)?;
+    Ok(decode(&c))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bit_io_and_checksum() {
+        let mut w = BitWriter::new();
+        for v in 1..300u64 {
+            w.gamma(v);
+            w.put(v & 0x1f, 5);
+        }
+        let mut r = BitReader {
+            data: &w.bytes,
+            pos: 0,
+        };
+        for v in 1..300u64 {
+            assert_eq!(r.gamma("v").unwrap(), v);
+            assert_eq!(r.get(5, "v").unwrap(), v & 0x1f);
+        }
+        assert!(r.left() < 8);
+        // The standard CRC-32 check value.
+        assert_eq!(crc32(b"123456789"), 0xCBF4_3926);
+    }
+}
