@@ -1,0 +1,174 @@
+//! The pursuit's parameters, counts and result.
+
+use super::*;
+
+/// Parameters of the pursuit. The paper publishes none (they were learned from hand sketches
+/// it does not release); the defaults are ours, see each field.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct PursuitParams {
+    /// λ_NC, the cost of a curve (Eq. 22), in units of the per-pixel energies. Default 40:
+    /// on `coif synth` at 512² (seed 1) it gives 73 / 26 / 31 / 27 curves on long / whorl /
+    /// sidepart / short (42 on fringe), inside the 20-80 the reading notes aim for; with the
+    /// contrast term on every kind, 20 gave 117 / 42 / 44 / 31 and 80 gave 53 / 13 / 21 / 12
+    /// (`pursuit_512_timing` with COIF_LAMBDA_NC). With the literal birth rule
+    /// (`birth_lookahead` false) the scale differs: there 20 gives ~25-60.
+    pub lambda_nc: f32,
+    /// Θ is diffused again, and births screened again, after this many new curves. Default 4.
+    pub rebuild_every: u32,
+    /// Sweeps of a re-diffusion (warm from the current field; the convergence test of
+    /// `theta` applies). Default 60.
+    pub rebuild_sweeps: u32,
+    /// Curves with fewer primitives are dropped. Default 3.
+    pub min_prims: usize,
+    /// Longest curve, in primitives. Default 120.
+    pub max_prims: usize,
+    /// Most curves. Default 400.
+    pub max_curves: usize,
+    /// Births are screened every `birth_stride` px in x and y. Default 2.
+    pub birth_stride: u32,
+    /// a, b: the share of their non-hair side's pixels that may be hair. Default 0.25.
+    pub spill: f32,
+    /// a, b: the least share of their hair side's pixels that must be hair. Default 0.5.
+    pub hair_min: f32,
+    /// Before any sketch, p_sk is fitted to the ρ of the hair pixels whose local contrast is
+    /// above this quantile, p_nsk to the rest (see `rho::fit_split`). Default 0.8.
+    pub split_quantile: f32,
+    /// Refit p_sk and p_nsk from the first pursuit's sketch and pursue again. Default true.
+    pub refit: bool,
+    /// Refine side angles by up to ±30° (3.75° steps) around the dictionary. Default true.
+    pub refine_sides: bool,
+    /// Births are ranked by the first primitive's δ without λ_NC, and λ_NC is charged when
+    /// the traced curve is scored whole (kept only if its δ, λ_NC included, is positive);
+    /// false: the paper's literal rule, the first primitive alone must beat λ_NC. Default
+    /// true: a seam is cheap per window (on `coif synth` fringe at 256² no primitive on the
+    /// seam gains more than ~12 before λ_NC, searched over every axis, variant and
+    /// refinement) but long, so the literal rule never starts a curve there.
+    pub birth_lookahead: bool,
+    /// The contrast term of Eq. 21 (−log p_sk on the sketch, −log p_nsk off it) on the
+    /// pixels of every kind, as printed; false: on stream lines' pixels only, the others
+    /// keep p_nsk. Default false: the paper gives those terms the stream lines ("the
+    /// streamline primitives are distinguished from the nonsketchable part not by their
+    /// orientations but by their relatively high gradients"), and an occluding line on a
+    /// seam of ordinary contrast costs ~20 per window under p_sk, more than its orientation
+    /// terms gain. On the fringe at 512² (seeds 1-3) the error within 4 px of the seam falls
+    /// by 21% / 23% / 28% against S = ∅ with both defaults; with the term on every kind by
+    /// 3% / 1% / 0%.
+    pub contrast_all: bool,
+    /// The diffusion of Θ∅ and of the final Θ.
+    pub theta: ThetaParams,
+}
+
+impl Default for PursuitParams {
+    fn default() -> Self {
+        PursuitParams {
+            lambda_nc: 40.0,
+            rebuild_every: 4,
+            rebuild_sweeps: 60,
+            min_prims: 3,
+            max_prims: 120,
+            max_curves: 400,
+            birth_stride: 2,
+            spill: 0.25,
+            hair_min: 0.5,
+            split_quantile: 0.8,
+            refit: true,
+            refine_sides: true,
+            birth_lookahead: true,
+            contrast_all: false,
+            theta: ThetaParams::default(),
+        }
+    }
+}
+
+impl PursuitParams {
+    pub fn validate(&self) -> Result<()> {
+        let bad = |m: String| Err(Error::Invalid(format!("pursuit: {m}")));
+        if !(self.lambda_nc.is_finite() && self.lambda_nc >= 0.0) {
+            return bad(format!("lambda_nc {} must be a number ≥ 0", self.lambda_nc));
+        }
+        if self.rebuild_every == 0 {
+            return bad("rebuild_every must be at least 1".into());
+        }
+        if self.rebuild_sweeps == 0 || self.rebuild_sweeps > 100_000 {
+            return bad(format!(
+                "rebuild_sweeps {} must be in 1..=100000",
+                self.rebuild_sweeps
+            ));
+        }
+        if self.min_prims == 0 || self.max_prims < self.min_prims || self.max_prims > 10_000 {
+            return bad(format!(
+                "need 1 ≤ min_prims ({}) ≤ max_prims ({}) ≤ 10000",
+                self.min_prims, self.max_prims
+            ));
+        }
+        if self.max_curves > 100_000 {
+            return bad(format!("max_curves {} is over 100000", self.max_curves));
+        }
+        if !(1..=16).contains(&self.birth_stride) {
+            return bad(format!(
+                "birth_stride {} must be in 1..=16",
+                self.birth_stride
+            ));
+        }
+        for (name, v) in [("spill", self.spill), ("hair_min", self.hair_min)] {
+            if !(0.0..=1.0).contains(&v) {
+                return bad(format!("{name} {v} must be in [0, 1]"));
+            }
+        }
+        if !(self.split_quantile > 0.0 && self.split_quantile < 1.0) {
+            return bad(format!(
+                "split_quantile {} must be in (0, 1)",
+                self.split_quantile
+            ));
+        }
+        self.theta.validate()
+    }
+}
+
+/// Counts and times of a pursuit.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct PursuitStats {
+    /// Pursuits run (2 with the refit).
+    pub passes: u32,
+    /// Births traced (kept or dropped), over all passes.
+    pub births: u32,
+    /// Curves dropped for having fewer than `min_prims` primitives.
+    pub dropped_short: u32,
+    /// Curves dropped because, moved onto the integer start, they no longer lowered E.
+    pub dropped_snapped: u32,
+    /// Re-diffusions of Θ with the sketch clamped.
+    pub rebuilds: u32,
+    /// Runs of the `cz_window_sums` pass.
+    pub window_runs: u32,
+    /// Birth positions scored exactly (all kinds, axes and variants at once).
+    pub exact_births: u64,
+    /// Sweeps of Θ∅, and of the final Θ.
+    pub sweeps_empty: u32,
+    pub sweeps_final: u32,
+    /// Wall time in the diffusions, the window pass, and the CPU search, seconds.
+    pub seconds_theta: f64,
+    pub seconds_windows: f64,
+    pub seconds_search: f64,
+}
+
+/// The result of a pursuit.
+#[derive(Clone, Debug)]
+pub struct Pursuit {
+    /// Undirected curves (dirs all 0: directions are Step 2), on the lattice.
+    pub curves: Vec<Curve>,
+    /// Θ in [0, π) diffused with the sketch clamped; NaN off the hair.
+    pub theta: Vec<f32>,
+    /// ρ = |∇⊥Θ I_H| under `theta`; NaN off the hair.
+    pub rho: Vec<f32>,
+    /// p_sk and p_nsk the final pursuit used.
+    pub rho_on: RhoPrior,
+    pub rho_off: RhoPrior,
+    /// σθ² (Eq. 20).
+    pub sigma2: f32,
+    /// E(Θ∅, ∅) of the final pursuit, then E after each accepted curve (Fig. 13).
+    pub energy_empty: f64,
+    pub energy: Vec<f64>,
+    /// E with the final Θ.
+    pub energy_final: f64,
+    pub stats: PursuitStats,
+}
