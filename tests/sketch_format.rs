@@ -93,7 +93,30 @@ fn random_sketch(
             bases,
         },
         colour,
+        region: random_region(&mut r, w, h),
     }
+}
+
+/// Up to two random polygons (star-shaped around a point), some vertices off the image so
+/// that quantising clamps them; none at all in one case of three (the whole image).
+fn random_region(r: &mut Rng, w: u32, h: u32) -> coif::sketch::Region {
+    let n = r.below(3) as usize;
+    (0..n)
+        .map(|_| {
+            let (cx, cy) = (r.range_f32(0.0, w as f32), r.range_f32(0.0, h as f32));
+            let k = 3 + r.below(20) as usize;
+            (0..k)
+                .map(|i| {
+                    let a = i as f32 / k as f32 * 2.0 * PI;
+                    let rad = r.range_f32(5.0, 0.4 * w.min(h) as f32);
+                    [
+                        (cx + rad * a.cos()).round().max(0.0) as u32,
+                        (cy + rad * a.sin()).round().max(0.0) as u32,
+                    ]
+                })
+                .collect()
+        })
+        .collect()
 }
 
 /// Every file gives back the quantised sketch, and chains of files do too.
@@ -239,6 +262,8 @@ fn czs_is_small() {
         let mut worst = 0;
         for seed in 0..10 {
             let mut s = random_sketch(1000 + seed, 512, 512, 30, 8, 10);
+            // The curves' budget; a real mask's outline is measured in tests/sketch_cli.rs.
+            s.region.clear();
             for c in &mut s.curves {
                 c.prims.truncate(8);
                 while c.prims.len() < 8 {
@@ -255,7 +280,10 @@ fn czs_is_small() {
             }
             let z = czs_sizes(&s);
             assert_eq!(z.total, to_czs(&s).len());
-            assert_eq!(z.header + z.curves + z.shading + z.colour, z.total);
+            assert_eq!(
+                z.header + z.curves + z.shading + z.colour + z.region,
+                z.total
+            );
             if seed == 0 {
                 println!(
                     "{:<26} {:>6} {:>6} {:>7} {:>6} {:>6}",
@@ -388,8 +416,11 @@ fn bad_json_and_svg_are_refused() {
     v["colour"]["uv"].as_array_mut().unwrap().pop();
     cases.push((v, "/colour/uv"));
     let mut v = good.clone();
-    v["version"] = 2.into();
+    v["version"] = 3.into();
     cases.push((v, "/version"));
+    let mut v = good.clone();
+    v["region"] = serde_json::json!([[[0, 0], [4, 0]]]);
+    cases.push((v, "/region/0"));
     let mut v = good.clone();
     v["shading"]["bases"][0]["amp"] = 100.0.into();
     cases.push((v, "/shading/bases/0/amp"));
@@ -494,4 +525,35 @@ fn inkscape_saves_and_moves_are_read() {
     assert_eq!(moved, want);
     let strokes = coif::io::import::strokes_from_svg(&dir.join("moved.svg")).unwrap();
     assert_eq!(strokes.strokes.len(), 5);
+}
+
+/// The region path as Inkscape rewrites it (relative commands, h/v, implicit linetos, a
+/// translate on the element) reads back as the same polygons; an arc is refused by name.
+#[test]
+fn region_paths_from_an_editor_are_read() {
+    let p = Path::new("edited.svg");
+    let mut s = random_sketch(21, 120, 90, 2, 3, 1);
+    s.region = vec![
+        vec![[10, 10], [60, 10], [60, 40], [10, 40]],
+        vec![[20, 20], [30, 20], [30, 30]],
+    ];
+    let q = quantise(&s);
+    let svg = to_svg(&s);
+    let d = svg
+        .split(" d=\"")
+        .nth(1)
+        .and_then(|t| t.split('"').next())
+        .unwrap()
+        .to_string();
+    let edited = svg.replace(
+        &format!(" d=\"{d}\""),
+        " transform=\"translate(5,-5)\" d=\"m 5,15 h 50 v 30 l -50,0 z m 10,10 10,0 0,10 z\"",
+    );
+    assert_eq!(from_svg(&edited, p).unwrap(), q);
+    let arc = svg.replace(&format!(" d=\"{d}\""), " d=\"M 1 1 A 5 5 0 0 1 20 20 Z\"");
+    let m = from_svg(&arc, p).unwrap_err().to_string();
+    assert!(m.contains("edited.svg") && m.contains("'A'"), "{m}");
+    let far = svg.replace(&format!(" d=\"{d}\""), " d=\"M 1 1 L 500 1 L 1 40 Z\"");
+    let m = from_svg(&far, p).unwrap_err().to_string();
+    assert!(m.contains("outside the 120x90 image"), "{m}");
 }

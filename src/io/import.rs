@@ -552,6 +552,12 @@ pub fn strokes_from_svg(path: &Path) -> Result<Strokes> {
         {
             continue;
         }
+        // A coif sketch's hair region is an area, not a stroke.
+        if n.attribute("class")
+            .is_some_and(|c| c.split_whitespace().any(|c| c == "cz-region"))
+        {
+            continue;
+        }
         let at = describe(&doc, n);
         if n.ancestors()
             .skip(1)

@@ -32,6 +32,7 @@ pub mod oracle;
 pub mod pairwise;
 pub mod prim;
 pub mod pursuit;
+pub mod region;
 pub mod rho;
 pub mod run;
 pub mod samples;
@@ -213,7 +214,15 @@ pub struct Sketch {
     pub rho_off: RhoPrior,
     pub shading: Shading,
     pub colour: ColourMap,
+    /// The hair region (see [`region`]): closed polygons on the pixel-corner lattice, even-odd;
+    /// empty = the whole image.
+    #[serde(default)]
+    pub region: Region,
 }
+
+/// Closed polygons of pixel-corner points (x in 0..=W, y in 0..=H), filled by the even-odd
+/// rule.
+pub type Region = Vec<Vec<[u32; 2]>>;
 
 /// p_nsk of Eq. 5-6: a mixture of two Gaussians over the contrast ρ off the sketch (the
 /// fill draws ρ there from it).

@@ -29,6 +29,8 @@ pub struct SketchParams {
     pub swc: swc::SwcParams,
     pub method: swc::Method,
     pub fill: fill::FillParams,
+    /// The stored outline of the hair region.
+    pub outline: super::region::OutlineParams,
     pub seed: u64,
 }
 
@@ -41,6 +43,7 @@ impl Default for SketchParams {
             swc: Default::default(),
             method: swc::Method::Swc,
             fill: Default::default(),
+            outline: Default::default(),
             seed: 1,
         }
     }
@@ -70,6 +73,8 @@ pub struct SketchResult {
     pub pursuit: pursuit::PursuitStats,
     pub swc: swc::Directed,
     pub bands: bands::Bands,
+    /// The hair mask analysed.
+    pub hair: Vec<bool>,
     pub seconds: Vec<(&'static str, f64)>,
 }
 
@@ -133,6 +138,7 @@ pub fn analyse(engine: &Engine, inp: &SketchInputs, p: &SketchParams) -> Result<
         rho_off: pu.rho_off,
         shading,
         colour,
+        region: super::region::outline(inp.hair, w, h, &p.outline),
     });
     let painted = super::prim::paint(&sketch.curves, w, h, Some(inp.hair));
     let field = fill::fill(engine, &painted, inp.hair, &sketch.rho_off, p.seed, &p.fill)?;
@@ -149,6 +155,7 @@ pub fn analyse(engine: &Engine, inp: &SketchInputs, p: &SketchParams) -> Result<
         pursuit: pu.stats.clone(),
         swc: directed,
         bands: b,
+        hair: inp.hair.to_vec(),
         seconds,
     })
 }
@@ -198,6 +205,11 @@ pub fn write(
         "primitives": s.curves.iter().map(|c| c.prims.len()).sum::<usize>(),
         "curves_by_kind": super::Kind::ALL.map(|k| (k.letter().to_string(), s.curves.iter().filter(|c| c.kind == k).count())).into_iter().collect::<std::collections::BTreeMap<_,_>>(),
         "bases": s.shading.bases.len(),
+        "region": {
+            "polygons": s.region.len(),
+            "vertices": s.region.iter().map(|p| p.len()).sum::<usize>(),
+            "iou_with_mask": super::region::iou(&super::region::fill(&s.region, s.width, s.height), &r.hair),
+        },
         "energy": { "per_curve": r.energy, "directions": r.swc.energy },
         "seconds": crate::io::seconds(&r.seconds),
     });

@@ -106,8 +106,18 @@ fn leb128(mut v: u64) -> Vec<u8> {
     }
 }
 
-/// Packs the payload; returns it and the bit counts of (header, curves, shading, colour).
-fn pack(c: &Codes) -> (Vec<u8>, [usize; 4]) {
+/// Signed to unsigned, small magnitudes small: 0, −1, 1, −2, ... → 0, 1, 2, 3, ...
+fn zigzag(v: i64) -> u64 {
+    ((v << 1) ^ (v >> 63)) as u64
+}
+
+fn unzigzag(u: u64) -> i64 {
+    (u >> 1) as i64 ^ -((u & 1) as i64)
+}
+
+/// Packs the payload; returns it and the bit counts of (header, curves, shading, colour,
+/// region).
+fn pack(c: &Codes) -> (Vec<u8>, [usize; 5]) {
     let mut w = BitWriter::new();
     w.gamma(c.width as u64 + 1);
     w.gamma(c.height as u64 + 1);
@@ -197,10 +207,25 @@ fn pack(c: &Codes) -> (Vec<u8>, [usize; 4]) {
         w.put(k[1] as u64, 6);
     }
     let colour = w.bits - header - curves - shading;
-    (w.bytes, [header, curves, shading, colour])
+
+    // Region: polygons, each a vertex count, its first vertex and the steps to the next
+    // ones (zigzag, Elias-γ: short steps are short).
+    w.gamma(c.region.len() as u64 + 1);
+    for poly in &c.region {
+        w.gamma(poly.len() as u64 - 2);
+        w.put(poly[0][0] as u64, xb);
+        w.put(poly[0][1] as u64, yb);
+        for k in 1..poly.len() {
+            for a in 0..2 {
+                w.gamma(zigzag(poly[k][a] as i64 - poly[k - 1][a] as i64) + 1);
+            }
+        }
+    }
+    let region = w.bits - header - curves - shading - colour;
+    (w.bytes, [header, curves, shading, colour, region])
 }
 
-fn assemble(c: &Codes) -> (Vec<u8>, [usize; 4]) {
+fn assemble(c: &Codes) -> (Vec<u8>, [usize; 5]) {
     let (payload, bits) = pack(c);
     // The total length includes its own varint: find the fixed point.
     let mut total = 4 + payload.len() + 4 + 1;
@@ -230,17 +255,19 @@ pub fn to_czs(s: &Sketch) -> Vec<u8> {
 pub fn czs_sizes(s: &Sketch) -> CzsSizes {
     let (bytes, bits) = assemble(&codes(s));
     let part = |b: usize| b.div_ceil(8);
-    let (curves, shading, colour) = (part(bits[1]), part(bits[2]), part(bits[3]));
+    let (curves, shading, colour, region) =
+        (part(bits[1]), part(bits[2]), part(bits[3]), part(bits[4]));
     CzsSizes {
-        header: bytes.len() - curves - shading - colour,
+        header: bytes.len() - curves - shading - colour - region,
         curves,
         shading,
         colour,
+        region,
         total: bytes.len(),
     }
 }
 
-fn unpack(data: &[u8]) -> std::result::Result<Codes, String> {
+fn unpack(data: &[u8], version: u8) -> std::result::Result<Codes, String> {
     let mut r = BitReader { data, pos: 0 };
     let dim = |r: &mut BitReader, what: &str| -> std::result::Result<u32, String> {
         let v = r.gamma(what)? - 1;
@@ -369,9 +396,34 @@ fn unpack(data: &[u8]) -> std::result::Result<Codes, String> {
             r.get(6, "the colour map")? as u8,
         ]);
     }
+    let mut region = Vec::new();
+    if version >= 2 {
+        let n = r.gamma("the region")? - 1;
+        for pi in 0..n {
+            let at = format!("region polygon {pi}");
+            let nv = r.gamma(&at)? + 2;
+            if nv as usize > 8 * data.len() {
+                return Err(format!("corrupted: {at} has {nv} vertices"));
+            }
+            let mut poly = vec![[r.get(xb, &at)? as u32, r.get(yb, &at)? as u32]];
+            for _ in 1..nv {
+                let last = *poly.last().expect("one vertex");
+                let mut q = [0u32; 2];
+                for a in 0..2 {
+                    let v = last[a] as i64 + unzigzag(r.gamma(&at)? - 1);
+                    if v < 0 || v > [width, height][a] as i64 {
+                        return Err(format!("corrupted: {at} leaves the {width}x{height} image"));
+                    }
+                    q[a] = v as u32;
+                }
+                poly.push(q);
+            }
+            region.push(poly);
+        }
+    }
     if r.left() >= 8 {
         return Err(format!(
-            "corrupted: {} bytes left over after the colour map",
+            "corrupted: {} bytes left over after the sketch",
             r.left() / 8
         ));
     }
@@ -387,6 +439,7 @@ fn unpack(data: &[u8]) -> std::result::Result<Codes, String> {
         mean,
         bases,
         colour: ColourCodes { k },
+        region,
     })
 }
 
@@ -408,9 +461,9 @@ pub fn from_czs(bytes: &[u8], path: &Path) -> Result<Sketch> {
             bytes.len()
         )));
     }
-    if bytes[3] != VERSION {
+    if bytes[3] == 0 || bytes[3] > VERSION {
         return Err(bad(format!(
-            "unsupported .czs version {} (this build reads version {VERSION})",
+            "unsupported .czs version {} (this build reads versions 1 to {VERSION})",
             bytes[3]
         )));
     }
@@ -462,7 +515,7 @@ pub fn from_czs(bytes: &[u8], path: &Path) -> Result<Sketch> {
     if crc32(body) != stored {
         return Err(bad("checksum mismatch: the file is corrupted".into()));
     }
-    let c = unpack(&body[at..]).map_err(bad)?;
+    let c = unpack(&body[at..], bytes[3]).map_err(bad)?;
     Ok(decode(&c))
 }
 
@@ -488,5 +541,55 @@ mod tests {
         assert!(r.left() < 8);
         // The standard CRC-32 check value.
         assert_eq!(crc32(b"123456789"), 0xCBF4_3926);
+    }
+
+    #[test]
+    fn zigzag_round_trips() {
+        for v in -300i64..300 {
+            assert_eq!(unzigzag(zigzag(v)), v);
+        }
+        assert_eq!([0, -1, 1, -2].map(zigzag), [0, 1, 2, 3]);
+    }
+
+    /// A version-1 file (no region) is the version-2 payload without the region's one bit
+    /// (an empty region is γ(1) = "1"); it reads as the whole image.
+    #[test]
+    fn version_1_files_still_read() {
+        let s = crate::sketch::Sketch {
+            width: 40,
+            height: 30,
+            seed: 5,
+            curves: Vec::new(),
+            rho_off: crate::sketch::RhoPrior {
+                weight: [0.5, 0.5],
+                mean: [1.0, 4.0],
+                sigma: [0.5, 2.0],
+            },
+            shading: Default::default(),
+            colour: crate::sketch::ColourMap {
+                uv: vec![[0.0, 0.0]; COLOUR_BINS],
+            },
+            region: Vec::new(),
+        };
+        let (mut payload, bits) = pack(&codes(&s));
+        assert_eq!(bits[4], 1);
+        let at: usize = bits[..4].iter().sum();
+        payload[at / 8] &= !(0x80u8 >> (at % 8));
+        if at % 8 == 0 {
+            payload.pop();
+        }
+        let total = 4 + 1 + payload.len() + 4;
+        let mut v1 = MAGIC.to_vec();
+        v1.push(1);
+        v1.extend(leb128(total as u64));
+        v1.extend(&payload);
+        let crc = crc32(&v1);
+        v1.extend(crc.to_le_bytes());
+        let back = from_czs(&v1, Path::new("old.czs")).unwrap();
+        assert_eq!(back, quantise(&s));
+        let mut v3 = to_czs(&s);
+        v3[3] = 3;
+        let m = from_czs(&v3, Path::new("new.czs")).unwrap_err().to_string();
+        assert!(m.contains("version 3"), "{m}");
     }
 }

@@ -47,6 +47,9 @@ pub(super) struct JsonSketch {
     pub(super) rho_off: RhoPrior,
     pub(super) shading: JsonShading,
     pub(super) colour: ColourMap,
+    /// The hair region's polygons (absent: the whole image).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub(super) region: super::super::Region,
 }
 
 pub(super) const FORMAT_NAME: &str = "coif-sketch";
@@ -112,6 +115,7 @@ pub(super) fn json_of(c: &Codes) -> JsonSketch {
                 .collect(),
         },
         colour: s.colour,
+        region: c.region.clone(),
     }
 }
 
@@ -209,6 +213,14 @@ pub fn from_json(text: &str, path: &Path) -> Result<Sketch> {
             dirs: c.dirs,
         });
     }
+    for (pi, poly) in j.region.iter().enumerate() {
+        if let Some(v) = poly.iter().find(|v| v[0] > w || v[1] > h) {
+            return Err(bad(format!(
+                "region polygon {pi} has the vertex ({}, {}), outside the {w}x{h} image",
+                v[0], v[1]
+            )));
+        }
+    }
     let sketch = Sketch {
         width: w,
         height: h,
@@ -232,6 +244,7 @@ pub fn from_json(text: &str, path: &Path) -> Result<Sketch> {
                 .collect(),
         },
         colour: j.colour,
+        region: j.region,
     };
     Ok(quantise(&sketch))
 }

@@ -41,8 +41,9 @@ pub use svg::*;
 
 /// File magic of `.czs`.
 pub const MAGIC: &[u8; 3] = b"CZS";
-/// `.czs` and `sketch.json` format version.
-pub const VERSION: u8 = 1;
+/// `.czs` and `sketch.json` format version: 2 adds the hair region; version 1 files (no
+/// region: the whole image) are still read.
+pub const VERSION: u8 = 2;
 /// The JSON Schema `sketch.json` is checked against.
 pub const SCHEMA: &str = include_str!("../../../schemas/sketch.v1.schema.json");
 const SCHEMA_URL: &str = "urn:coif:sketch.v1.schema.json";
@@ -105,6 +106,7 @@ pub struct CzsSizes {
     pub curves: usize,
     pub shading: usize,
     pub colour: usize,
+    pub region: usize,
     pub total: usize,
 }
 
@@ -287,6 +289,7 @@ struct Codes {
     mean: u16,
     bases: Vec<BaseCodes>,
     colour: ColourCodes,
+    region: super::Region,
 }
 
 fn sign(d: i8) -> i8 {
@@ -434,7 +437,29 @@ fn codes(s: &Sketch) -> Codes {
             .map(|b| base_codes(b, w, h))
             .collect(),
         colour: colour_codes(&s.colour),
+        region: region_codes(&s.region, w, h),
     }
+}
+
+/// The region as the files store it: vertices clamped to the image's corners, repeats
+/// dropped, polygons of fewer than 3 vertices dropped.
+fn region_codes(r: &super::Region, w: u32, h: u32) -> super::Region {
+    r.iter()
+        .map(|poly| {
+            let mut out: Vec<[u32; 2]> = Vec::with_capacity(poly.len());
+            for p in poly {
+                let q = [p[0].min(w), p[1].min(h)];
+                if out.last() != Some(&q) {
+                    out.push(q);
+                }
+            }
+            while out.len() > 1 && out.first() == out.last() {
+                out.pop();
+            }
+            out
+        })
+        .filter(|p| p.len() >= 3)
+        .collect()
 }
 
 fn decode_curve(c: &CurveCodes) -> Curve {
@@ -515,6 +540,7 @@ fn decode(c: &Codes) -> Sketch {
             bases: c.bases.iter().map(decode_base).collect(),
         },
         colour: decode_colour(&c.colour),
+        region: c.region.clone(),
     }
 }
 
@@ -531,7 +557,9 @@ fn decode(c: &Codes) -> Sketch {
 ///   first nonzero label on both sides; 0 (undecided) stays 0;
 /// - p_nsk: weights normalised to sum 1; shading and colour map as the module docs say
 ///   (amplitudes beyond ±64 are clamped); a map of other than 16 bins is cut or padded
-///   with gray; non-finite numbers become 0.
+///   with gray; non-finite numbers become 0;
+/// - region: vertices clamped to [0, W]×[0, H], repeated vertices dropped, polygons of
+///   fewer than 3 vertices dropped.
 pub fn quantise(s: &Sketch) -> Sketch {
     decode(&codes(s))
 }

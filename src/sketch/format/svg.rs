@@ -56,8 +56,25 @@ pub fn to_svg(s: &Sketch) -> String {
          .cz-a { stroke: #1f77b4; } .cz-b { stroke: #2ca02c; } .cz-c { stroke: #d62728; }\n    \
          .cz-d { stroke: #9467bd; } .cz-e { stroke: #ff7f0e; }\n    \
          ellipse { fill: none; stroke-width: 0.75; stroke-dasharray: 3 2; }\n    \
-         .cz-highlight { stroke: #bbbbbb; } .cz-shadow { stroke: #444444; }\n  </style>\n",
+         .cz-highlight { stroke: #bbbbbb; } .cz-shadow { stroke: #444444; }\n    \
+         .cz-region { fill: #f3e9d8; stroke: #c8b89a; stroke-width: 0.5; }\n  </style>\n",
     );
+    if !q.region.is_empty() {
+        // The region under everything else; an editor may reshape it (polygons are read back
+        // through M/L/H/V/C/Z commands and transforms, snapped to whole pixels).
+        out.push_str(&format!(
+            "  <path id=\"cz-region\" class=\"cz-region\" fill-rule=\"evenodd\" d=\"{}\"/>\n",
+            q.region
+                .iter()
+                .map(|poly| {
+                    let pts: Vec<String> =
+                        poly.iter().map(|p| format!("{},{}", p[0], p[1])).collect();
+                    format!("M {} Z", pts.join(" L "))
+                })
+                .collect::<Vec<_>>()
+                .join(" ")
+        ));
+    }
     out.push_str("  <g id=\"cz-shading\">\n");
     for (b, jb) in q.shading.bases.iter().zip(&j.shading.bases) {
         out.push_str(&format!(
@@ -231,9 +248,9 @@ fn parse_svg(text: &str) -> std::result::Result<Sketch, String> {
         );
     }
     let version = root.attribute("data-cz-version").unwrap_or("");
-    if version != VERSION.to_string() {
+    if !(1..=VERSION).any(|v| version == v.to_string()) {
         return Err(format!(
-            "unsupported sketch version \"{version}\" (this build reads {VERSION})"
+            "unsupported sketch version \"{version}\" (this build reads 1 to {VERSION})"
         ));
     }
     let int = |name: &str| -> std::result::Result<u64, String> {
@@ -260,8 +277,35 @@ fn parse_svg(text: &str) -> std::result::Result<Sketch, String> {
     )?;
     let mut curves = Vec::new();
     let mut bases = Vec::new();
+    let mut region = Vec::new();
     for n in root.descendants().filter(|n| n.is_element()) {
         match n.tag_name().name() {
+            "path"
+                if n.attribute("class")
+                    .is_some_and(|c| c.split_whitespace().any(|c| c == "cz-region")) =>
+            {
+                let at = format!("the region (line {})", doc.text_pos_at(n.range().start).row);
+                let m = transform_of(n).map_err(|e| format!("{at}: {e}"))?;
+                for poly in path_polygons(attr(n, "d", &at)?).map_err(|e| format!("{at}: {e}"))? {
+                    let mut out = Vec::with_capacity(poly.len());
+                    for p in poly {
+                        let q = apply(&m, p);
+                        if !(q[0].is_finite() && q[1].is_finite())
+                            || q[0] < -0.5
+                            || q[1] < -0.5
+                            || q[0] > w as f64 + 0.5
+                            || q[1] > h as f64 + 0.5
+                        {
+                            return Err(format!(
+                                "{at}: the point ({}, {}) lies outside the {w}x{h} image",
+                                q[0], q[1]
+                            ));
+                        }
+                        out.push([q[0].round().max(0.0) as u32, q[1].round().max(0.0) as u32]);
+                    }
+                    region.push(out);
+                }
+            }
             "polyline" => {
                 let at = format!(
                     "curve {} (line {})",
@@ -367,8 +411,121 @@ fn parse_svg(text: &str) -> std::result::Result<Sketch, String> {
         colour: ColourMap {
             uv: col.chunks(2).map(|c| [c[0] as f32, c[1] as f32]).collect(),
         },
+        region,
     };
     Ok(quantise(&sketch))
+}
+
+/// The closed polygons of an SVG path's `d`: M/L/H/V/C/Z in absolute or relative form
+/// (what Inkscape writes for an edited polygon); a cubic is flattened to 8 chords. Each
+/// subpath is one polygon, closed whether or not it ends with Z.
+fn path_polygons(d: &str) -> std::result::Result<Vec<Vec<[f64; 2]>>, String> {
+    let mut toks: Vec<String> = Vec::new();
+    let mut cur = String::new();
+    for ch in d.chars() {
+        let starts_number = ch == '-' && !cur.ends_with(['e', 'E']) || ch == '+';
+        if ch.is_ascii_alphabetic() && ch != 'e' && ch != 'E' {
+            if !cur.is_empty() {
+                toks.push(std::mem::take(&mut cur));
+            }
+            toks.push(ch.to_string());
+        } else if ch == ',' || ch.is_whitespace() {
+            if !cur.is_empty() {
+                toks.push(std::mem::take(&mut cur));
+            }
+        } else if starts_number && !cur.is_empty()
+            || ch == '.' && cur.contains('.') && !cur.ends_with(['e', 'E'])
+        {
+            toks.push(std::mem::take(&mut cur));
+            cur.push(ch);
+        } else {
+            cur.push(ch);
+        }
+    }
+    if !cur.is_empty() {
+        toks.push(cur);
+    }
+    let mut polys: Vec<Vec<[f64; 2]>> = Vec::new();
+    let mut poly: Vec<[f64; 2]> = Vec::new();
+    let (mut pos, mut start) = ([0.0f64; 2], [0.0f64; 2]);
+    let mut cmd = ' ';
+    let mut i = 0;
+    let num = |i: &mut usize| -> std::result::Result<f64, String> {
+        let t = toks
+            .get(*i)
+            .ok_or("the path ends in the middle of a command")?;
+        *i += 1;
+        t.parse::<f64>()
+            .map_err(|_| format!("\"{t}\" in the path is not a number"))
+    };
+    let close = |poly: &mut Vec<[f64; 2]>, polys: &mut Vec<Vec<[f64; 2]>>| {
+        if poly.len() >= 3 {
+            polys.push(std::mem::take(poly));
+        } else {
+            poly.clear();
+        }
+    };
+    while i < toks.len() {
+        if let Some(c) = toks[i].chars().next().filter(|c| c.is_ascii_alphabetic()) {
+            cmd = c;
+            i += 1;
+            if c == 'Z' || c == 'z' {
+                close(&mut poly, &mut polys);
+                pos = start;
+                continue;
+            }
+        } else if cmd == ' ' {
+            return Err("the path does not start with a command".into());
+        }
+        let rel = cmd.is_ascii_lowercase();
+        let base = if rel { pos } else { [0.0, 0.0] };
+        match cmd.to_ascii_uppercase() {
+            'M' => {
+                close(&mut poly, &mut polys);
+                pos = [base[0] + num(&mut i)?, base[1] + num(&mut i)?];
+                start = pos;
+                poly.push(pos);
+                // Pairs after a moveto are linetos.
+                cmd = if rel { 'l' } else { 'L' };
+            }
+            'L' => {
+                pos = [base[0] + num(&mut i)?, base[1] + num(&mut i)?];
+                poly.push(pos);
+            }
+            'H' => {
+                pos[0] = if rel { pos[0] } else { 0.0 } + num(&mut i)?;
+                poly.push(pos);
+            }
+            'V' => {
+                pos[1] = if rel { pos[1] } else { 0.0 } + num(&mut i)?;
+                poly.push(pos);
+            }
+            'C' => {
+                let mut c = [[0.0; 2]; 3];
+                for p in &mut c {
+                    *p = [base[0] + num(&mut i)?, base[1] + num(&mut i)?];
+                }
+                let p0 = pos;
+                for k in 1..=8 {
+                    let t = k as f64 / 8.0;
+                    let u = 1.0 - t;
+                    let b = [u * u * u, 3.0 * u * u * t, 3.0 * u * t * t, t * t * t];
+                    poly.push([0, 1].map(|a| {
+                        b[0] * p0[a] + b[1] * c[0][a] + b[2] * c[1][a] + b[3] * c[2][a]
+                    }));
+                }
+                pos = c[2];
+            }
+            other => {
+                return Err(format!(
+                    "the region path uses the command '{other}'; it must be made of straight \
+                     lines and cubic curves (M, L, H, V, C, Z): convert it with Path > Object to Path"
+                ))
+            }
+        }
+    }
+    close(&mut poly, &mut polys);
+    Ok(polys)
 }
 
 /// Reads `sketch.svg` text; `path` names it in errors. Curves are read from the polylines'
