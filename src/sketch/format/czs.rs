@@ -215,9 +215,9 @@ fn pack(c: &Codes) -> (Vec<u8>, [usize; 5]) {
         w.gamma(poly.len() as u64 - 2);
         w.put(poly[0][0] as u64, xb);
         w.put(poly[0][1] as u64, yb);
-        for k in 1..poly.len() {
-            for a in 0..2 {
-                w.gamma(zigzag(poly[k][a] as i64 - poly[k - 1][a] as i64) + 1);
+        for pair in poly.windows(2) {
+            for (a, b) in pair[0].iter().zip(&pair[1]) {
+                w.gamma(zigzag(*b as i64 - *a as i64) + 1);
             }
         }
     }
@@ -575,7 +575,7 @@ mod tests {
         assert_eq!(bits[4], 1);
         let at: usize = bits[..4].iter().sum();
         payload[at / 8] &= !(0x80u8 >> (at % 8));
-        if at % 8 == 0 {
+        if at.is_multiple_of(8) {
             payload.pop();
         }
         let total = 4 + 1 + payload.len() + 4;
