@@ -72,3 +72,87 @@ pub fn orientation_error(
         count: n,
     }
 }
+
+/// Structural similarity (Wang et al. 2004) of two gray images W*H with values in
+/// [0, `peak`], averaged over the pixels of `region`: local statistics under a Gaussian
+/// window of σ 1.5 px (radius 5, renormalised at the image border), C1 = (0.01·peak)²,
+/// C2 = (0.03·peak)². 1 for identical images.
+pub fn ssim_region(a: &[f32], b: &[f32], w: usize, h: usize, region: &[bool], peak: f32) -> f64 {
+    assert!(a.len() == w * h && b.len() == w * h && region.len() == w * h);
+    const R: i64 = 5;
+    let g: Vec<f64> = (-R..=R)
+        .map(|k| (-(k * k) as f64 / (2.0 * 1.5 * 1.5)).exp())
+        .collect();
+    // Separable blur of each product with a border-renormalised window.
+    let blur = |f: &dyn Fn(usize) -> f64| -> Vec<f64> {
+        let mut tmp = vec![0.0; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let (mut s, mut ws) = (0.0, 0.0);
+                for (k, gk) in g.iter().enumerate() {
+                    let xx = x as i64 + k as i64 - R;
+                    if xx >= 0 && (xx as usize) < w {
+                        s += gk * f(y * w + xx as usize);
+                        ws += gk;
+                    }
+                }
+                tmp[y * w + x] = s / ws;
+            }
+        }
+        let mut out = vec![0.0; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let (mut s, mut ws) = (0.0, 0.0);
+                for (k, gk) in g.iter().enumerate() {
+                    let yy = y as i64 + k as i64 - R;
+                    if yy >= 0 && (yy as usize) < h {
+                        s += gk * tmp[yy as usize * w + x];
+                        ws += gk;
+                    }
+                }
+                out[y * w + x] = s / ws;
+            }
+        }
+        out
+    };
+    let (fa, fb) = (|i: usize| a[i] as f64, |i: usize| b[i] as f64);
+    let ma = blur(&fa);
+    let mb = blur(&fb);
+    let saa = blur(&|i| fa(i) * fa(i));
+    let sbb = blur(&|i| fb(i) * fb(i));
+    let sab = blur(&|i| fa(i) * fb(i));
+    let c1 = (0.01 * peak as f64).powi(2);
+    let c2 = (0.03 * peak as f64).powi(2);
+    let (mut s, mut n) = (0.0, 0usize);
+    for i in 0..w * h {
+        if region[i] {
+            let (va, vb) = (saa[i] - ma[i] * ma[i], sbb[i] - mb[i] * mb[i]);
+            let cov = sab[i] - ma[i] * mb[i];
+            s += (2.0 * ma[i] * mb[i] + c1) * (2.0 * cov + c2)
+                / ((ma[i] * ma[i] + mb[i] * mb[i] + c1) * (va + vb + c2));
+            n += 1;
+        }
+    }
+    s / n.max(1) as f64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ssim_is_one_for_equal_images_and_low_for_unrelated_ones() {
+        let (w, h) = (48, 40);
+        let mut r = crate::base::rng::Rng::new(3);
+        let a: Vec<f32> = (0..w * h).map(|_| r.range_f32(0.0, 100.0)).collect();
+        let b: Vec<f32> = (0..w * h).map(|_| r.range_f32(0.0, 100.0)).collect();
+        let all = vec![true; w * h];
+        assert!((ssim_region(&a, &a, w, h, &all, 100.0) - 1.0).abs() < 1e-9);
+        let unrelated = ssim_region(&a, &b, w, h, &all, 100.0);
+        assert!(unrelated < 0.2, "{unrelated}");
+        // A slightly noisier copy sits in between.
+        let c: Vec<f32> = a.iter().map(|v| v + r.range_f32(-10.0, 10.0)).collect();
+        let near = ssim_region(&a, &c, w, h, &all, 100.0);
+        assert!(near > unrelated && near < 1.0, "{near}");
+    }
+}

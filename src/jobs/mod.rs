@@ -22,8 +22,8 @@ use std::time::Instant;
 mod sketch;
 mod video;
 
-use sketch::{run_sketch, run_sketch_convert};
-pub use sketch::{HairRegion, SketchConvertJob, SketchJob};
+use sketch::{run_sketch, run_sketch_convert, run_synth_hair};
+pub use sketch::{HairRegion, SketchConvertJob, SketchJob, SynthHairJob};
 use video::{run_synth_video, run_transfer, run_video};
 pub use video::{ClipSource, SynthVideoJob, TransferJob, VideoJob};
 
@@ -49,6 +49,7 @@ pub enum Job {
     Transfer(TransferJob),
     Sketch(SketchJob),
     SketchConvert(SketchConvertJob),
+    SynthHair(SynthHairJob),
 }
 
 /// A synthetic portrait with its ground truth (`coif synth`).
@@ -179,6 +180,7 @@ impl Job {
                 | Job::Video(_)
                 | Job::Transfer(_)
                 | Job::Sketch(_)
+                | Job::SynthHair(_)
         )
     }
 
@@ -201,6 +203,7 @@ impl Job {
             Job::Transfer(j) => ("transfer", &j.out),
             Job::Sketch(j) => ("sketch", &j.out),
             Job::SketchConvert(j) => ("sketch-convert", &j.out),
+            Job::SynthHair(j) => ("synth-hair", &j.out),
         };
         format!("{what} {}", path.display())
     }
@@ -224,6 +227,7 @@ pub fn run(engine: &Engine, job: &Job) -> anyhow::Result<Report> {
         Job::Transfer(j) => run_transfer(engine, j),
         Job::Sketch(j) => run_sketch(engine, j),
         Job::SketchConvert(j) => run_sketch_convert(j),
+        Job::SynthHair(j) => run_synth_hair(engine, j),
         Job::Convert(j) => run_convert(j),
     }
 }

@@ -37,6 +37,7 @@ pub mod rho;
 pub mod run;
 pub mod samples;
 pub mod shading;
+pub mod synth;
 pub mod swc;
 pub mod theta;
 pub mod vis;

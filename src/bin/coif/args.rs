@@ -14,6 +14,8 @@ use coif::sim::{HeadKey, HeadTrack, SimParams};
 use coif::synth;
 use std::path::PathBuf;
 
+mod synth_hair;
+
 #[derive(Parser)]
 #[command(
     name = "coif",
@@ -80,6 +82,9 @@ pub enum Command {
     /// Converts a sketch between its three files (.czs, .json, .svg), checking it: e.g. a
     /// sketch.svg edited in Inkscape back to a compact hair.czs.
     SketchConvert(SketchConvertArgs),
+    /// A sketch back to a hair image (Chen and Zhu 2006 §3): the field filled in from the
+    /// curves, texture along it, shading and colour from the sketch; over a photo if asked.
+    SynthHair(synth_hair::SynthHairArgs),
     /// Hair replacement (C13 §4): another model's strands carried through a tracked clip
     /// (each follows its nearest tracked strand) and rendered into every frame.
     Transfer(TransferArgs),
@@ -790,6 +795,7 @@ impl Command {
                     banner: None,
                 }
             }
+            Command::SynthHair(a) => a.request(),
             Command::SketchConvert(a) => Request::one(
                 Job::SketchConvert(coif::jobs::SketchConvertJob {
                     input: a.sketch,
