@@ -1,5 +1,5 @@
-//! `coif sketch` (CZ06 §4, issue 16) at 512²: seconds per stage on the cpu backend (and on
-//! lavapipe with COIF_BENCH_GPU=1), the sketch's bytes, and the orientation error against
+//! `coif sketch` (CZ06 §4, issue 16) and `coif synth-hair` (§3, issue 17) at 512²: seconds
+//! per stage on the cpu backend (and on lavapipe with COIF_BENCH_GPU=1), the sketch's bytes, and the orientation error against
 //! the ground truth of synthetic portraits of three fields: the one filled in from the
 //! sketch alone (a few hundred bytes), Step 1's dense Θ, and the peer, a dense
 //! structure-tensor field in OpenCV (`benches/peers/tensor_opencv.py`, run in the same
@@ -13,6 +13,7 @@ use coif::eval::metrics::erode;
 use coif::gpu::engine::{BackendChoice, Engine};
 use coif::sketch::format;
 use coif::sketch::run::{analyse, SketchInputs, SketchParams};
+use coif::sketch::synth::synthesise;
 use coif::sketch::samples::{self, Sample};
 use coif::synth::{synth, Style, SynthParams};
 use std::process::Command;
@@ -133,6 +134,21 @@ fn main() {
                 .map(|(k, s)| format!("{k} {s:.2}"))
                 .collect();
             println!("          stages (s): {}", stages.join(", "));
+            // And back: the image synthesised from the stored sketch alone (issue 17).
+            let stored = format::from_czs(&format::to_czs(&r.sketch), "mem.czs".as_ref())
+                .expect("czs round trip");
+            let t = Instant::now();
+            let syn = synthesise(engine, &stored, None, &Default::default()).expect("synth-hair");
+            let stages: Vec<String> = syn
+                .seconds
+                .iter()
+                .map(|(k, s)| format!("{k} {s:.2}"))
+                .collect();
+            println!(
+                "          synth-hair {:.2} s ({})",
+                t.elapsed().as_secs_f64(),
+                stages.join(", ")
+            );
         }
     }
     if env("COIF_BENCH_SAMPLES", 1) == 0 {

@@ -253,7 +253,8 @@ pub fn run_all(engine: &Engine, jobs: &[Job]) -> anyhow::Result<Vec<Report>> {
 /// The main job on the embedded inputs: a synthetic case with ground truth and the astronaut
 /// photo, each through orientation, directed hair, 3D strands and three renders (the
 /// original view, a novel view and a recolouring); then a comb, a cut and a short wind clip
-/// of the photo's hair; then a short synthetic clip tracked and recoloured (`coif video`).
+/// of the photo's hair; then a short synthetic clip tracked and recoloured (`coif video`);
+/// then the photo's hair as a CZ06 sketch, synthesised back from the sketch alone.
 pub fn demo(out: &Path) -> Vec<Job> {
     let case = out.join("synth-long");
     let astro = out.join("astronaut");
@@ -414,6 +415,23 @@ pub fn demo(out: &Path) -> Vec<Job> {
         out: tracked.join("render_dyed"),
         params: views[2].1.clone(),
         sixteen: false,
+    }));
+    // The astronaut's hair as a sketch of a few hundred bytes (CZ06), and back: an image
+    // synthesised from the sketch alone, over the photo.
+    let sk = out.join("sketch-astronaut");
+    jobs.push(Job::Sketch(SketchJob {
+        image: astro.join("image.png"),
+        region: HairRegion::Strokes(astro.join("strokes.json")),
+        strokes: None,
+        out: sk.clone(),
+        params: Default::default(),
+    }));
+    jobs.push(Job::SynthHair(SynthHairJob {
+        sketch: sk.join("hair.czs"),
+        out: sk.join("synth.png"),
+        over: Some(astro.join("image.png")),
+        layers: None,
+        params: Default::default(),
     }));
     jobs
 }
