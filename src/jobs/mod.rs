@@ -19,8 +19,12 @@ use serde_json::json;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+mod cartoon;
 mod sketch;
 mod video;
+
+use cartoon::run_cartoon;
+pub use cartoon::CartoonJob;
 
 use sketch::{run_sketch, run_sketch_convert};
 pub use sketch::{HairRegion, SketchConvertJob, SketchJob};
@@ -49,6 +53,7 @@ pub enum Job {
     Transfer(TransferJob),
     Sketch(SketchJob),
     SketchConvert(SketchConvertJob),
+    Cartoon(CartoonJob),
 }
 
 /// A synthetic portrait with its ground truth (`coif synth`).
@@ -179,6 +184,7 @@ impl Job {
                 | Job::Video(_)
                 | Job::Transfer(_)
                 | Job::Sketch(_)
+                | Job::Cartoon(_)
         )
     }
 
@@ -201,6 +207,7 @@ impl Job {
             Job::Transfer(j) => ("transfer", &j.out),
             Job::Sketch(j) => ("sketch", &j.out),
             Job::SketchConvert(j) => ("sketch-convert", &j.out),
+            Job::Cartoon(j) => ("cartoon", &j.out),
         };
         format!("{what} {}", path.display())
     }
@@ -224,6 +231,7 @@ pub fn run(engine: &Engine, job: &Job) -> anyhow::Result<Report> {
         Job::Transfer(j) => run_transfer(engine, j),
         Job::Sketch(j) => run_sketch(engine, j),
         Job::SketchConvert(j) => run_sketch_convert(j),
+        Job::Cartoon(j) => run_cartoon(engine, j),
         Job::Convert(j) => run_convert(j),
     }
 }

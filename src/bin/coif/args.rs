@@ -80,6 +80,8 @@ pub enum Command {
     /// Converts a sketch between its three files (.czs, .json, .svg), checking it: e.g. a
     /// sketch.svg edited in Inkscape back to a compact hair.czs.
     SketchConvert(SketchConvertArgs),
+    /// A sketch drawn as a cartoon (CZ06 Fig. 17): a brush stroke per curve, PNG or SVG.
+    Cartoon(crate::cartoon_args::CartoonArgs),
     /// Hair replacement (C13 §4): another model's strands carried through a tracked clip
     /// (each follows its nearest tracked strand) and rendered into every frame.
     Transfer(TransferArgs),
@@ -790,6 +792,7 @@ impl Command {
                     banner: None,
                 }
             }
+            Command::Cartoon(a) => a.request()?,
             Command::SketchConvert(a) => Request::one(
                 Job::SketchConvert(coif::jobs::SketchConvertJob {
                     input: a.sketch,
