@@ -14,7 +14,8 @@
 //! Width W is `CartoonParams::width`; k weighs the kinds as outline drawings do: side
 //! boundaries and sources (the silhouette) 1.3, occluding lines 1.15, dividing lines 1,
 //! stream lines 0.85. The `direction` style moves the widest point to 30 % from the root
-//! (t' = t^0.576 in the sine, so the stroke flicks out toward the tip) and adds arrow-heads.
+//! (t' = t^0.576 in the sine, so the stroke flicks out toward the tip) and adds arrow-heads
+//! to strokes longer than four of them.
 //!
 //! Rendering goes through the anti-aliased rasteriser's mesh path ([`crate::render::raster`],
 //! GPU and CPU mirror, 4× MSAA): each brush is triangulated into a strip between its two
@@ -351,8 +352,8 @@ fn growth(c: &Curve) -> Vec<[f32; 2]> {
         .iter()
         .map(|p| {
             let (mut g, mut n) = ([0.0f32; 2], 0);
-            for s in 0..2 {
-                if hair[s] && c.dirs[s] != 0 {
+            for (s, &has_hair) in hair.iter().enumerate() {
+                if has_hair && c.dirs[s] != 0 {
                     let a = p.side_angle(s);
                     let l = c.dirs[s] as f32;
                     g = [g[0] + l * a.cos(), g[1] + l * a.sin()];
@@ -508,10 +509,11 @@ pub fn brush(index: usize, c: &Curve, p: &CartoonParams) -> Option<Brush> {
         })
         .collect();
     let mut arrows = Vec::new();
-    if directed {
-        // One arrow-head per 60 px of stroke, pointing where the hair grows.
+    let size = 1.2 * p.width + 1.5;
+    // One arrow-head per 60 px of stroke, pointing where the hair grows; strokes shorter
+    // than four arrow-heads show the way by their taper alone (arrows would clutter them).
+    if directed && arc.length >= 4.0 * size {
         let count = ((arc.length / 60.0).round() as usize).max(1);
-        let size = 1.2 * p.width + 1.5;
         for k in 0..count {
             let t = (k as f32 + 0.5) / count as f32;
             let i = ((t * n as f32).round() as usize).min(n);
