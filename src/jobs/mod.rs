@@ -19,11 +19,17 @@ use serde_json::json;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+mod cartoon;
 mod sketch;
 mod video;
 
 use sketch::{run_sketch, run_sketch_convert, run_synth_hair};
 pub use sketch::{HairRegion, SketchConvertJob, SketchJob, SynthHairJob};
+use cartoon::run_cartoon;
+pub use cartoon::CartoonJob;
+
+use sketch::{run_sketch, run_sketch_convert};
+pub use sketch::{HairRegion, SketchConvertJob, SketchJob};
 use video::{run_synth_video, run_transfer, run_video};
 pub use video::{ClipSource, SynthVideoJob, TransferJob, VideoJob};
 
@@ -50,6 +56,7 @@ pub enum Job {
     Sketch(SketchJob),
     SketchConvert(SketchConvertJob),
     SynthHair(SynthHairJob),
+    Cartoon(CartoonJob),
 }
 
 /// A synthetic portrait with its ground truth (`coif synth`).
@@ -181,6 +188,7 @@ impl Job {
                 | Job::Transfer(_)
                 | Job::Sketch(_)
                 | Job::SynthHair(_)
+                | Job::Cartoon(_)
         )
     }
 
@@ -204,6 +212,7 @@ impl Job {
             Job::Sketch(j) => ("sketch", &j.out),
             Job::SketchConvert(j) => ("sketch-convert", &j.out),
             Job::SynthHair(j) => ("synth-hair", &j.out),
+            Job::Cartoon(j) => ("cartoon", &j.out),
         };
         format!("{what} {}", path.display())
     }
@@ -228,6 +237,7 @@ pub fn run(engine: &Engine, job: &Job) -> anyhow::Result<Report> {
         Job::Sketch(j) => run_sketch(engine, j),
         Job::SketchConvert(j) => run_sketch_convert(j),
         Job::SynthHair(j) => run_synth_hair(engine, j),
+        Job::Cartoon(j) => run_cartoon(engine, j),
         Job::Convert(j) => run_convert(j),
     }
 }

@@ -85,6 +85,8 @@ pub enum Command {
     /// A sketch back to a hair image (Chen and Zhu 2006 §3): the field filled in from the
     /// curves, texture along it, shading and colour from the sketch; over a photo if asked.
     SynthHair(synth_hair::SynthHairArgs),
+    /// A sketch drawn as a cartoon (CZ06 Fig. 17): a brush stroke per curve, PNG or SVG.
+    Cartoon(crate::cartoon_args::CartoonArgs),
     /// Hair replacement (C13 §4): another model's strands carried through a tracked clip
     /// (each follows its nearest tracked strand) and rendered into every frame.
     Transfer(TransferArgs),
@@ -796,6 +798,7 @@ impl Command {
                 }
             }
             Command::SynthHair(a) => a.request(),
+            Command::Cartoon(a) => a.request()?,
             Command::SketchConvert(a) => Request::one(
                 Job::SketchConvert(coif::jobs::SketchConvertJob {
                     input: a.sketch,

@@ -1,0 +1,131 @@
+//! A sketch drawn as a cartoon (`coif cartoon`, CZ06 Fig. 17): one brush stroke per curve,
+//! as a PNG through the rasteriser or as an SVG of Bézier outlines.
+
+use super::Report;
+use crate::error::Error;
+use crate::gpu::engine::Engine;
+use crate::io::images;
+use crate::sketch::cartoon::{render, to_svg_with_backdrop, CartoonParams};
+use crate::sketch::format;
+use anyhow::Context;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// `coif cartoon`: a sketch file to a PNG or an SVG (by the output's extension).
+#[derive(Clone, Debug)]
+pub struct CartoonJob {
+    /// hair.czs, sketch.json or sketch.svg.
+    pub sketch: PathBuf,
+    /// .png or .svg.
+    pub out: PathBuf,
+    /// A photo of the sketch's size to draw over instead of white paper.
+    pub over: Option<PathBuf>,
+    pub params: CartoonParams,
+}
+
+#[derive(Clone, Copy, PartialEq)]
+enum Output {
+    Png,
+    Svg,
+}
+
+fn output_kind(out: &Path) -> anyhow::Result<Output> {
+    let ext = out
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase());
+    match ext.as_deref() {
+        Some("png") => Ok(Output::Png),
+        Some("svg") => Ok(Output::Svg),
+        _ => Err(Error::Invalid(format!(
+            "{}: the cartoon is written as .png or .svg (by extension)",
+            out.display()
+        ))
+        .into()),
+    }
+}
+
+/// How the SVG refers to the backdrop: by file name when both sit in one folder (the pair
+/// can move together), else by absolute path.
+fn href(over: &Path, out: &Path) -> String {
+    let dir = |p: &Path| {
+        p.parent()
+            .map(|d| d.canonicalize().unwrap_or_else(|_| d.to_path_buf()))
+    };
+    match (dir(over), dir(out), over.file_name()) {
+        (Some(a), Some(b), Some(name)) if a == b => name.to_string_lossy().into_owned(),
+        _ => over
+            .canonicalize()
+            .unwrap_or_else(|_| over.to_path_buf())
+            .display()
+            .to_string(),
+    }
+}
+
+pub(super) fn run_cartoon(engine: &Engine, j: &CartoonJob) -> anyhow::Result<Report> {
+    let t0 = Instant::now();
+    // Everything is checked before anything is drawn or written.
+    let kind = output_kind(&j.out)?;
+    if let Some(parent) = j.out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        if !parent.is_dir() {
+            return Err(Error::Invalid(format!(
+                "{}: the output folder {} does not exist",
+                j.out.display(),
+                parent.display()
+            ))
+            .into());
+        }
+    }
+    let s = format::load(&j.sketch)?;
+    if s.curves.iter().all(|c| c.prims.is_empty()) {
+        return Err(Error::bad_file(&j.sketch, "the sketch has no curves: nothing to draw").into());
+    }
+    let photo = match &j.over {
+        Some(p) => {
+            let img = images::load_rgb(p)?;
+            if img.dimensions() != (s.width, s.height) {
+                return Err(Error::bad_file(
+                    p,
+                    format!(
+                        "the backdrop is {}x{} px but the sketch {} is {}x{}",
+                        img.width(),
+                        img.height(),
+                        j.sketch.display(),
+                        s.width,
+                        s.height
+                    ),
+                )
+                .into());
+            }
+            Some(img)
+        }
+        None => None,
+    };
+    let backend = match kind {
+        Output::Png => {
+            let img = render(engine, &s, &j.params, photo.as_ref())
+                .with_context(|| format!("drawing the cartoon of {}", j.sketch.display()))?;
+            crate::io::write_png(&j.out, &img)?;
+            engine.describe()
+        }
+        Output::Svg => {
+            let h = j.over.as_deref().map(|o| href(o, &j.out));
+            let text = to_svg_with_backdrop(&s, &j.params, h.as_deref());
+            crate::io::write_atomic(&j.out, text.as_bytes())?;
+            "svg".to_string()
+        }
+    };
+    Ok(Report {
+        summary: format!(
+            "cartoon: {} curves, {} style, width {} px, {}x{} -> {} ({:.2} s, {backend})",
+            s.curves.len(),
+            j.params.style.name(),
+            j.params.width,
+            s.width,
+            s.height,
+            j.out.display(),
+            t0.elapsed().as_secs_f64()
+        ),
+        ..Default::default()
+    })
+}
