@@ -264,7 +264,8 @@ pub fn run_all(engine: &Engine, jobs: &[Job]) -> anyhow::Result<Vec<Report>> {
 /// photo, each through orientation, directed hair, 3D strands and three renders (the
 /// original view, a novel view and a recolouring); then a comb, a cut and a short wind clip
 /// of the photo's hair; then a short synthetic clip tracked and recoloured (`coif video`);
-/// then the photo's hair as a CZ06 sketch, synthesised back from the sketch alone.
+/// then the photo's hair as a CZ06 sketch, synthesised back from the sketch alone and drawn
+/// as a cartoon.
 pub fn demo(out: &Path) -> Vec<Job> {
     let case = out.join("synth-long");
     let astro = out.join("astronaut");
@@ -443,6 +444,23 @@ pub fn demo(out: &Path) -> Vec<Job> {
         layers: None,
         params: Default::default(),
     }));
+    // Its cartoon (CZ06 Fig. 17): brush strokes coloured by growth direction, over the photo
+    // and as an SVG on paper.
+    let cartoon = crate::sketch::cartoon::CartoonParams {
+        style: crate::sketch::cartoon::Style::Direction,
+        ..Default::default()
+    };
+    for (file, over) in [
+        ("cartoon.png", Some(astro.join("image.png"))),
+        ("cartoon.svg", None),
+    ] {
+        jobs.push(Job::Cartoon(CartoonJob {
+            sketch: sk.join("hair.czs"),
+            out: sk.join(file),
+            over,
+            params: cartoon,
+        }));
+    }
     jobs
 }
 
