@@ -37,6 +37,7 @@ pub mod run;
 pub mod samples;
 pub mod shading;
 pub mod swc;
+pub mod texture;
 pub mod theta;
 pub mod vis;
 
