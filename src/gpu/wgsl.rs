@@ -24,6 +24,10 @@ pub const SHARED: &[(&str, &str)] = &[
         include_str!("../../wgsl/shared/colour.wgsl"),
     ),
     (
+        "shared/cz_tex.wgsl",
+        include_str!("../../wgsl/shared/cz_tex.wgsl"),
+    ),
+    (
         "shared/edit_stroke.wgsl",
         include_str!("../../wgsl/shared/edit_stroke.wgsl"),
     ),

@@ -40,6 +40,7 @@ pub mod samples;
 pub mod shading;
 pub mod synth;
 pub mod swc;
+pub mod texture;
 pub mod theta;
 pub mod vis;
 

@@ -4,7 +4,12 @@
 //! shaders share live in `wgsl/shared/` (see [`crate::gpu::wgsl`]) and, on the CPU side, in
 //! the modules without a stage (`field_cfg`, `pm_common`, `raster_common`, `base::colour`).
 
+pub mod cz_contrast;
 pub mod cz_fill;
+pub mod cz_hipass;
+pub mod cz_lic;
+pub mod cz_noise;
+pub mod cz_tex;
 pub mod cz_theta_gs;
 pub mod cz_window_sums;
 pub mod density_splat;
@@ -85,6 +90,10 @@ pub const ALL: &[&StageDef] = &[
     &cz_fill::STAGE,
     &cz_theta_gs::STAGE,
     &cz_window_sums::STAGE,
+    &cz_noise::STAGE,
+    &cz_lic::STAGE,
+    &cz_contrast::STAGE,
+    &cz_hipass::STAGE,
 ];
 
 /// Every registered render pass; the host is `crate::render::raster`.

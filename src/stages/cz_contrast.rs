@@ -1,0 +1,95 @@
+//! Contrast matching across Θ, step 2 of CZ06's texture synthesis (§3.2): mode 0 measures
+//! |∇⊥Θ I| (central differences of bilinear samples at ±1 px), mode 1 scales the band by
+//! ρ_s/ρ_cur clamped (both blurred alike). See `wgsl/cz_contrast.wgsl`; the host is `crate::sketch::texture`.
+
+use super::cz_tex::Domain;
+use crate::gpu::engine::{Bind, CpuBinding, StageDef};
+use rayon::prelude::*;
+
+pub const STAGE: StageDef = StageDef {
+    name: "cz_contrast",
+    wgsl: include_str!("../../wgsl/cz_contrast.wgsl"),
+    bindings: &[
+        Bind::Uniform,
+        Bind::Read,
+        Bind::Read,
+        Bind::Read,
+        Bind::Read,
+        Bind::Read,
+        Bind::ReadWrite,
+    ],
+    cpu: cz_contrast_cpu,
+};
+
+pub const MEASURE: u32 = 0;
+pub const GAIN: u32 = 1;
+
+#[derive(Clone, Copy, Debug, Default, encase::ShaderType)]
+pub struct Config {
+    pub width: u32,
+    pub height: u32,
+    /// [`MEASURE`] or [`GAIN`].
+    pub mode: u32,
+    pub gain_min: f32,
+    pub gain_max: f32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+    pub _pad2: u32,
+}
+
+pub fn workgroups(cfg: &Config) -> [u32; 3] {
+    use crate::gpu::engine::groups;
+    [groups(cfg.width, 8), groups(cfg.height, 8), 1]
+}
+
+fn side_value(d: &Domain, p: [f32; 2], own: f32) -> f32 {
+    let v = d.value(p);
+    if v[1] > 0.0 {
+        v[0] / v[1]
+    } else {
+        own
+    }
+}
+
+fn cz_contrast_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
+    let cfg: Config = b[0].uniform();
+    let (flags, tang, src) = (b[1].get::<u32>(), b[2].get::<[f32; 2]>(), b[3].get::<f32>());
+    let (rho_s, cur_s) = (b[4].get::<f32>(), b[5].get::<f32>());
+    let (rho_s, cur_s): (&[f32], &[f32]) = (&rho_s, &cur_s);
+    let d = Domain {
+        width: cfg.width,
+        height: cfg.height,
+        flags: &flags,
+        tang: &tang,
+        src: &src,
+    };
+    let mut out = b[6].get_mut::<f32>();
+    let w = cfg.width as usize;
+    out[..w * cfg.height as usize]
+        .par_chunks_mut(w)
+        .enumerate()
+        .for_each(|(y, row)| {
+            for (x, o) in row.iter_mut().enumerate() {
+                let i = y * w + x;
+                if d.flags[i] == 0 {
+                    *o = 0.0;
+                    continue;
+                }
+                if cfg.mode == MEASURE {
+                    let t = d.tang[i];
+                    let n = [-t[1], t[0]];
+                    let p = [x as f32 + 0.5, y as f32 + 0.5];
+                    let a = side_value(&d, [p[0] + n[0], p[1] + n[1]], d.src[i]);
+                    let b = side_value(&d, [p[0] - n[0], p[1] - n[1]], d.src[i]);
+                    *o = (0.5 * (a - b)).abs();
+                    continue;
+                }
+                let mut g = cfg.gain_max;
+                let cur = cur_s[i];
+                if cur > 0.0 {
+                    g = (rho_s[i] / cur).clamp(cfg.gain_min, cfg.gain_max);
+                }
+                *o = d.src[i] * g;
+            }
+        });
+}

@@ -1,0 +1,69 @@
+// CZ06 §3.2, texture synthesis, step 2: contrast matching across Θ. Two modes:
+//  0 (measure): out = |∇⊥Θ src| on the domain, 0 off it: the central difference
+//    (src(p + n) − src(p − n)) / 2 of bilinear samples at ±1 px along n = (−sin Θ, cos Θ);
+//    a side with no domain tap takes the pixel's own value (one-sided at the hair's edge).
+//  1 (gain): out = src · clamp(ρ_s / ρ_cur, gain_min, gain_max): the field's ρ and the
+//    measured contrast, both blurred by the same Gaussian (`sep_blur`, 0 off the domain, so
+//    their ratio is the ratio of their local means over the domain). Scaling the local
+//    deviation of a zero-mean band is scaling the band. The gain is local but smooth: a gain
+//    that varied pixel to pixel with the iid draws of ρ off the sketch would add I·∇g to the
+//    gradient (mean |∇⊥I| 1.16-1.19 ρ on the synthetic cases against 1.02-1.05 smoothed).
+//    Where ρ_cur is 0 the gain is gain_max.
+// Off the domain the output is 0. CPU mirror: `src/stages/cz_contrast.rs`.
+
+struct Config {
+    width: u32,
+    height: u32,
+    mode: u32,
+    gain_min: f32,
+    gain_max: f32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
+}
+
+@group(0) @binding(0) var<uniform> cfg: Config;
+@group(0) @binding(1) var<storage, read> flags: array<u32>;
+@group(0) @binding(2) var<storage, read> tang: array<vec2<f32>>;
+@group(0) @binding(3) var<storage, read> src: array<f32>;
+// Mode 1 only: the blurred ρ and the blurred measure.
+@group(0) @binding(4) var<storage, read> rho_s: array<f32>;
+@group(0) @binding(5) var<storage, read> cur_s: array<f32>;
+@group(0) @binding(6) var<storage, read_write> out: array<f32>;
+
+#include "shared/cz_tex.wgsl"
+
+fn side_value(p: vec2<f32>, own: f32) -> f32 {
+    let v = tex_value(p);
+    if v.y > 0.0 {
+        return v.x / v.y;
+    }
+    return own;
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if gid.x >= cfg.width || gid.y >= cfg.height {
+        return;
+    }
+    let i = gid.y * cfg.width + gid.x;
+    if flags[i] == 0u {
+        out[i] = 0.0;
+        return;
+    }
+    if cfg.mode == 0u {
+        let t = tang[i];
+        let n = vec2<f32>(-t.y, t.x);
+        let p = vec2<f32>(f32(gid.x) + 0.5, f32(gid.y) + 0.5);
+        let a = side_value(p + n, src[i]);
+        let b = side_value(p - n, src[i]);
+        out[i] = abs(0.5 * (a - b));
+        return;
+    }
+    var g = cfg.gain_max;
+    let cur = cur_s[i];
+    if cur > 0.0 {
+        g = clamp(rho_s[i] / cur, cfg.gain_min, cfg.gain_max);
+    }
+    out[i] = src[i] * g;
+}
