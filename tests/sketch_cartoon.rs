@@ -41,6 +41,7 @@ fn synth_sketch(size: u32) -> (Sketch, image::RgbImage) {
         colour: ColourMap {
             uv: vec![[8.0, 12.0]; COLOUR_BINS],
         },
+        region: Vec::new(),
     };
     (format::quantise(&s), case.image)
 }

@@ -61,7 +61,13 @@ fn lightness(img: &RgbImage) -> Vec<f32> {
 fn texture_follows(r: &Synthesis, w: u32, h: u32) -> f64 {
     let gray = GrayImage::from_rgb(&r.image);
     let mask8: Vec<u8> = r.hair.iter().map(|&m| m as u8).collect();
-    let o = orient(&Engine::cpu(), &gray, Some(&mask8), &OrientParams::default()).unwrap();
+    let o = orient(
+        &Engine::cpu(),
+        &gray,
+        Some(&mask8),
+        &OrientParams::default(),
+    )
+    .unwrap();
     let inner = erode(&mask_image(&r.hair, w, h), 3);
     mean_orient_error_deg(&o.theta, &r.field.theta, &inner).0
 }
@@ -165,7 +171,14 @@ fn synthesis_follows_the_sketch_and_round_trips() {
         let st = texture::texture_stats(&r.high, &r.field, &r.hair);
         // Against the input: a new noise draw, so reported only.
         let psnr = coif::render::psnr_region(img, &r.image, &r.hair);
-        let ssim = ssim_region(&lightness(img), &lightness(&r.image), w as usize, h as usize, &r.hair, 100.0);
+        let ssim = ssim_region(
+            &lightness(img),
+            &lightness(&r.image),
+            w as usize,
+            h as usize,
+            &r.hair,
+            100.0,
+        );
         // The round trip: the synthesised image analysed again, inside the sketch's region.
         let again = sketch_of(&r.image, &r.hair);
         let within = length_within(&s.curves, &again.curves, 3.0);
@@ -179,10 +192,20 @@ fn synthesis_follows_the_sketch_and_round_trips() {
         rows.push((*name, err, st.contrast_ratio, st.along_across, within));
     }
     for (name, err, ratio, along, within) in rows {
-        assert!(err <= 5.0, "{name}: orientation of the texture {err:.2}° from the field");
-        assert!((0.9..=1.1).contains(&ratio), "{name}: contrast ratio {ratio:.3}");
+        assert!(
+            err <= 5.0,
+            "{name}: orientation of the texture {err:.2}° from the field"
+        );
+        assert!(
+            (0.9..=1.1).contains(&ratio),
+            "{name}: contrast ratio {ratio:.3}"
+        );
         assert!(along <= 0.2, "{name}: along/across {along:.3}");
-        assert!(within >= 0.9, "{name}: {:.1}% of the curves' length within 3 px", 100.0 * within);
+        assert!(
+            within >= 0.9,
+            "{name}: {:.1}% of the curves' length within 3 px",
+            100.0 * within
+        );
     }
 }
 
@@ -269,10 +292,19 @@ fn the_command_writes_the_image_and_refuses_bad_input() {
     let out = image::open(d.join("hair.png")).unwrap().to_rgb8();
     assert_eq!(out.dimensions(), (128, 128));
     // Off the hair the photo shows through.
-    let off = (0..128 * 128).find(|&i| !region::fill(&s.region, 128, 128)[i]).unwrap();
+    let off = (0..128 * 128)
+        .find(|&i| !region::fill(&s.region, 128, 128)[i])
+        .unwrap();
     let (x, y) = ((off % 128) as u32, (off / 128) as u32);
     assert_eq!(out.get_pixel(x, y), img.get_pixel(x, y));
-    for f in ["theta.npy", "vector.npy", "rho.npy", "low.npy", "high.npy", "field.png"] {
+    for f in [
+        "theta.npy",
+        "vector.npy",
+        "rho.npy",
+        "low.npy",
+        "high.npy",
+        "field.png",
+    ] {
         assert!(d.join("layers").join(f).is_file(), "{f}");
     }
     // JPEG by extension, from the SVG.
@@ -285,17 +317,28 @@ fn the_command_writes_the_image_and_refuses_bad_input() {
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    assert_eq!(&std::fs::read(d.join("hair.jpg")).unwrap()[..2], &[0xFF, 0xD8]);
+    assert_eq!(
+        &std::fs::read(d.join("hair.jpg")).unwrap()[..2],
+        &[0xFF, 0xD8]
+    );
 
     let sk = d.join("hair.czs");
     let os = |p: &Path| p.as_os_str().to_owned();
     // The output's type, the photo's size, an empty sketch, a drawing that is not a sketch.
     fails_with(
-        &["synth-hair".as_ref(), "--sketch".as_ref(), &os(&sk), "--out".as_ref(), &os(&d.join("x.bmp"))],
+        &[
+            "synth-hair".as_ref(),
+            "--sketch".as_ref(),
+            &os(&sk),
+            "--out".as_ref(),
+            &os(&d.join("x.bmp")),
+        ],
         &["x.bmp", ".png or .jpg"],
     );
     assert!(!d.join("x.bmp").exists());
-    image::RgbImage::new(64, 64).save(d.join("small.png")).unwrap();
+    image::RgbImage::new(64, 64)
+        .save(d.join("small.png"))
+        .unwrap();
     fails_with(
         &[
             "synth-hair".as_ref(),
@@ -312,7 +355,13 @@ fn the_command_writes_the_image_and_refuses_bad_input() {
     empty.curves.clear();
     format::save(&empty, &d.join("empty.json")).unwrap();
     fails_with(
-        &["synth-hair".as_ref(), "--sketch".as_ref(), &os(&d.join("empty.json")), "--out".as_ref(), &os(&d.join("z.png"))],
+        &[
+            "synth-hair".as_ref(),
+            "--sketch".as_ref(),
+            &os(&d.join("empty.json")),
+            "--out".as_ref(),
+            &os(&d.join("z.png")),
+        ],
         &["empty.json", "no curves"],
     );
     std::fs::write(
@@ -321,7 +370,13 @@ fn the_command_writes_the_image_and_refuses_bad_input() {
     )
     .unwrap();
     fails_with(
-        &["synth-hair".as_ref(), "--sketch".as_ref(), &os(&d.join("drawing.svg")), "--out".as_ref(), &os(&d.join("z.png"))],
+        &[
+            "synth-hair".as_ref(),
+            "--sketch".as_ref(),
+            &os(&d.join("drawing.svg")),
+            "--out".as_ref(),
+            &os(&d.join("z.png")),
+        ],
         &["drawing.svg", "not a coif sketch"],
     );
     assert!(!d.join("y.png").exists() && !d.join("z.png").exists());

@@ -23,13 +23,11 @@ mod cartoon;
 mod sketch;
 mod video;
 
-use sketch::{run_sketch, run_sketch_convert, run_synth_hair};
-pub use sketch::{HairRegion, SketchConvertJob, SketchJob, SynthHairJob};
 use cartoon::run_cartoon;
 pub use cartoon::CartoonJob;
+use sketch::{run_sketch, run_sketch_convert, run_synth_hair};
+pub use sketch::{HairRegion, SketchConvertJob, SketchJob, SynthHairJob};
 
-use sketch::{run_sketch, run_sketch_convert};
-pub use sketch::{HairRegion, SketchConvertJob, SketchJob};
 use video::{run_synth_video, run_transfer, run_video};
 pub use video::{ClipSource, SynthVideoJob, TransferJob, VideoJob};
 
