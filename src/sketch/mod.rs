@@ -26,6 +26,7 @@
 //! reverse with the axis and the labels stay.
 
 pub mod bands;
+pub mod edit;
 pub mod fill;
 pub mod format;
 pub mod oracle;
