@@ -20,10 +20,13 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 mod sketch;
+mod sketch_edit;
 mod video;
 
 use sketch::{run_sketch, run_sketch_convert};
 pub use sketch::{HairRegion, SketchConvertJob, SketchJob};
+use sketch_edit::run_sketch_edit;
+pub use sketch_edit::{EditStep, SketchEditJob};
 use video::{run_synth_video, run_transfer, run_video};
 pub use video::{ClipSource, SynthVideoJob, TransferJob, VideoJob};
 
@@ -49,6 +52,7 @@ pub enum Job {
     Transfer(TransferJob),
     Sketch(SketchJob),
     SketchConvert(SketchConvertJob),
+    SketchEdit(SketchEditJob),
 }
 
 /// A synthetic portrait with its ground truth (`coif synth`).
@@ -201,6 +205,7 @@ impl Job {
             Job::Transfer(j) => ("transfer", &j.out),
             Job::Sketch(j) => ("sketch", &j.out),
             Job::SketchConvert(j) => ("sketch-convert", &j.out),
+            Job::SketchEdit(j) => ("sketch-edit", &j.out),
         };
         format!("{what} {}", path.display())
     }
@@ -224,6 +229,7 @@ pub fn run(engine: &Engine, job: &Job) -> anyhow::Result<Report> {
         Job::Transfer(j) => run_transfer(engine, j),
         Job::Sketch(j) => run_sketch(engine, j),
         Job::SketchConvert(j) => run_sketch_convert(j),
+        Job::SketchEdit(j) => run_sketch_edit(j),
         Job::Convert(j) => run_convert(j),
     }
 }

@@ -80,6 +80,8 @@ pub enum Command {
     /// Converts a sketch between its three files (.czs, .json, .svg), checking it: e.g. a
     /// sketch.svg edited in Inkscape back to a compact hair.czs.
     SketchConvert(SketchConvertArgs),
+    /// Edits a sketch: delete, move, add or flip curves, change contrast, edit shading bases.
+    SketchEdit(crate::sketch_edit_args::SketchEditArgs),
     /// Hair replacement (C13 §4): another model's strands carried through a tracked clip
     /// (each follows its nearest tracked strand) and rendered into every frame.
     Transfer(TransferArgs),
@@ -797,6 +799,7 @@ impl Command {
                 }),
                 cpu,
             ),
+            Command::SketchEdit(a) => a.request()?,
             Command::Orient(a) => Request::Jobs {
                 jobs: vec![Job::Orient(OrientJob {
                     image: a.image,

@@ -1,6 +1,7 @@
 //! The `coif` command line: arguments in, jobs run, reports and errors out.
 
 mod args;
+mod sketch_edit_args;
 
 use args::{Cli, Request};
 use clap::Parser;
