@@ -152,7 +152,7 @@ fn each_edit_does_what_it_says_through_the_files() {
         (Edit::Flip(2, Side::Right), "no right direction"),
         (Edit::Flip(4, Side::Both), "undecided"),
     ] {
-        let m = apply(&s, &[e.clone()]).unwrap_err().to_string();
+        let m = apply(&s, std::slice::from_ref(&e)).unwrap_err().to_string();
         assert!(m.contains(needle), "{e}: {m}");
         println!("refused: {m}");
     }

@@ -653,10 +653,11 @@ fn kind_of(s: &str) -> std::result::Result<Kind, String> {
     .ok_or_else(|| format!("unknown kind \"{s}\": expected one of a, b, c, d, e"))
 }
 
-fn json_curve(
-    c: JsonCurve,
-    drawn: &dyn Fn(Option<Kind>, &[[f32; 2]], Extra) -> std::result::Result<(Curve, f32), String>,
-) -> std::result::Result<(Curve, f32), String> {
+/// Makes a curve of a drawn line: (its kind if the file names one, the points, the rest).
+type Drawn<'a> =
+    dyn Fn(Option<Kind>, &[[f32; 2]], Extra) -> std::result::Result<(Curve, f32), String> + 'a;
+
+fn json_curve(c: JsonCurve, drawn: &Drawn<'_>) -> std::result::Result<(Curve, f32), String> {
     match c {
         JsonCurve::Lattice {
             kind,
