@@ -31,7 +31,13 @@ fn random_sketch(
         } else {
             n_prims - 1 + r.below(3) as usize
         };
-        let (mut x, mut y) = (r.range_f32(0.0, w as f32), r.range_f32(0.0, h as f32));
+        // Started far enough inside that the walk stays in the image (the readers refuse
+        // centres more than a step outside it).
+        let m = |n_px: u32| (5.0 * n as f32).min(0.5 * n_px as f32);
+        let (mut x, mut y) = (
+            r.range_f32(m(w), w as f32 - m(w)),
+            r.range_f32(m(h), h as f32 - m(h)),
+        );
         let mut axis = r.range_f32(0.0, 2.0 * PI);
         let mut prims = Vec::new();
         for k in 0..n {

@@ -21,13 +21,15 @@ use std::time::Instant;
 
 mod cartoon;
 mod sketch;
+mod sketch_edit;
 mod video;
 
 use cartoon::run_cartoon;
 pub use cartoon::CartoonJob;
 use sketch::{run_sketch, run_sketch_convert, run_synth_hair};
 pub use sketch::{HairRegion, SketchConvertJob, SketchJob, SynthHairJob};
-
+use sketch_edit::run_sketch_edit;
+pub use sketch_edit::{EditStep, SketchEditJob};
 use video::{run_synth_video, run_transfer, run_video};
 pub use video::{ClipSource, SynthVideoJob, TransferJob, VideoJob};
 
@@ -55,6 +57,7 @@ pub enum Job {
     SketchConvert(SketchConvertJob),
     SynthHair(SynthHairJob),
     Cartoon(CartoonJob),
+    SketchEdit(SketchEditJob),
 }
 
 /// A synthetic portrait with its ground truth (`coif synth`).
@@ -211,6 +214,7 @@ impl Job {
             Job::SketchConvert(j) => ("sketch-convert", &j.out),
             Job::SynthHair(j) => ("synth-hair", &j.out),
             Job::Cartoon(j) => ("cartoon", &j.out),
+            Job::SketchEdit(j) => ("sketch-edit", &j.out),
         };
         format!("{what} {}", path.display())
     }
@@ -236,6 +240,7 @@ pub fn run(engine: &Engine, job: &Job) -> anyhow::Result<Report> {
         Job::SketchConvert(j) => run_sketch_convert(j),
         Job::SynthHair(j) => run_synth_hair(engine, j),
         Job::Cartoon(j) => run_cartoon(engine, j),
+        Job::SketchEdit(j) => run_sketch_edit(j),
         Job::Convert(j) => run_convert(j),
     }
 }

@@ -216,6 +216,7 @@ pub(super) fn run_synth_hair(engine: &Engine, j: &SynthHairJob) -> anyhow::Resul
         .into());
     }
     let s = crate::sketch::format::load(&j.sketch)?;
+    crate::sketch::format::require_curves(&s, &j.sketch)?;
     let over = match &j.over {
         Some(p) => {
             let img = images::load_rgb(p)?;

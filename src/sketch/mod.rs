@@ -27,6 +27,7 @@
 
 pub mod bands;
 pub mod cartoon;
+pub mod edit;
 pub mod fill;
 pub mod format;
 pub mod oracle;

@@ -87,6 +87,8 @@ pub enum Command {
     SynthHair(synth_hair::SynthHairArgs),
     /// A sketch drawn as a cartoon (CZ06 Fig. 17): a brush stroke per curve, PNG or SVG.
     Cartoon(crate::cartoon_args::CartoonArgs),
+    /// Edits a sketch: delete, move, add or flip curves, change contrast, edit shading bases.
+    SketchEdit(crate::sketch_edit_args::SketchEditArgs),
     /// Hair replacement (C13 §4): another model's strands carried through a tracked clip
     /// (each follows its nearest tracked strand) and rendered into every frame.
     Transfer(TransferArgs),
@@ -806,6 +808,7 @@ impl Command {
                 }),
                 cpu,
             ),
+            Command::SketchEdit(a) => a.request()?,
             Command::Orient(a) => Request::Jobs {
                 jobs: vec![Job::Orient(OrientJob {
                     image: a.image,

@@ -2,6 +2,7 @@
 
 mod args;
 mod cartoon_args;
+mod sketch_edit_args;
 
 use args::{Cli, Request};
 use clap::Parser;

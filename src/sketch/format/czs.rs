@@ -443,7 +443,8 @@ fn unpack(data: &[u8], version: u8) -> std::result::Result<Codes, String> {
     })
 }
 
-/// Reads a `.czs` file's bytes; `path` names it in errors.
+/// Reads a `.czs` file's bytes; `path` names it in errors. The sketch is checked by
+/// [`validate`].
 pub fn from_czs(bytes: &[u8], path: &Path) -> Result<Sketch> {
     let bad = |m: String| Error::bad_file(path, m);
     if bytes.is_empty() {
@@ -516,7 +517,9 @@ pub fn from_czs(bytes: &[u8], path: &Path) -> Result<Sketch> {
         return Err(bad("checksum mismatch: the file is corrupted".into()));
     }
     let c = unpack(&body[at..], bytes[3]).map_err(bad)?;
-    Ok(decode(&c))
+    let s = decode(&c);
+    validate(&s, path)?;
+    Ok(s)
 }
 
 #[cfg(test)]

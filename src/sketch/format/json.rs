@@ -156,11 +156,30 @@ pub fn validate_json(v: &serde_json::Value) -> std::result::Result<(), String> {
 }
 
 /// Reads `sketch.json` text; `path` names it in errors. The text must match the schema;
-/// the numbers are then snapped to the `.czs` lattice.
+/// the numbers are then snapped to the `.czs` lattice and the sketch checked by [`validate`].
 pub fn from_json(text: &str, path: &Path) -> Result<Sketch> {
     let bad = |m: String| Error::bad_file(path, m);
-    let v: serde_json::Value =
-        serde_json::from_str(text).map_err(|e| bad(format!("malformed JSON: {e}")))?;
+    let v: serde_json::Value = serde_json::from_str(text).map_err(|e| {
+        // A hand edit may write NaN or Infinity, which JSON cannot hold: say so.
+        let at = (e.line() > 0)
+            .then(|| text.lines().nth(e.line() - 1))
+            .flatten();
+        let token = at.and_then(|l| {
+            let rest = l.get(e.column().saturating_sub(1)..).unwrap_or("");
+            ["NaN", "nan", "Infinity", "-Infinity", "inf", "-inf"]
+                .into_iter()
+                .find(|t| rest.starts_with(t))
+        });
+        match token {
+            Some(t) => bad(format!(
+                "malformed JSON: {t} at line {} column {} is not a number (JSON has no NaN \
+                 or infinity; every number of a sketch must be finite)",
+                e.line(),
+                e.column()
+            )),
+            None => bad(format!("malformed JSON: {e}")),
+        }
+    })?;
     validate_json(&v).map_err(|m| {
         bad(format!(
             "does not match the schema schemas/sketch.v1.schema.json: {m}"
@@ -246,5 +265,7 @@ pub fn from_json(text: &str, path: &Path) -> Result<Sketch> {
         colour: j.colour,
         region: j.region,
     };
-    Ok(quantise(&sketch))
+    let q = quantise(&sketch);
+    validate(&q, path)?;
+    Ok(q)
 }

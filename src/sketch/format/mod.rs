@@ -35,9 +35,11 @@ use std::path::Path;
 mod czs;
 mod json;
 mod svg;
+pub(crate) mod validate;
 pub use czs::*;
 pub use json::*;
 pub use svg::*;
+pub use validate::{require_curves, validate, MARGIN};
 
 /// File magic of `.czs`.
 pub const MAGIC: &[u8; 3] = b"CZS";
@@ -584,7 +586,8 @@ pub fn quantise_colour(c: &ColourMap) -> ColourMap {
 // ---------------------------------------------------------------------------------------
 // Files
 
-/// Reads a sketch from `hair.czs`, `sketch.json` or `sketch.svg`, by extension.
+/// Reads a sketch from `hair.czs`, `sketch.json` or `sketch.svg`, by extension, checked
+/// by [`validate`] (each reader runs it).
 pub fn load(path: &Path) -> Result<Sketch> {
     let ext = path
         .extension()

@@ -531,7 +531,9 @@ fn path_polygons(d: &str) -> std::result::Result<Vec<Vec<[f64; 2]>>, String> {
 /// Reads `sketch.svg` text; `path` names it in errors. Curves are read from the polylines'
 /// points through any transforms an editor added (snapped to the lattice, so a curve moved
 /// in Inkscape moves), their labels, side angles and contrasts from the data attributes;
-/// bases from the ellipses' geometry and `data-amp`.
+/// bases from the ellipses' geometry and `data-amp`. The sketch is checked by [`validate`].
 pub fn from_svg(text: &str, path: &Path) -> Result<Sketch> {
-    parse_svg(text).map_err(|m| Error::bad_file(path, m))
+    let s = parse_svg(text).map_err(|m| Error::bad_file(path, m))?;
+    validate(&s, path)?;
+    Ok(s)
 }
