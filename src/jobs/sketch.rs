@@ -198,6 +198,12 @@ pub(crate) fn write_image(path: &std::path::Path, img: &image::RgbImage) -> anyh
     Ok(())
 }
 
+fn is_jpeg(p: &std::path::Path) -> bool {
+    p.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("jpg") || e.eq_ignore_ascii_case("jpeg"))
+}
+
 pub(super) fn run_synth_hair(engine: &Engine, j: &SynthHairJob) -> anyhow::Result<Report> {
     let t0 = Instant::now();
     // The output's type is checked before any work.
@@ -256,7 +262,29 @@ pub(super) fn run_synth_hair(engine: &Engine, j: &SynthHairJob) -> anyhow::Resul
             &crate::sketch::vis::field_picture(&backdrop, &r.field),
         )?;
     }
-    write_image(&j.out, &r.image)?;
+    if j.over.is_none() && !is_jpeg(&j.out) {
+        // Hair on a transparent card (its colour under alpha 0), ready to composite.
+        let w = s.width;
+        let rgba = image::RgbaImage::from_fn(w, s.height, |x, y| {
+            let p = r.image.get_pixel(x, y);
+            let a = if r.hair[(y * w + x) as usize] { 255 } else { 0 };
+            image::Rgba([p[0], p[1], p[2], a])
+        });
+        crate::io::write_png(&j.out, &rgba)?;
+    } else if j.over.is_none() {
+        // JPEG has no alpha: the hair on white paper.
+        let w = s.width;
+        let paper = image::RgbImage::from_fn(w, s.height, |x, y| {
+            if r.hair[(y * w + x) as usize] {
+                *r.image.get_pixel(x, y)
+            } else {
+                image::Rgb([255, 255, 255])
+            }
+        });
+        write_image(&j.out, &paper)?;
+    } else {
+        write_image(&j.out, &r.image)?;
+    }
     Ok(Report {
         summary: format!(
             "synth-hair: {} ({}x{}, {} curves, seed {}) -> {} ({:.1} s on {})",

@@ -93,9 +93,26 @@ fn luv_to_linear(l: f32, u: f32, v: f32) -> [f64; 3] {
     ]
 }
 
-/// 8-bit sRGB of an L*u*v* colour, clipped to the gamut per channel.
+/// 8-bit sRGB of an L*u*v* colour, its chroma reduced into the gamut at constant L*.
 pub fn luv_to_rgb(l: f32, u: f32, v: f32) -> [u8; 3] {
-    luv_to_linear(l, u, v).map(|c| {
+    // Out of gamut, the chroma shrinks at constant L* (bisection on its scale; gray is in
+    // gamut): clipping each channel instead would change the lightness, and with it the
+    // texture's streaks in dark or light hair.
+    let inside = |c: [f64; 3]| c.iter().all(|v| (-1e-4..=1.0 + 1e-4).contains(v));
+    let mut rgb = luv_to_linear(l, u, v);
+    if !inside(rgb) {
+        let (mut lo, mut hi) = (0.0f32, 1.0f32);
+        for _ in 0..16 {
+            let m = 0.5 * (lo + hi);
+            if inside(luv_to_linear(l, m * u, m * v)) {
+                lo = m;
+            } else {
+                hi = m;
+            }
+        }
+        rgb = luv_to_linear(l, lo * u, lo * v);
+    }
+    rgb.map(|c| {
         (linear_to_srgb(c.clamp(0.0, 1.0)) * 255.0)
             .round()
             .clamp(0.0, 255.0) as u8

@@ -35,7 +35,8 @@ pub struct Synthesis {
     pub high: Vec<f32>,
     /// I_Y = I_L + I_H clamped to [0, 100] on the hair; the low band's mean elsewhere.
     pub gray: Vec<f32>,
-    /// The coloured image: hair through the colour map, the rest from `over` or white.
+    /// The coloured image: hair through the colour map, the rest from `over` or, without
+    /// one, the hair's mean colour.
     pub image: RgbImage,
     pub seconds: Vec<(&'static str, f64)>,
 }
@@ -95,6 +96,9 @@ pub fn synthesise(
             }
         })
         .collect();
+    // Without a photo, the hair's mean colour fills the rest: a neutral card that adds no
+    // edge of its own along the region's outline (`coif synth-hair` marks it transparent).
+    let card = image::Rgb(s.colour.to_rgb(s.shading.mean));
     let image = RgbImage::from_fn(w, h, |x, y| {
         let i = y as usize * w as usize + x as usize;
         if hair[i] {
@@ -102,7 +106,7 @@ pub fn synthesise(
         } else {
             match over {
                 Some(o) => *o.get_pixel(x, y),
-                None => image::Rgb([255, 255, 255]),
+                None => card,
             }
         }
     });

@@ -11,7 +11,8 @@ pub struct SynthHairArgs {
     /// A sketch: hair.czs, sketch.json or sketch.svg (e.g. edited in Inkscape).
     #[arg(long)]
     sketch: PathBuf,
-    /// The image to write (.png or .jpg).
+    /// The image to write: .png (the hair on a transparent card unless --over is given) or
+    /// .jpg (on white).
     #[arg(long)]
     out: PathBuf,
     /// Seed of the noise draws (default: the sketch's own): another seed gives another
@@ -21,7 +22,7 @@ pub struct SynthHairArgs {
     /// Rounds of streamline averaging and contrast matching.
     #[arg(long, default_value_t = coif::sketch::texture::TextureParams::default().rounds)]
     rounds: u32,
-    /// A photo of the sketch's size to put the hair over (else a white background).
+    /// A photo of the sketch's size to put the hair over.
     #[arg(long)]
     over: Option<PathBuf>,
     /// Also write the filled field and bands (theta.npy, vector.npy, rho.npy, low.npy,
