@@ -3,7 +3,8 @@
 //! white noise and the same field (filled from the oracle sketch of `coif synth` long), the
 //! same kernel (box, 2·4 + 1 taps; ours: RK2 steps of 1 px, 4 each way), 1 and 8 iterations,
 //! with the time ratio ours/rlic and the correlation of the two outputs over the hair. Then
-//! the whole `synthesise` (8 rounds) on the same field.
+//! the whole `synthesise` (8 rounds) on the same field; with lavapipe, the largest difference
+//! of its outputs from the cpu backend's (parity at 512²).
 //!
 //! The peer runs in a virtualenv the bench creates on first use (`python3 -m venv`, then
 //! `pip install numpy rlic`) under `$CARGO_TARGET_DIR/peer-venv` (or `target/peer-venv`;
@@ -145,6 +146,12 @@ fn corr(a: &[f32], b: &[f32], keep: &[bool]) -> f64 {
     sab / (saa * sbb).sqrt()
 }
 
+fn max_diff(a: &[f32], b: &[f32]) -> f32 {
+    a.iter()
+        .zip(b)
+        .fold(0.0f32, |m, (x, y)| m.max((x - y).abs()))
+}
+
 fn main() {
     let size: u32 = env("COIF_BENCH_SIZE", 512);
     let reps: u32 = env("COIF_BENCH_REPS", 5);
@@ -218,11 +225,19 @@ fn main() {
         if let Some(Err(e)) = &pr {
             println!("rlic failed: {e}");
         }
+        let mut first: Option<Vec<f32>> = None;
         for (bname, engine) in &engines {
             let mut out = Vec::new();
             let ms = median_ms(reps, || {
                 out = texture::lic(engine, &field, &hair, &noise, half_len, iters).expect("lic");
             });
+            match &first {
+                None => first = Some(out.clone()),
+                Some(c) => println!(
+                    "{iters} iteration(s) at {size}²: max |{bname} − cpu| = {:.2e}",
+                    max_diff(&out, c)
+                ),
+            }
             match &pr {
                 Some(Ok((theirs, pms, name))) => println!(
                     "{iters} iteration(s): ours ({bname}) {ms:.1} ms, {name} {pms:.1} ms, ratio \
@@ -235,14 +250,28 @@ fn main() {
         }
     }
     let p = TextureParams::default();
+    let mut first: Option<Vec<f32>> = None;
     for (bname, engine) in &engines {
+        let mut out = Vec::new();
         let ms = median_ms(reps.min(3), || {
-            texture::synthesise(engine, &field, &hair, 1, &p).expect("synthesise");
+            out = texture::synthesise(engine, &field, &hair, 1, &p).expect("synthesise");
         });
+        let s = texture::texture_stats(&out, &field, &hair);
         println!(
-            "synthesise ({} rounds, {size}²) on {bname}: {:.2} s",
+            "synthesise ({} rounds, {size}²) on {bname}: {:.2} s; contrast ratio {:.3}, \
+             along/across {:.3}",
             p.rounds,
-            ms / 1e3
+            ms / 1e3,
+            s.contrast_ratio,
+            s.along_across
         );
+        match &first {
+            None => first = Some(out),
+            Some(c) => println!(
+                "synthesise at {size}²: max |{bname} − cpu| = {:.2e} (max |I_H| {:.1})",
+                max_diff(&out, c),
+                c.iter().fold(0.0f32, |m, v| m.max(v.abs()))
+            ),
+        }
     }
 }
