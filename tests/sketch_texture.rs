@@ -2,7 +2,7 @@
 //! `coif::sketch::texture`).
 //!
 //! - Parity of the passes `cz_noise`, `cz_lic`, `cz_contrast` (both modes) and `cz_hipass` on
-//!   lavapipe against their CPU mirrors at 1×1, 63×65 and 200×120, and of the whole
+//!   lavapipe against their CPU mirrors (the shared sampling in `shared/cz_tex.wgsl`) at 1×1, 63×65 and 200×120, and of the whole
 //!   `synthesise` at 63×65. Tolerances: the noise bit-identical; each other pass's output
 //!   within 1e-5 of the mirror's relative to the input's largest magnitude (a few f32 ulps
 //!   of rounding and fused multiply-adds through ≤ 9 bilinear samples); the whole synthesis
@@ -64,7 +64,7 @@ fn oracle_field(
     style: Style,
     seed: u64,
     size: u32,
-) -> (VectorField, Vec<bool>, Vec<bool>) {
+) -> (VectorField, Vec<bool>, Vec<bool>, image::RgbImage) {
     use coif::sketch::oracle::oracle_sketch;
     let case = synth(&SynthParams {
         style,
@@ -90,7 +90,7 @@ fn oracle_field(
     )
     .unwrap();
     let inner = mask_interior(&case.mask, 5.0);
-    (v, hair, inner)
+    (v, hair, inner, case.image)
 }
 
 struct Figures {
@@ -528,9 +528,23 @@ fn texture_follows_the_oracle_field() {
     let mut lines = Vec::new();
     let mut short = Vec::new();
     for style in [Style::Long, Style::Short, Style::Whorl] {
-        let (v, hair, inner) = oracle_field(&engine, style, 1, 256);
+        let (v, hair, inner, photo) = oracle_field(&engine, style, 1, 256);
         let f = measure(&engine, &v, &hair, &inner);
         lines.push(line(&style.to_string(), &f));
+        // For scale: the same measure on the synthetic photo the field was sketched from.
+        let mask: Vec<u8> = hair.iter().map(|&h| h as u8).collect();
+        let o = orient(
+            &engine,
+            &GrayImage::from_rgb(&photo),
+            Some(&mask),
+            &OrientParams::default(),
+        )
+        .unwrap();
+        lines.push(format!(
+            "{:>10}  (the Gabor Θ of the synthetic photo itself against the same field: {:.2}°)",
+            "",
+            mean_err_deg(&o.theta, &v.theta, &inner)
+        ));
         check(&style.to_string(), &f, &mut short);
     }
     println!(

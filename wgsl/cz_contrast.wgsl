@@ -1,7 +1,8 @@
 // CZ06 §3.2, texture synthesis, step 2: contrast matching across Θ. Two modes:
 //  0 (measure): out = |∇⊥Θ src| on the domain, 0 off it: the central difference
 //    (src(p + n) − src(p − n)) / 2 of bilinear samples at ±1 px along n = (−sin Θ, cos Θ);
-//    a side with no domain tap takes the pixel's own value (one-sided at the hair's edge).
+//    where one side has no domain tap (the hair's edge), the one-sided difference with the
+//    pixel's own value (a difference over 1 px, so not halved); with neither, 0.
 //  1 (gain): out = src · clamp(ρ_s / ρ_cur, gain_min, gain_max): the field's ρ and the
 //    measured contrast, both blurred by the same Gaussian (`sep_blur`, 0 off the domain, so
 //    their ratio is the ratio of their local means over the domain). Scaling the local
@@ -33,12 +34,20 @@ struct Config {
 
 #include "shared/cz_tex.wgsl"
 
-fn side_value(p: vec2<f32>, own: f32) -> f32 {
-    let v = tex_value(p);
-    if v.y > 0.0 {
-        return v.x / v.y;
+// |∇⊥Θ src| at pixel i, centre p, across-unit n (see the header).
+fn across(i: u32, p: vec2<f32>, n: vec2<f32>) -> f32 {
+    let a = tex_value(p + n);
+    let b = tex_value(p - n);
+    if a.y > 0.0 && b.y > 0.0 {
+        return abs(0.5 * (a.x / a.y - b.x / b.y));
     }
-    return own;
+    if a.y > 0.0 {
+        return abs(a.x / a.y - src[i]);
+    }
+    if b.y > 0.0 {
+        return abs(src[i] - b.x / b.y);
+    }
+    return 0.0;
 }
 
 @compute @workgroup_size(8, 8, 1)
@@ -55,9 +64,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let t = tang[i];
         let n = vec2<f32>(-t.y, t.x);
         let p = vec2<f32>(f32(gid.x) + 0.5, f32(gid.y) + 0.5);
-        let a = side_value(p + n, src[i]);
-        let b = side_value(p - n, src[i]);
-        out[i] = abs(0.5 * (a - b));
+        out[i] = across(i, p, n);
         return;
     }
     var g = cfg.gain_max;

@@ -407,14 +407,6 @@ pub fn texture_stats(img: &[f32], field: &VectorField, hair: &[bool]) -> Texture
         src: img,
     };
     let w = inp.width as usize;
-    let side = |p: [f32; 2], own: f32| {
-        let v = d.value(p);
-        if v[1] > 0.0 {
-            v[0] / v[1]
-        } else {
-            own
-        }
-    };
     let (mut across, mut across2, mut along2, mut bil, mut rho) = (0.0f64, 0.0, 0.0, 0.0, 0.0);
     for k in (0..n).filter(|&k| dom[k]) {
         let [c, s] = inp.tang[k];
@@ -425,8 +417,7 @@ pub fn texture_stats(img: &[f32], field: &VectorField, hair: &[bool]) -> Texture
         along2 += l * l;
         rho += inp.rho[k] as f64;
         let p = [(k % w) as f32 + 0.5, (k / w) as f32 + 0.5];
-        let (pa, pb) = ([p[0] - s, p[1] + c], [p[0] + s, p[1] - c]);
-        bil += (0.5 * (side(pa, img[k]) - side(pb, img[k]))).abs() as f64;
+        bil += crate::stages::cz_contrast::across(&d, k, p, [-s, c]) as f64;
     }
     let np = inp.pixels as f64;
     TextureStats {

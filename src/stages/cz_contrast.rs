@@ -42,13 +42,21 @@ pub fn workgroups(cfg: &Config) -> [u32; 3] {
     [groups(cfg.width, 8), groups(cfg.height, 8), 1]
 }
 
-fn side_value(d: &Domain, p: [f32; 2], own: f32) -> f32 {
-    let v = d.value(p);
-    if v[1] > 0.0 {
-        v[0] / v[1]
-    } else {
-        own
+/// |∇⊥Θ src| at pixel i, centre p, across-unit n: central where both sides have domain
+/// taps, one-sided with the pixel's own value where one has, 0 where neither has.
+pub fn across(d: &Domain, i: usize, p: [f32; 2], n: [f32; 2]) -> f32 {
+    let a = d.value([p[0] + n[0], p[1] + n[1]]);
+    let b = d.value([p[0] - n[0], p[1] - n[1]]);
+    if a[1] > 0.0 && b[1] > 0.0 {
+        return (0.5 * (a[0] / a[1] - b[0] / b[1])).abs();
     }
+    if a[1] > 0.0 {
+        return (a[0] / a[1] - d.src[i]).abs();
+    }
+    if b[1] > 0.0 {
+        return (d.src[i] - b[0] / b[1]).abs();
+    }
+    0.0
 }
 
 fn cz_contrast_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
@@ -79,9 +87,7 @@ fn cz_contrast_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
                     let t = d.tang[i];
                     let n = [-t[1], t[0]];
                     let p = [x as f32 + 0.5, y as f32 + 0.5];
-                    let a = side_value(&d, [p[0] + n[0], p[1] + n[1]], d.src[i]);
-                    let b = side_value(&d, [p[0] - n[0], p[1] - n[1]], d.src[i]);
-                    *o = (0.5 * (a - b)).abs();
+                    *o = across(&d, i, p, n);
                     continue;
                 }
                 let mut g = cfg.gain_max;

@@ -2,6 +2,18 @@
 //! `wgsl/shared/cz_tex.wgsl`: the hair domain and sampling over it, written to read like the
 //! shader. No stage of its own; the host is `crate::sketch::texture`.
 
+/// floor(x) for |x| < 2²³, as WGSL's `floor`: the truncating cast and a correction
+/// (`f32::floor` is a libm call on the baseline x86-64 target, which has no SSE4.1).
+#[inline(always)]
+pub fn floor(x: f32) -> f32 {
+    let t = x as i32 as f32;
+    if t > x {
+        t - 1.0
+    } else {
+        t
+    }
+}
+
 /// The domain and the image a pass samples.
 pub struct Domain<'a> {
     pub width: u32,
@@ -15,8 +27,9 @@ pub struct Domain<'a> {
 
 impl Domain<'_> {
     /// Index of the domain pixel under p, or None off the image or the domain.
+    #[inline(always)]
     pub fn pixel(&self, p: [f32; 2]) -> Option<usize> {
-        let (fx, fy) = (p[0].floor(), p[1].floor());
+        let (fx, fy) = (floor(p[0]), floor(p[1]));
         if fx < 0.0 || fy < 0.0 || fx >= self.width as f32 || fy >= self.height as f32 {
             return None;
         }
@@ -25,9 +38,10 @@ impl Domain<'_> {
     }
 
     /// Calls `f(j, weight)` for each bilinear tap of p on the domain.
+    #[inline(always)]
     fn taps(&self, p: [f32; 2], mut f: impl FnMut(usize, f32)) {
         let u = [p[0] - 0.5, p[1] - 0.5];
-        let f0 = [u[0].floor(), u[1].floor()];
+        let f0 = [floor(u[0]), floor(u[1])];
         let fr = [u[0] - f0[0], u[1] - f0[1]];
         let (x0, y0) = (f0[0] as i32, f0[1] as i32);
         for dy in 0..2 {
@@ -46,6 +60,7 @@ impl Domain<'_> {
     }
 
     /// Bilinear (Σ w·src, Σ w) over the domain taps around p.
+    #[inline(always)]
     pub fn value(&self, p: [f32; 2]) -> [f32; 2] {
         let mut acc = [0.0f32; 2];
         self.taps(p, |j, wt| {
@@ -57,6 +72,7 @@ impl Domain<'_> {
 
     /// The tangent at p, bilinear over the domain taps, each first turned to agree with
     /// `prev`; not normalised, zero when no tap is on the domain.
+    #[inline(always)]
     pub fn tangent(&self, p: [f32; 2], prev: [f32; 2]) -> [f32; 2] {
         let mut t = [0.0f32; 2];
         self.taps(p, |j, wt| {
