@@ -22,6 +22,9 @@ pub struct SynthHairArgs {
     /// Rounds of streamline averaging and contrast matching.
     #[arg(long, default_value_t = coif::sketch::texture::TextureParams::default().rounds)]
     rounds: u32,
+    /// Half-length of the streamline average, px each way (longer: longer streaks).
+    #[arg(long, default_value_t = coif::sketch::texture::TextureParams::default().half_len)]
+    half_length: f32,
     /// A photo of the sketch's size to put the hair over.
     #[arg(long)]
     over: Option<PathBuf>,
@@ -40,6 +43,7 @@ impl SynthHairArgs {
             ..Default::default()
         };
         params.texture.rounds = self.rounds;
+        params.texture.half_len = self.half_length;
         Request::Jobs {
             jobs: vec![Job::SynthHair(SynthHairJob {
                 sketch: self.sketch,
