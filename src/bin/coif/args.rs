@@ -615,7 +615,7 @@ pub struct SynthVideoArgs {
 pub struct BackendArgs {
     /// auto: a hardware GPU if present, else cpu. gpu: wgpu on any adapter (lavapipe too).
     #[arg(long, value_enum, default_value = "auto")]
-    backend: BackendChoice,
+    pub(crate) backend: BackendChoice,
 }
 
 #[derive(Args, Clone)]

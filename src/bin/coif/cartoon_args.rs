@@ -2,7 +2,6 @@
 
 use crate::args::Request;
 use clap::Args;
-use coif::gpu::engine::BackendChoice;
 use coif::jobs::{CartoonJob, Job};
 use coif::sketch::cartoon::CartoonParams;
 use std::path::PathBuf;
@@ -26,9 +25,8 @@ pub struct CartoonArgs {
     /// direction, with arrow-heads toward where the hair grows.
     #[arg(long, default_value = "ink")]
     style: String,
-    /// auto: a hardware GPU if present, else cpu. gpu: wgpu on any adapter (lavapipe too).
-    #[arg(long, value_enum, default_value = "auto")]
-    backend: BackendChoice,
+    #[command(flatten)]
+    backend: crate::args::BackendArgs,
 }
 
 impl CartoonArgs {
@@ -45,7 +43,7 @@ impl CartoonArgs {
                 over: self.over,
                 params,
             })],
-            backend: self.backend,
+            backend: self.backend.backend,
             max_binding_bytes: None,
             banner: None,
         })
