@@ -386,6 +386,11 @@ fn demo_runs_on_the_cpu_backend() {
         "video-synth-long/preview.gif",
         "video-synth-long/render_dyed/0000.png",
         "video-synth-long/render_dyed/0011.png",
+        "sketch-astronaut/hair.czs",
+        "sketch-astronaut/sketch.svg",
+        "sketch-astronaut/synth.png",
+        "sketch-astronaut/cartoon.png",
+        "sketch-astronaut/cartoon.svg",
     ] {
         assert!(c.p("demo").join(f).is_file(), "{f} missing");
     }
