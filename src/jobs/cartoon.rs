@@ -4,7 +4,6 @@
 use super::Report;
 use crate::error::Error;
 use crate::gpu::engine::Engine;
-use crate::io::images;
 use crate::sketch::cartoon::{render, to_svg_with_backdrop, CartoonParams};
 use crate::sketch::format;
 use anyhow::Context;
@@ -77,30 +76,8 @@ pub(super) fn run_cartoon(engine: &Engine, j: &CartoonJob) -> anyhow::Result<Rep
         }
     }
     let s = format::load(&j.sketch)?;
-    if s.curves.iter().all(|c| c.prims.is_empty()) {
-        return Err(Error::bad_file(&j.sketch, "the sketch has no curves: nothing to draw").into());
-    }
-    let photo = match &j.over {
-        Some(p) => {
-            let img = images::load_rgb(p)?;
-            if img.dimensions() != (s.width, s.height) {
-                return Err(Error::bad_file(
-                    p,
-                    format!(
-                        "the backdrop is {}x{} px but the sketch {} is {}x{}",
-                        img.width(),
-                        img.height(),
-                        j.sketch.display(),
-                        s.width,
-                        s.height
-                    ),
-                )
-                .into());
-            }
-            Some(img)
-        }
-        None => None,
-    };
+    format::require_curves(&s, &j.sketch)?;
+    let photo = super::sketch::load_backdrop(j.over.as_deref(), &s, &j.sketch)?;
     let backend = match kind {
         Output::Png => {
             let img = render(engine, &s, &j.params, photo.as_ref())

@@ -198,6 +198,33 @@ pub(crate) fn write_image(path: &std::path::Path, img: &image::RgbImage) -> anyh
     Ok(())
 }
 
+/// The photo a sketch's picture is drawn over: it must have the sketch's size.
+pub(super) fn load_backdrop(
+    over: Option<&std::path::Path>,
+    s: &crate::sketch::Sketch,
+    sketch: &std::path::Path,
+) -> anyhow::Result<Option<image::RgbImage>> {
+    let Some(p) = over else {
+        return Ok(None);
+    };
+    let img = images::load_rgb(p)?;
+    if img.dimensions() != (s.width, s.height) {
+        return Err(Error::bad_file(
+            p,
+            format!(
+                "the photo is {}x{} px but the sketch {} is {}x{}",
+                img.width(),
+                img.height(),
+                sketch.display(),
+                s.width,
+                s.height
+            ),
+        )
+        .into());
+    }
+    Ok(Some(img))
+}
+
 fn is_jpeg(p: &std::path::Path) -> bool {
     p.extension()
         .and_then(|e| e.to_str())
@@ -223,27 +250,7 @@ pub(super) fn run_synth_hair(engine: &Engine, j: &SynthHairJob) -> anyhow::Resul
     }
     let s = crate::sketch::format::load(&j.sketch)?;
     crate::sketch::format::require_curves(&s, &j.sketch)?;
-    let over = match &j.over {
-        Some(p) => {
-            let img = images::load_rgb(p)?;
-            if img.dimensions() != (s.width, s.height) {
-                return Err(Error::bad_file(
-                    p,
-                    format!(
-                        "the photo is {}x{}, the sketch {} is {}x{}",
-                        img.width(),
-                        img.height(),
-                        j.sketch.display(),
-                        s.width,
-                        s.height
-                    ),
-                )
-                .into());
-            }
-            Some(img)
-        }
-        None => None,
-    };
+    let over = load_backdrop(j.over.as_deref(), &s, &j.sketch)?;
     let r = crate::sketch::synth::synthesise(engine, &s, over.as_ref(), &j.params)
         .with_context(|| format!("synthesising hair from {}", j.sketch.display()))?;
     if let Some(dir) = &j.layers {
