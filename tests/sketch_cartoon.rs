@@ -254,6 +254,25 @@ fn svg_parses_with_one_path_per_curve() {
                 .map(|v| v.parse().unwrap())
                 .collect();
             assert!(dist([nums[0], nums[1]], b.skeleton[0][0]) < 2e-3);
+            // A stroke whose colour varies is filled by its own gradient, with a stop per
+            // boundary segment in non-decreasing order; others by one colour.
+            let fill = n.attribute("fill").unwrap();
+            if b.colours.iter().any(|c| *c != b.colours[0]) {
+                assert_eq!(fill, format!("url(#cz-g{k})"));
+                let g = doc
+                    .descendants()
+                    .find(|g| g.attribute("id") == Some(&format!("cz-g{k}")[..]))
+                    .expect("the gradient");
+                let offs: Vec<f32> = g
+                    .children()
+                    .filter(|c| c.has_tag_name("stop"))
+                    .map(|c| c.attribute("offset").unwrap().parse().unwrap())
+                    .collect();
+                assert_eq!(offs.len(), b.left.len());
+                assert!(offs.windows(2).all(|w| w[0] <= w[1]), "{offs:?}");
+            } else {
+                assert!(fill.starts_with('#'), "{fill}");
+            }
             cubics += c;
         }
         println!(

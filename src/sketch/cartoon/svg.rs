@@ -49,8 +49,8 @@ pub fn path_data(b: &Brush) -> String {
 
 /// The cartoon on white paper as an SVG document of the sketch's size (viewBox 0 0 W H),
 /// one `<path>` per curve in drawing order, with `data-curve` (its index in the sketch) and
-/// `data-kind` (its letter a–e). A path has one fill: in the direction style, the colour at
-/// the stroke's middle.
+/// `data-kind` (its letter a–e). In the direction style a path is filled by a gradient along
+/// the stroke (see [`gradient`]).
 pub fn to_svg(s: &Sketch, p: &CartoonParams) -> String {
     to_svg_with_backdrop(s, p, None)
 }
@@ -90,11 +90,18 @@ pub fn to_svg_with_backdrop(s: &Sketch, p: &CartoonParams, href: Option<&str>) -
     }
     out.push_str("  <g id=\"cz-cartoon\" stroke=\"none\" fill-rule=\"nonzero\">\n");
     for b in brushes(s, p) {
+        let fill = match gradient(&b) {
+            Some(g) => {
+                out.push_str(&g);
+                format!("url(#cz-g{})", b.curve)
+            }
+            None => hex(b.mid_colour()),
+        };
         writeln!(
             out,
             "    <path class=\"cz-{k}\" data-curve=\"{}\" data-kind=\"{k}\" fill=\"{}\" d=\"{}\"/>",
             b.curve,
-            hex(b.mid_colour()),
+            fill,
             path_data(&b),
             k = b.kind.letter(),
         )
@@ -102,6 +109,46 @@ pub fn to_svg_with_backdrop(s: &Sketch, p: &CartoonParams, href: Option<&str>) -
     }
     out.push_str("  </g>\n</svg>\n");
     out
+}
+
+/// A brush whose colour varies along it (the direction style) gets a linear gradient from
+/// its start to its end, one stop per boundary segment at the segment's projection on that
+/// axis (kept non-decreasing, so a bent stroke's colours stay in order); None for one colour.
+fn gradient(b: &Brush) -> Option<String> {
+    let first = b.colours.first()?;
+    if b.colours.iter().all(|c| c == first) {
+        return None;
+    }
+    let (a, z) = (b.skeleton.first()?[0], b.skeleton.last()?[3]);
+    let axis = [z[0] - a[0], z[1] - a[1]];
+    let len2 = axis[0] * axis[0] + axis[1] * axis[1];
+    if len2 < 1e-6 {
+        return None;
+    }
+    let mut g = format!(
+        "    <linearGradient id=\"cz-g{}\" gradientUnits=\"userSpaceOnUse\" x1=\"{}\" y1=\"{}\" \
+         x2=\"{}\" y2=\"{}\">",
+        b.curve,
+        num(a[0]),
+        num(a[1]),
+        num(z[0]),
+        num(z[1])
+    );
+    let mut last = 0.0f32;
+    for (seg, c) in b.left.iter().zip(&b.colours) {
+        let m = [0.5 * (seg[0][0] + seg[3][0]), 0.5 * (seg[0][1] + seg[3][1])];
+        let t = (((m[0] - a[0]) * axis[0] + (m[1] - a[1]) * axis[1]) / len2).clamp(0.0, 1.0);
+        last = last.max(t);
+        write!(
+            g,
+            "<stop offset=\"{}\" stop-color=\"{}\"/>",
+            num(last),
+            hex(*c)
+        )
+        .unwrap();
+    }
+    g.push_str("</linearGradient>\n");
+    Some(g)
 }
 
 fn xml_escape(s: &str) -> String {
