@@ -553,7 +553,7 @@ fn region_paths_from_an_editor_are_read() {
         .to_string();
     let edited = svg.replace(
         &format!(" d=\"{d}\""),
-        " transform=\"translate(5,-5)\" d=\"m 5,15 h 50 v 30 l -50,0 z m 10,10 10,0 0,10 z\"",
+        " transform=\"translate(5,-5)\" d=\"m 5,15 h 5e1 v 3e+1 l -50-0 z m 10,10 10,0 0,10 z\"",
     );
     assert_eq!(from_svg(&edited, p).unwrap(), q);
     let arc = svg.replace(&format!(" d=\"{d}\""), " d=\"M 1 1 A 5 5 0 0 1 20 20 Z\"");

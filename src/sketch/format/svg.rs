@@ -423,7 +423,7 @@ fn path_polygons(d: &str) -> std::result::Result<Vec<Vec<[f64; 2]>>, String> {
     let mut toks: Vec<String> = Vec::new();
     let mut cur = String::new();
     for ch in d.chars() {
-        let starts_number = ch == '-' && !cur.ends_with(['e', 'E']) || ch == '+';
+        let starts_number = (ch == '-' || ch == '+') && !cur.ends_with(['e', 'E']);
         if ch.is_ascii_alphabetic() && ch != 'e' && ch != 'E' {
             if !cur.is_empty() {
                 toks.push(std::mem::take(&mut cur));
