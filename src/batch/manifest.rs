@@ -354,13 +354,13 @@ impl BatchJob {
                     image: image.clone(),
                     mask: mask.clone(),
                     out: out.join("orient"),
-                    params: orient.clone(),
+                    params: orient,
                     truth: None,
                 }),
                 Step::Analyze => {
                     let o = e.analyze.clone().unwrap_or_default();
                     let mut params = crate::analyze::AnalyzeParams {
-                        orient: orient.clone(),
+                        orient,
                         ..Default::default()
                     };
                     set(&mut params.resolve.radius, o.radius);
