@@ -296,6 +296,7 @@ fn a_bad_job_is_reported_and_the_others_complete() {
         r#"{"id": "good2", "image": "cases/whorl/image.png", "mask": "cases/whorl/mask.png", "out": "out/good2", "steps": ["orient"]}"#.to_string(),
         r#"{"id": "mask-size", "image": "cases/long/image.png", "mask": "cases/s64/mask.png", "out": "out/mask-size", "steps": ["orient"]}"#.to_string(),
         r#"{"id": "good3", "image": "cases/whorl/image.png", "out": "out/good3", "steps": ["orient"]}"#.to_string(),
+        r#"{"id": "model", "image": "cases/long/image.png", "strokes": "cases/long/strokes.json", "mask": "cases/long/mask.png", "landmarks": "cases/long/landmarks.json", "out": "out/model", "steps": ["model", "render"], "model": {"roots": 2000, "cells": 30}, "render": {"yaw": 25}}"#.to_string(),
     ];
     write_manifest(root, &lines);
     let o = coif(root)
@@ -317,7 +318,7 @@ fn a_bad_job_is_reported_and_the_others_complete() {
     );
     let s = read_json(&root.join("report/summary.json"));
     assert_eq!(s["exit_code"], 74);
-    assert_eq!(s["counts"]["ok"], 3);
+    assert_eq!(s["counts"]["ok"], 4);
     assert_eq!(s["counts"]["failed"], 2);
     let jobs = s["jobs"].as_array().unwrap();
     let job = |id: &str| jobs.iter().find(|j| j["id"] == id).unwrap().clone();
@@ -346,8 +347,17 @@ fn a_bad_job_is_reported_and_the_others_complete() {
         assert!(out.join(".coif-job.json").is_file(), "{id}");
     }
     assert!(!root.join("out/mask-size/.coif-job.json").exists());
+    // The model and render steps with their options from the manifest line.
+    assert_eq!(job("model")["status"], "ok");
+    let m = read_json(&root.join("out/model/model/model.json"));
+    assert_eq!(m["params"]["roots"], 2000, "{}", m["params"]);
+    assert_eq!(m["params"]["volume"]["cells"], 30, "{}", m["params"]);
+    assert!(root.join("out/model/model/strands.hair").is_file());
+    let r = read_json(&root.join("out/model/render.png.json"));
+    assert_eq!(r["settings"]["yaw_deg"], 25.0);
+    assert!(root.join("out/model/render.png").is_file());
     println!(
-        "5 jobs, 2 bad (exit 74 and 65), 3 completed, batch exit 74: {:.1} s",
+        "6 jobs (4 orient, model + render), 2 bad (exit 74 and 65), 4 completed, batch exit 74: {:.1} s",
         t0.elapsed().as_secs_f64()
     );
 }

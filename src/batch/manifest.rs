@@ -475,3 +475,109 @@ fn orient_params(o: &OrientOpts) -> crate::analyze::orient::OrientParams {
     set(&mut p.smooth_sigma, o.smooth);
     p
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn options_reach_the_jobs_and_paths_the_manifest_folder() {
+        let line = r#"{"id": "p", "image": "a.png", "strokes": "s.json", "mask": "/abs/m.png", "out": "o", "steps": ["orient", "analyze", "model", "render", "sketch", "synth-hair"], "orient": {"orientations": 16, "smooth": 0}, "analyze": {"radius": 5}, "model": {"seed": 7, "roots": 99, "cells": 20, "refine": 2}, "render": {"yaw": 25, "hue": 30, "seed": 4}, "sketch": {"directions": "icm", "sweeps": 5, "seed": 9}, "synth-hair": {"rounds": 1, "over": true}}"#;
+        let jobs = parse(Path::new("runs/jobs.jsonl"), line).unwrap();
+        let j = jobs[0].jobs();
+        assert_eq!(j.len(), 6);
+        let base = Path::new("runs");
+        match &j[0] {
+            Job::Orient(o) => {
+                assert_eq!(o.image, base.join("a.png"));
+                assert_eq!(o.mask.as_deref(), Some(Path::new("/abs/m.png")));
+                assert_eq!(o.out, base.join("o/orient"));
+                assert_eq!(o.params.kernel.n_orient, 16);
+                assert_eq!(o.params.smooth_sigma, 0.0);
+            }
+            other => panic!("{other:?}"),
+        }
+        match &j[1] {
+            Job::Analyze(a) => {
+                assert_eq!(a.params.orient.kernel.n_orient, 16);
+                assert_eq!(a.params.resolve.radius, 5.0);
+                assert_eq!(a.strokes, base.join("s.json"));
+            }
+            other => panic!("{other:?}"),
+        }
+        match &j[2] {
+            Job::Model(m) => {
+                assert_eq!((m.params.seed, m.params.roots), (7, 99));
+                assert_eq!(m.params.volume.cells, 20);
+                assert_eq!(m.params.refine.max_iterations, 2);
+                assert_eq!(m.out, base.join("o/model"));
+            }
+            other => panic!("{other:?}"),
+        }
+        match &j[3] {
+            Job::Render(r) => {
+                assert_eq!(r.params.yaw_deg, 25.0);
+                assert_eq!(r.params.shade.hue, 30.0);
+                assert_eq!(r.params.inpaint.seed, 4);
+                assert_eq!(r.model, base.join("o/model"));
+                assert_eq!(r.out, base.join("o/render.png"));
+            }
+            other => panic!("{other:?}"),
+        }
+        match &j[4] {
+            Job::Sketch(s) => {
+                assert!(matches!(&s.region, HairRegion::Mask(m) if m == Path::new("/abs/m.png")));
+                assert_eq!(s.params.method, crate::sketch::swc::Method::Icm);
+                assert_eq!((s.params.swc.sweeps, s.params.seed), (5, 9));
+            }
+            other => panic!("{other:?}"),
+        }
+        match &j[5] {
+            Job::SynthHair(h) => {
+                assert_eq!(h.sketch, base.join("o/sketch/hair.czs"));
+                assert_eq!(h.params.texture.rounds, 1);
+                assert_eq!(h.over.as_deref(), Some(base.join("a.png").as_path()));
+            }
+            other => panic!("{other:?}"),
+        }
+        // The record's parameters: the line with keys in a fixed order, paths as written.
+        let v = serde_json::to_value(&jobs[0].entry).unwrap();
+        assert_eq!(v["model"]["roots"], 99);
+        assert_eq!(v["mask"], "/abs/m.png");
+        assert!(v["landmarks"].is_null());
+    }
+
+    #[test]
+    fn errors_name_the_line() {
+        let ok = r#"{"id": "a", "image": "a.png", "out": "o", "steps": ["orient"]}"#;
+        for (text, want) in [
+            (format!("{ok}\n\n{ok}"), "line 3: key `id`"),
+            ("# only\n\n".to_string(), "no jobs"),
+            (
+                r#"{"id": "a", "image": "a.png", "out": "o", "steps": ["sketch"]}"#.into(),
+                "line 1: step sketch needs key `mask`",
+            ),
+            (
+                r#"{"id": "a", "image": "a.png", "out": "o", "steps": ["render", "model"], "strokes": "s"}"#.into(),
+                "line 1: key `steps`: render needs model before it",
+            ),
+            (
+                r#"{"id": "a", "image": "a.png", "out": "o", "steps": ["orient", "orient"]}"#.into(),
+                "line 1: key `steps`: orient is listed twice",
+            ),
+            (
+                r#"{"id": "a", "image": "a.png", "out": "o", "steps": ["sketch"], "sketch": {"whole": true, "directions": "best"}}"#.into(),
+                "line 1: key `sketch.directions`",
+            ),
+            (
+                r#"{"id": "", "image": "a.png", "out": "o", "steps": ["orient"]}"#.into(),
+                "line 1: key `id` is empty",
+            ),
+        ] {
+            let e = parse(Path::new("m.jsonl"), &text).unwrap_err();
+            assert_eq!(e.exit_code(), 65);
+            let m = e.to_string();
+            assert!(m.starts_with("m.jsonl: ") && m.contains(want), "{m}");
+        }
+    }
+}
