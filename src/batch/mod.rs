@@ -9,3 +9,6 @@ pub mod shard;
 pub use manifest::{BatchJob, Entry, Step};
 pub use run::{run, BatchOptions, JobOutcome, Status, Summary};
 pub use shard::Shard;
+
+#[cfg(test)]
+mod schema_tests;
