@@ -4,6 +4,7 @@
 
 pub mod analyze;
 pub mod base;
+pub mod batch;
 pub mod edit;
 pub mod error;
 pub mod eval;

@@ -14,6 +14,7 @@ use coif::sim::{HeadKey, HeadTrack, SimParams};
 use coif::synth;
 use std::path::PathBuf;
 
+mod batch;
 mod synth_hair;
 
 #[derive(Parser)]
@@ -92,6 +93,9 @@ pub enum Command {
     /// Hair replacement (C13 §4): another model's strands carried through a tracked clip
     /// (each follows its nearest tracked strand) and rendered into every frame.
     Transfer(TransferArgs),
+    /// The jobs of a manifest (one JSON object per line), or one shard of them; a failing
+    /// job is recorded in the summary and the rest carry on; --resume skips completed jobs.
+    Batch(batch::BatchArgs),
 }
 
 #[derive(Args)]
@@ -728,6 +732,7 @@ pub enum Request {
         banner: Option<&'static str>,
     },
     Info,
+    Batch(coif::batch::BatchOptions),
 }
 
 impl Request {
@@ -800,6 +805,7 @@ impl Command {
                 }
             }
             Command::SynthHair(a) => a.request(),
+            Command::Batch(a) => a.request(),
             Command::Cartoon(a) => a.request()?,
             Command::SketchConvert(a) => Request::one(
                 Job::SketchConvert(coif::jobs::SketchConvertJob {

@@ -37,6 +37,9 @@ fn main() {
 }
 
 fn run(req: Request) -> anyhow::Result<()> {
+    if let Request::Batch(opts) = &req {
+        return batch(opts);
+    }
     let Request::Jobs {
         jobs,
         backend,
@@ -71,6 +74,27 @@ fn run(req: Request) -> anyhow::Result<()> {
         for d in r.details.iter().filter(|_| single) {
             let _ = writeln!(out, "  {d}");
         }
+    }
+    Ok(())
+}
+
+/// `coif batch`: exits with the first failing job's code after the summary is written.
+fn batch(opts: &coif::batch::BatchOptions) -> anyhow::Result<()> {
+    use coif::batch::Status;
+    let s = coif::batch::run(opts)?;
+    println!(
+        "batch: shard {}/{}: {} jobs, {} ok, {} skipped, {} failed; summary {}",
+        s.shard.index,
+        s.shard.count,
+        s.jobs.len(),
+        s.count(Status::Ok),
+        s.count(Status::Skipped),
+        s.count(Status::Failed),
+        s.path.display()
+    );
+    if s.exit_code != 0 {
+        let _ = std::io::stdout().flush();
+        std::process::exit(s.exit_code);
     }
     Ok(())
 }

@@ -1,0 +1,183 @@
+//! Runs one shard of a manifest: each job's steps in order, a failing job recorded and the
+//! rest carrying on, records for `--resume`, and the summary file.
+
+use super::manifest::{self, BatchJob};
+use super::record::Record;
+use super::shard::Shard;
+use crate::error::Error;
+use crate::gpu::engine::{BackendChoice, Engine};
+use anyhow::Context;
+use serde::Serialize;
+use serde_json::json;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// What `coif batch` was asked.
+#[derive(Clone, Debug)]
+pub struct BatchOptions {
+    pub manifest: PathBuf,
+    /// `--shard`; None: from the environment ([`Shard::from_env`]), else the whole manifest.
+    pub shard: Option<Shard>,
+    pub resume: bool,
+    /// None: `<manifest>.summary.json`, or `<manifest>.shard-I-of-N.summary.json`.
+    pub summary: Option<PathBuf>,
+    pub backend: BackendChoice,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Status {
+    Ok,
+    /// `--resume` found a matching record.
+    Skipped,
+    Failed,
+}
+
+/// One job's outcome, as the summary lists it.
+#[derive(Clone, Debug, Serialize)]
+pub struct JobOutcome {
+    pub id: String,
+    pub line: usize,
+    pub status: Status,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub exit_code: Option<i32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub message: Option<String>,
+    pub seconds: f64,
+}
+
+#[derive(Clone, Debug)]
+pub struct Summary {
+    pub path: PathBuf,
+    pub shard: Shard,
+    pub jobs: Vec<JobOutcome>,
+    /// 0 when every job succeeded or was skipped, else the first failing job's exit code.
+    pub exit_code: i32,
+}
+
+impl Summary {
+    pub fn count(&self, s: Status) -> usize {
+        self.jobs.iter().filter(|j| j.status == s).count()
+    }
+}
+
+/// The exit code of an error as the command line computes it: the first coif error in its
+/// chain, else 1.
+pub fn exit_code(e: &anyhow::Error) -> i32 {
+    e.chain()
+        .find_map(|c| c.downcast_ref::<Error>())
+        .map_or(1, Error::exit_code)
+}
+
+fn default_summary(manifest: &Path, shard: Shard) -> PathBuf {
+    let mut name = manifest.file_name().unwrap_or_default().to_os_string();
+    if shard.count > 1 {
+        name.push(format!(".shard-{}-of-{}", shard.index, shard.count));
+    }
+    name.push(".summary.json");
+    manifest.with_file_name(name)
+}
+
+/// Reads and checks the whole manifest, then runs the shard's jobs. Errors are those of the
+/// manifest, the shard or the summary file; a failing job is in the summary instead.
+pub fn run(opts: &BatchOptions) -> anyhow::Result<Summary> {
+    let jobs = manifest::load(&opts.manifest)?;
+    let shard = match opts.shard {
+        Some(s) => s,
+        None => Shard::from_env(|k| std::env::var(k).ok())?.unwrap_or(Shard::ALL),
+    };
+    let path = opts
+        .summary
+        .clone()
+        .unwrap_or_else(|| default_summary(&opts.manifest, shard));
+    let mine: Vec<&BatchJob> = jobs
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| shard.contains(*k))
+        .map(|(_, j)| j)
+        .collect();
+    let engine = Engine::new(opts.backend)?;
+    let t0 = Instant::now();
+    let bar = indicatif::ProgressBar::new(mine.len() as u64).with_style(
+        indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}")
+            .expect("static template"),
+    );
+    let mut outcomes = Vec::with_capacity(mine.len());
+    for job in mine {
+        bar.set_message(job.id().to_string());
+        let t = Instant::now();
+        let (status, err) = match run_job(&engine, job, opts.resume) {
+            Ok((skipped, warnings)) => {
+                for w in warnings {
+                    bar.suspend(|| eprintln!("coif: warning: {}: {w}", job.id()));
+                }
+                (if skipped { Status::Skipped } else { Status::Ok }, None)
+            }
+            Err(e) => (Status::Failed, Some(e)),
+        };
+        let o = JobOutcome {
+            id: job.id().to_string(),
+            line: job.line,
+            status,
+            exit_code: err.as_ref().map(exit_code),
+            message: err.as_ref().map(|e| format!("{e:#}")),
+            seconds: t.elapsed().as_secs_f64(),
+        };
+        bar.suspend(|| match (&o.status, &o.message) {
+            (Status::Failed, Some(m)) => {
+                println!("failed  {} (exit {}): {m}", o.id, o.exit_code.unwrap_or(1))
+            }
+            (Status::Skipped, _) => println!("skipped {} (record matches)", o.id),
+            _ => println!("ok      {} in {:.1} s", o.id, o.seconds),
+        });
+        outcomes.push(o);
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let exit_code = outcomes.iter().find_map(|o| o.exit_code).unwrap_or(0);
+    let summary = Summary {
+        path,
+        shard,
+        jobs: outcomes,
+        exit_code,
+    };
+    let doc = json!({
+        "coif_version": env!("CARGO_PKG_VERSION"),
+        "manifest": opts.manifest,
+        "shard": {"index": shard.index, "count": shard.count,
+                  "rule": "job k (from 0, in manifest order) is in shard k mod count"},
+        "resume": opts.resume,
+        "backend": engine.describe(),
+        "jobs_in_manifest": jobs.len(),
+        "counts": {
+            "jobs": summary.jobs.len(),
+            "ok": summary.count(Status::Ok),
+            "skipped": summary.count(Status::Skipped),
+            "failed": summary.count(Status::Failed),
+        },
+        "exit_code": exit_code,
+        "seconds": t0.elapsed().as_secs_f64(),
+        "jobs": summary.jobs,
+    });
+    if let Some(d) = summary.path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        crate::io::ensure_dir(d)?;
+    }
+    crate::io::write_json(&summary.path, &doc)?;
+    Ok(summary)
+}
+
+/// Runs a job's steps; Ok(true) when `--resume` skipped it. Returns the steps' warnings.
+fn run_job(engine: &Engine, job: &BatchJob, resume: bool) -> anyhow::Result<(bool, Vec<String>)> {
+    let record = Record::of(job)?;
+    if resume && Record::read(job).as_ref() == Some(&record) {
+        return Ok((true, Vec::new()));
+    }
+    Record::remove(job)?;
+    let mut warnings = Vec::new();
+    for j in job.jobs() {
+        let r = crate::jobs::run(engine, &j).with_context(|| j.label())?;
+        warnings.extend(r.warnings);
+    }
+    record.write(job)?;
+    Ok((false, warnings))
+}
