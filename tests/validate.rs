@@ -1,0 +1,136 @@
+//! Validation before work (issue 18, Deliver 4 and the "Silent nonsense" and exit-code
+//! defects of its Why): each test runs the real binary on an input that was accepted, or
+//! refused with the wrong code, before the fix.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn coif(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_coif"))
+        .args(args)
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .output()
+        .expect("coif runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Asserts a failure with `code` whose message contains every needle.
+fn fails(o: &Output, code: i32, needles: &[&str]) {
+    let e = stderr(o);
+    assert_eq!(o.status.code(), Some(code), "exit code; stderr:\n{e}");
+    for n in needles {
+        assert!(e.contains(n), "stderr lacks {n:?}:\n{e}");
+    }
+}
+
+struct Case {
+    dir: tempfile::TempDir,
+}
+
+impl Case {
+    /// A synthetic portrait (`coif synth`): image.png, mask.png, strokes.json, landmarks.json.
+    fn synth() -> Self {
+        let c = Case {
+            dir: tempfile::tempdir().unwrap(),
+        };
+        let o = coif(&[
+            "synth",
+            "--out",
+            &c.s("case"),
+            "--style",
+            "sidepart",
+            "--seed",
+            "1",
+            "--size",
+            "160",
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        c
+    }
+    fn p(&self, name: &str) -> PathBuf {
+        self.dir.path().join(name)
+    }
+    fn s(&self, name: &str) -> String {
+        self.p(name).display().to_string()
+    }
+    fn analyze(&self, strokes: &str, out: &str) -> Output {
+        coif(&[
+            "analyze",
+            "--image",
+            &self.s("case/image.png"),
+            "--strokes",
+            &self.s(strokes),
+            "--mask",
+            &self.s("case/mask.png"),
+            "--out",
+            &self.s(out),
+            "--backend",
+            "cpu",
+        ])
+    }
+}
+
+/// One good stroke from the synthetic case first, then `bad`, so the bad one is stroke 1.
+fn strokes_with(c: &Case, bad: &[[f32; 2]]) -> String {
+    let good: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(c.p("case/strokes.json")).unwrap()).unwrap();
+    let first = good["strokes"][0].clone();
+    serde_json::json!({"version": 1, "strokes": [first, {"kind": "direction", "points": bad}]})
+        .to_string()
+}
+
+#[test]
+fn degenerate_direction_strokes_are_refused_in_every_format() {
+    let c = Case::synth();
+    let equal = [[80.0, 40.0]; 3];
+    std::fs::write(c.p("equal.json"), strokes_with(&c, &equal)).unwrap();
+    // Half a pixel in all: no direction at the pixel grid's resolution.
+    std::fs::write(
+        c.p("short.json"),
+        strokes_with(&c, &[[80.0, 40.0], [80.25, 40.0], [80.5, 40.0]]),
+    )
+    .unwrap();
+    let labelme = serde_json::json!({
+        "version": "5.0.1",
+        "imageWidth": 160,
+        "imageHeight": 160,
+        "shapes": [
+            {"label": "hair", "shape_type": "linestrip", "points": [[60, 30], [70, 60]]},
+            {"label": "hair", "shape_type": "linestrip", "points": equal},
+        ],
+    });
+    std::fs::write(c.p("labelme.json"), labelme.to_string()).unwrap();
+    std::fs::write(
+        c.p("s.svg"),
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="160" height="160">
+             <polyline points="60,30 70,60"/><polyline points="80,40 80,40 80,40"/></svg>"#,
+    )
+    .unwrap();
+    for (name, why) in [
+        ("equal.json", "zero length"),
+        ("short.json", "0.500 px"),
+        ("labelme.json", "zero length"),
+        ("s.svg", "zero length"),
+    ] {
+        let o = c.analyze(name, "an");
+        fails(&o, 65, &[name, "stroke 1", "degenerate", why]);
+        assert!(!c.p("an").exists(), "{name}: a refused run wrote output");
+    }
+    // The good stroke alone still runs: the check is on the stroke, not the file.
+    let good: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(c.p("case/strokes.json")).unwrap()).unwrap();
+    let one = serde_json::json!({"version": 1, "strokes": [good["strokes"][0]]});
+    std::fs::write(c.p("one.json"), one.to_string()).unwrap();
+    let o = c.analyze("one.json", "an");
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+#[test]
+fn a_png_given_as_strokes_is_a_bad_file() {
+    let c = Case::synth();
+    let o = c.analyze("case/image.png", "an");
+    fails(&o, 65, &["image.png", "not UTF-8"]);
+}
