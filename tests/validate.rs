@@ -134,3 +134,60 @@ fn a_png_given_as_strokes_is_a_bad_file() {
     let o = c.analyze("case/image.png", "an");
     fails(&o, 65, &["image.png", "not UTF-8"]);
 }
+
+/// CRC-32 (ISO-HDLC, as PNG uses), bitwise.
+fn crc32(bytes: &[u8]) -> u32 {
+    let mut c = !0u32;
+    for &b in bytes {
+        c ^= u32::from(b);
+        for _ in 0..8 {
+            c = if c & 1 != 0 {
+                0xEDB8_8320 ^ (c >> 1)
+            } else {
+                c >> 1
+            };
+        }
+    }
+    !c
+}
+
+fn png_chunk(kind: &[u8; 4], data: &[u8]) -> Vec<u8> {
+    let mut body = kind.to_vec();
+    body.extend(data);
+    let mut out = (data.len() as u32).to_be_bytes().to_vec();
+    out.extend(&body);
+    out.extend(crc32(&body).to_be_bytes());
+    out
+}
+
+/// An 8-bit RGB PNG that says it is `w` x `h` but holds one byte of pixel data: enough
+/// for a reader of the header, and small however large it claims to be.
+fn png_header(w: u32, h: u32) -> Vec<u8> {
+    let mut ihdr = w.to_be_bytes().to_vec();
+    ihdr.extend(h.to_be_bytes());
+    ihdr.extend([8, 2, 0, 0, 0]);
+    let mut out = b"\x89PNG\r\n\x1a\n".to_vec();
+    out.extend(png_chunk(b"IHDR", &ihdr));
+    // zlib's stream of the one byte 0.
+    out.extend(png_chunk(b"IDAT", &[0x78, 0x9c, 0x63, 0, 0, 0, 1, 0, 1]));
+    out.extend(png_chunk(b"IEND", &[]));
+    out
+}
+
+#[test]
+fn the_image_size_limit_counts_pixels() {
+    assert_eq!(crc32(b"123456789"), 0xCBF4_3926, "the CRC's check value");
+    let c = Case::synth();
+    std::fs::write(c.p("huge.png"), png_header(20_000, 20_000)).unwrap();
+    let o = coif(&[
+        "orient",
+        "--image",
+        &c.s("huge.png"),
+        "--out",
+        &c.s("o"),
+        "--backend",
+        "cpu",
+    ]);
+    fails(&o, 65, &["huge.png", "20000x20000", "400000000 pixels"]);
+    assert!(!stderr(&o).contains("bytes"), "{}", stderr(&o));
+}
