@@ -191,3 +191,34 @@ fn the_image_size_limit_counts_pixels() {
     fails(&o, 65, &["huge.png", "20000x20000", "400000000 pixels"]);
     assert!(!stderr(&o).contains("bytes"), "{}", stderr(&o));
 }
+
+#[test]
+fn command_line_errors_exit_64_and_help_exits_0() {
+    let c = Case::synth();
+    // An unknown option, a missing required one, an unparsable number: clap's errors.
+    for args in [
+        vec!["orient", "--bogus"],
+        vec!["orient", "--out", "o"],
+        vec!["synth", "--out", "o", "--seed", "x"],
+        vec!["no-such-command"],
+    ] {
+        let o = coif(&args);
+        fails(&o, 64, &["error:"]);
+    }
+    for args in [vec!["--help"], vec!["orient", "--help"], vec!["--version"]] {
+        let o = coif(&args);
+        assert_eq!(o.status.code(), Some(0), "{args:?}: {}", stderr(&o));
+        assert!(!o.stdout.is_empty(), "{args:?} printed nothing");
+    }
+    // A light that is not numbers is refused with a message, before the model is read.
+    let o = coif(&[
+        "render",
+        "--model",
+        &c.s("no-model"),
+        "--out",
+        &c.s("r.png"),
+        "--light",
+        "abc",
+    ]);
+    fails(&o, 64, &["--light", "abc"]);
+}

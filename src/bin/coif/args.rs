@@ -254,8 +254,8 @@ pub struct RenderArgs {
     shading: ShadingArg,
     /// Light in view space "x,y,z[,intensity[,r,g,b]]" (x right, y up, z toward the
     /// camera); repeat for several lights.
-    #[arg(long, allow_hyphen_values = true)]
-    light: Vec<String>,
+    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(Light))]
+    light: Vec<Light>,
     /// Strand width in pixels at scale 1.
     #[arg(long, default_value_t = 1.0)]
     width: f32,
@@ -967,12 +967,7 @@ impl RenderArgs {
             ShadingArg::KajiyaKay => ShadingModel::KajiyaKay,
         };
         if !self.light.is_empty() {
-            p.shade.lights = self
-                .light
-                .iter()
-                .map(|l| l.parse::<Light>())
-                .collect::<Result<_, _>>()
-                .map_err(|e| anyhow::anyhow!("--light: {e}"))?;
+            p.shade.lights = self.light;
         }
         p.inpaint.seed = self.seed;
         p.head_texture.inpaint.seed = self.seed;
