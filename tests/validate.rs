@@ -222,3 +222,76 @@ fn command_line_errors_exit_64_and_help_exits_0() {
     ]);
     fails(&o, 64, &["--light", "abc"]);
 }
+
+/// Writes a `w` x `h` PNG of one colour.
+fn solid_png(path: &std::path::Path, w: u32, h: u32, rgb: [u8; 3]) {
+    image::RgbImage::from_pixel(w, h, image::Rgb(rgb))
+        .save(path)
+        .unwrap();
+}
+
+#[test]
+fn a_segmentation_of_everything_as_hair_is_refused_by_every_command() {
+    let c = Case::synth();
+    // The synthetic case's strokes over a photo of one hair colour: no edge to find.
+    solid_png(&c.p("solid.png"), 160, 160, [90, 60, 40]);
+    let strokes = c.s("case/strokes.json");
+    let image = c.s("solid.png");
+    let runs: [Vec<&str>; 3] = [
+        vec!["analyze", "--image", &image, "--strokes", &strokes],
+        vec!["model", "--image", &image, "--strokes", &strokes],
+        vec!["sketch", "--image", &image, "--strokes", &strokes],
+    ];
+    for args in runs {
+        let out = c.s(&format!("out-{}", args[0]));
+        let mut a = args.clone();
+        a.extend(["--out", &out, "--backend", "cpu"]);
+        let o = coif(&a);
+        fails(&o, 64, &["100.0%", "as hair", "solid.png"]);
+        assert!(!std::path::Path::new(&out).exists(), "{out} written");
+    }
+    // The same strokes on the real photo still segment.
+    let o = coif(&[
+        "analyze",
+        "--image",
+        &c.s("case/image.png"),
+        "--strokes",
+        &strokes,
+        "--out",
+        &c.s("an"),
+        "--backend",
+        "cpu",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+#[test]
+fn a_segmentation_of_nothing_beyond_the_strokes_is_refused() {
+    let c = Case::synth();
+    // Background strokes over the whole of a white image, one direction stroke on top: the
+    // hair can be only the direction stroke's own pixels.
+    solid_png(&c.p("white.png"), 64, 64, [255; 3]);
+    let mut strokes: Vec<serde_json::Value> = (0..=64)
+        .step_by(6)
+        .map(|y| {
+            let y = (y as f32 + 0.5).min(63.5);
+            serde_json::json!({"kind": "background", "points": [[0, y], [64, y]]})
+        })
+        .collect();
+    strokes.push(serde_json::json!({"kind": "direction", "points": [[10, 32], [50, 32]]}));
+    let doc = serde_json::json!({"version": 1, "strokes": strokes});
+    std::fs::write(c.p("s.json"), doc.to_string()).unwrap();
+    let o = coif(&[
+        "analyze",
+        "--image",
+        &c.s("white.png"),
+        "--strokes",
+        &c.s("s.json"),
+        "--out",
+        &c.s("an"),
+        "--backend",
+        "cpu",
+    ]);
+    fails(&o, 64, &["no hair", "beyond", "white.png"]);
+    assert!(!c.p("an").exists());
+}
