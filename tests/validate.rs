@@ -295,3 +295,134 @@ fn a_segmentation_of_nothing_beyond_the_strokes_is_refused() {
     fails(&o, 64, &["no hair", "beyond", "white.png"]);
     assert!(!c.p("an").exists());
 }
+
+/// The file's first bytes name its encoding: PNG or JPEG (SOI marker).
+fn encoding(path: &std::path::Path) -> &'static str {
+    let b = std::fs::read(path).unwrap();
+    if b.starts_with(b"\x89PNG") {
+        "png"
+    } else if b.starts_with(&[0xFF, 0xD8, 0xFF]) {
+        "jpeg"
+    } else {
+        "other"
+    }
+}
+
+#[test]
+fn render_refuses_outputs_over_the_model_and_writes_jpeg_as_asked() {
+    let c = Case::synth();
+    let o = coif(&[
+        "model",
+        "--image",
+        &c.s("case/image.png"),
+        "--strokes",
+        &c.s("case/strokes.json"),
+        "--landmarks",
+        &c.s("case/landmarks.json"),
+        "--out",
+        &c.s("m"),
+        "--backend",
+        "cpu",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let render = |out: &str, extra: &[&str]| {
+        let mut a = vec!["render", "--model", "m", "--out", out, "--backend", "cpu"];
+        a.extend(extra);
+        Command::new(env!("CARGO_BIN_EXE_coif"))
+            .args(&a)
+            .current_dir(c.dir.path())
+            .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+            .output()
+            .unwrap()
+    };
+    let model_files = ["strands.hair", "model.json", "photo.png", "mask.png"];
+    let before: Vec<Vec<u8>> = model_files
+        .iter()
+        .map(|f| std::fs::read(c.p("m").join(f)).unwrap())
+        .collect();
+    // Every file the model is read from, also by another spelling of the path.
+    for f in model_files {
+        fails(&render(&format!("m/{f}"), &[]), 64, &[f, "overwrite", "m"]);
+    }
+    fails(&render("./m/../m/photo.png", &[]), 64, &["overwrite"]);
+    fails(
+        &render("r.tiff", &[]),
+        64,
+        &["r.tiff", "\".tiff\"", ".png or .jpg"],
+    );
+    fails(&render("r.jpg", &["--16bit"]), 64, &["r.jpg", "16-bit"]);
+    fails(
+        &render("nowhere/r.png", &[]),
+        74,
+        &["nowhere", "does not exist"],
+    );
+    for (f, b) in model_files.iter().zip(&before) {
+        assert_eq!(&std::fs::read(c.p("m").join(f)).unwrap(), b, "{f} changed");
+    }
+    // .jpg is JPEG, .png PNG, a picture beside the model's files is fine.
+    for (out, enc) in [
+        ("r.jpg", "jpeg"),
+        ("R.JPEG", "jpeg"),
+        ("m/render.png", "png"),
+    ] {
+        let o = render(out, &[]);
+        assert!(o.status.success(), "{out}: {}", stderr(&o));
+        assert_eq!(encoding(&c.p(out)), enc, "{out}");
+        let img = image::open(c.p(out)).unwrap();
+        assert_eq!((img.width(), img.height()), (160, 160));
+    }
+    let side: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(c.p("r.jpg.json")).unwrap()).unwrap();
+    assert_eq!(side["encoding"], "8-bit sRGB JPEG");
+}
+
+#[test]
+fn pictures_of_a_sketch_refuse_to_overwrite_their_inputs() {
+    let c = Case::synth();
+    let o = coif(&[
+        "sketch",
+        "--image",
+        &c.s("case/image.png"),
+        "--mask",
+        &c.s("case/mask.png"),
+        "--out",
+        &c.s("sk"),
+        "--backend",
+        "cpu",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let photo = std::fs::read(c.p("case/image.png")).unwrap();
+    let sketch = c.s("sk/hair.czs");
+    let over = c.s("case/image.png");
+    for cmd in ["synth-hair", "cartoon"] {
+        let run = |out: &str| {
+            coif(&[
+                cmd,
+                "--sketch",
+                &sketch,
+                "--over",
+                &over,
+                "--out",
+                out,
+                "--backend",
+                "cpu",
+            ])
+        };
+        fails(&run(&over), 64, &["overwrite", "image.png"]);
+        assert_eq!(
+            std::fs::read(c.p("case/image.png")).unwrap(),
+            photo,
+            "{cmd}"
+        );
+        let types = if cmd == "cartoon" {
+            ".png, .jpg or .svg"
+        } else {
+            ".png or .jpg"
+        };
+        fails(&run(&c.s("x.tiff")), 64, &["x.tiff", types]);
+        let out = c.s(&format!("{cmd}.jpg"));
+        let o = run(&out);
+        assert!(o.status.success(), "{cmd}: {}", stderr(&o));
+        assert_eq!(encoding(std::path::Path::new(&out)), "jpeg", "{cmd}");
+    }
+}

@@ -214,8 +214,8 @@ pub struct RenderArgs {
     /// Model folder written by `coif model` (or `coif import`, with --strands-only).
     #[arg(long)]
     model: PathBuf,
-    /// Output PNG (8-bit sRGB; 16-bit with --16bit); a sidecar `<out>.json` records the
-    /// camera, the settings, the adapter and timings.
+    /// Output .png (8-bit sRGB; 16-bit with --16bit) or .jpg; a sidecar `<out>.json`
+    /// records the camera, the settings, the adapter and timings.
     #[arg(long)]
     out: PathBuf,
     /// Turns the head about its vertical axis, degrees (positive: face toward image right).
