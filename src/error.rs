@@ -16,13 +16,15 @@ pub enum Error {
     /// An argument or in-memory input is unusable.
     #[error("{0}")]
     Invalid(String),
-    /// A buffer would exceed a device or format limit and cannot be split further.
-    #[error("{what} needs {needed} bytes, over the {limit_name} of {limit} bytes")]
+    /// A buffer or an image would exceed a device or format limit and cannot be split
+    /// further; `unit` says what `needed` and `limit` count ("bytes", "pixels").
+    #[error("{what} needs {needed} {unit}, over the {limit_name} of {limit} {unit}")]
     TooLarge {
         what: String,
         needed: u64,
         limit: u64,
         limit_name: String,
+        unit: &'static str,
     },
     /// No adapter matched the request (exit code 69, EX_UNAVAILABLE).
     #[error("no GPU adapter: {0}")]

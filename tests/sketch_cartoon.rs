@@ -388,15 +388,15 @@ fn the_command_writes_png_and_svg_and_refuses_bad_input() {
     none.curves.clear();
     std::fs::write(&empty, format::to_json(&none)).unwrap();
     run(&empty, &[], "empty.json");
-    // An output that is neither .png nor .svg.
+    // An output that is none of .png, .jpg and .svg.
     fails_with(
         &[
             "cartoon".as_ref(),
             "--sketch".as_ref(),
             czs.as_os_str(),
             "--out".as_ref(),
-            d.join("c.jpg").as_os_str(),
+            d.join("c.tiff").as_os_str(),
         ],
-        ".png or .svg",
+        ".png, .jpg or .svg",
     );
 }

@@ -339,6 +339,7 @@ pub fn orient(
             needed: (16 + 2 * halo as u64).pow(2) * 4,
             limit,
             limit_name: "largest buffer binding".into(),
+            unit: "bytes",
         })?;
         (side.min(w), side.min(h))
     };

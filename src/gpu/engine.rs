@@ -302,6 +302,7 @@ impl Engine {
                         needed: buf.size,
                         limit: self.max_binding,
                         limit_name: "largest buffer binding".into(),
+                        unit: "bytes",
                     });
                 }
             }

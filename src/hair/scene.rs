@@ -61,6 +61,15 @@ fn bad(path: &Path, msg: impl Into<String>) -> Error {
 }
 
 impl Scene {
+    /// The files and folders of a model folder that [`Scene::load`] reads: an output there
+    /// would overwrite the model (a picture beside them is fine).
+    pub fn inputs(dir: &Path) -> Vec<PathBuf> {
+        let files = ["model.json", "strands.hair", "photo.png", "mask.png"];
+        // Folders of a moving scene: its strands per frame, a tracked video's footage.
+        let folders = ["frames", "photos", "masks"];
+        files.iter().chain(&folders).map(|f| dir.join(f)).collect()
+    }
+
     /// Reads `model.json`, `strands.hair` and, when present, the photo (`photo.png`, else the
     /// `image` path in `model.json`) and the hair mask (`mask.png`).
     pub fn load(dir: &Path) -> Result<Scene> {

@@ -135,6 +135,23 @@ impl Strokes {
             for (j, p) in s.points.iter().enumerate() {
                 check_point(p, image_size).map_err(|m| format!("stroke {i}, point {j}: {m}"))?;
             }
+            // A stroke within one pixel gives no direction on the pixel grid it is drawn on.
+            let len: f64 = s
+                .points
+                .windows(2)
+                .map(|q| f64::from(q[1][0] - q[0][0]).hypot(f64::from(q[1][1] - q[0][1])))
+                .sum();
+            if len < 1.0 {
+                let why = if len == 0.0 {
+                    format!("zero length: all its {} points are equal", s.points.len())
+                } else {
+                    format!("only {len:.3} px long")
+                };
+                return Err(format!(
+                    "stroke {i} ({}) is degenerate ({why}); a stroke must span at least 1 pixel",
+                    s.kind
+                ));
+            }
         }
         Ok(())
     }

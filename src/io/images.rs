@@ -25,7 +25,8 @@ pub fn open(path: &Path) -> Result<image::DynamicImage> {
             what: format!("{} ({w}x{h} px)", path.display()),
             needed: w as u64 * h as u64,
             limit: MAX_PIXELS,
-            limit_name: "image size limit in pixels".into(),
+            limit_name: "image size limit".into(),
+            unit: "pixels",
         });
     }
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;

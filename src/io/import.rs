@@ -43,7 +43,8 @@ pub fn load_strokes(path: &Path, size: (u32, u32)) -> Result<Strokes> {
     let imported = if ext == "svg" {
         Some(strokes_from_svg(path)?)
     } else {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        // Not text (a PNG given as strokes) is a bad file, not a failed read.
+        let text = read_text(path)?;
         let labelme = serde_json::from_str::<serde_json::Value>(&text)
             .ok()
             .is_some_and(|v| v.get("shapes").is_some() && v.get("strokes").is_none());

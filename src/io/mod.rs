@@ -6,6 +6,7 @@ pub mod assets;
 pub mod images;
 pub mod import;
 pub mod npy;
+pub mod outpath;
 pub mod strands;
 pub mod vis;
 

@@ -2,8 +2,8 @@
 //! as a PNG through the rasteriser or as an SVG of Bézier outlines.
 
 use super::Report;
-use crate::error::Error;
 use crate::gpu::engine::Engine;
+use crate::io::outpath::{self, Format};
 use crate::sketch::cartoon::{render, to_svg_with_backdrop, CartoonParams};
 use crate::sketch::format;
 use anyhow::Context;
@@ -20,28 +20,6 @@ pub struct CartoonJob {
     /// A photo of the sketch's size to draw over instead of white paper.
     pub over: Option<PathBuf>,
     pub params: CartoonParams,
-}
-
-#[derive(Clone, Copy, PartialEq)]
-enum Output {
-    Png,
-    Svg,
-}
-
-fn output_kind(out: &Path) -> anyhow::Result<Output> {
-    let ext = out
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(|e| e.to_ascii_lowercase());
-    match ext.as_deref() {
-        Some("png") => Ok(Output::Png),
-        Some("svg") => Ok(Output::Svg),
-        _ => Err(Error::Invalid(format!(
-            "{}: the cartoon is written as .png or .svg (by extension)",
-            out.display()
-        ))
-        .into()),
-    }
 }
 
 /// How the SVG refers to the backdrop: by file name when both sit in one folder (the pair
@@ -63,29 +41,22 @@ fn href(over: &Path, out: &Path) -> String {
 
 pub(super) fn run_cartoon(engine: &Engine, j: &CartoonJob) -> anyhow::Result<Report> {
     let t0 = Instant::now();
-    // Everything is checked before anything is drawn or written.
-    let kind = output_kind(&j.out)?;
-    if let Some(parent) = j.out.parent().filter(|p| !p.as_os_str().is_empty()) {
-        if !parent.is_dir() {
-            return Err(Error::Invalid(format!(
-                "{}: the output folder {} does not exist",
-                j.out.display(),
-                parent.display()
-            ))
-            .into());
-        }
-    }
+    // Everything is checked before anything is drawn or written: the output's type, its
+    // folder, and that it is not an input.
+    let mut inputs = vec![j.sketch.as_path()];
+    inputs.extend(j.over.as_deref());
+    let kind = outpath::check(&j.out, &[Format::Png, Format::Jpeg, Format::Svg], &inputs)?;
     let s = format::load(&j.sketch)?;
     format::require_curves(&s, &j.sketch)?;
     let photo = super::sketch::load_backdrop(j.over.as_deref(), &s, &j.sketch)?;
     let backend = match kind {
-        Output::Png => {
+        Format::Png | Format::Jpeg => {
             let img = render(engine, &s, &j.params, photo.as_ref())
                 .with_context(|| format!("drawing the cartoon of {}", j.sketch.display()))?;
-            crate::io::write_png(&j.out, &img)?;
+            super::sketch::write_image(&j.out, &img)?;
             engine.describe()
         }
-        Output::Svg => {
+        Format::Svg => {
             let h = j.over.as_deref().map(|o| href(o, &j.out));
             let text = to_svg_with_backdrop(&s, &j.params, h.as_deref());
             crate::io::write_atomic(&j.out, text.as_bytes())?;

@@ -635,20 +635,26 @@ fn timings<S: std::fmt::Display>(t: &[(S, f64)]) -> Vec<String> {
 }
 
 fn run_render(engine: &Engine, j: &RenderJob) -> anyhow::Result<Report> {
-    // Refuse a missing output folder before any work.
-    if let Some(parent) = j.out.parent().filter(|p| !p.as_os_str().is_empty()) {
-        if !parent.is_dir() {
-            anyhow::bail!(
-                "{}: the output folder {} does not exist",
-                j.out.display(),
-                parent.display()
-            );
-        }
-    }
+    use crate::io::outpath::{self, Format};
     let p = &j.params;
+    // The output is checked before any work: its type, its folder, and not the model's
+    // files. Without an extension it is the frames folder of a moving scene.
+    let inputs = Scene::inputs(&j.model);
+    let inputs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
+    let frames = j.out.extension().is_none();
+    if frames {
+        outpath::require_folder(&j.out)?;
+        outpath::refuse_inputs(&j.out, &inputs)?;
+    } else if outpath::check(&j.out, &[Format::Png, Format::Jpeg], &inputs)? == Format::Jpeg {
+        render::jpeg_fits(&j.out, p, j.sixteen)?;
+    }
     let t = Instant::now();
     let scene = Scene::load(&j.model)?;
-    if scene.animation.is_some() && j.out.extension().is_none() {
+    if frames {
+        if scene.animation.is_none() {
+            // A still scene is one picture, whose type the extension names.
+            outpath::check(&j.out, &[Format::Png, Format::Jpeg], &inputs)?;
+        }
         return render_frames(engine, &scene, j);
     }
     let r = render::render(engine, &scene, p)

@@ -5,6 +5,7 @@ use super::Report;
 use crate::error::Error;
 use crate::gpu::engine::Engine;
 use crate::io::images;
+use crate::io::outpath::Format;
 use crate::sketch::run::{analyse, write, SketchInputs, SketchParams};
 use anyhow::Context;
 use serde_json::json;
@@ -176,21 +177,9 @@ pub struct SynthHairJob {
 /// Encodes `img` in the format `path`'s extension names (PNG or JPEG) and writes it
 /// atomically.
 pub(crate) fn write_image(path: &std::path::Path, img: &image::RgbImage) -> anyhow::Result<()> {
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(|e| e.to_ascii_lowercase());
-    let format = match ext.as_deref() {
-        Some("png") => image::ImageFormat::Png,
-        Some("jpg" | "jpeg") => image::ImageFormat::Jpeg,
-        _ => {
-            return Err(Error::Invalid(format!(
-                "{}: unknown image type: expected a .png or .jpg extension",
-                path.display()
-            ))
-            .into())
-        }
-    };
+    let format = crate::io::outpath::check(path, &[Format::Png, Format::Jpeg], &[])?
+        .image_format()
+        .expect("a raster format");
     let mut bytes = std::io::Cursor::new(Vec::new());
     img.write_to(&mut bytes, format)
         .with_context(|| format!("encoding {}", path.display()))?;
@@ -226,28 +215,15 @@ pub(super) fn load_backdrop(
 }
 
 fn is_jpeg(p: &std::path::Path) -> bool {
-    p.extension()
-        .and_then(|e| e.to_str())
-        .is_some_and(|e| e.eq_ignore_ascii_case("jpg") || e.eq_ignore_ascii_case("jpeg"))
+    Format::of(p) == Some(Format::Jpeg)
 }
 
 pub(super) fn run_synth_hair(engine: &Engine, j: &SynthHairJob) -> anyhow::Result<Report> {
     let t0 = Instant::now();
-    // The output's type is checked before any work.
-    if !matches!(
-        j.out
-            .extension()
-            .and_then(|e| e.to_str())
-            .map(|e| e.to_ascii_lowercase())
-            .as_deref(),
-        Some("png" | "jpg" | "jpeg")
-    ) {
-        return Err(Error::Invalid(format!(
-            "{}: unknown image type: expected a .png or .jpg extension",
-            j.out.display()
-        ))
-        .into());
-    }
+    // The output is checked before any work: its type, its folder, not an input.
+    let mut inputs = vec![j.sketch.as_path()];
+    inputs.extend(j.over.as_deref());
+    crate::io::outpath::check(&j.out, &[Format::Png, Format::Jpeg], &inputs)?;
     let s = crate::sketch::format::load(&j.sketch)?;
     crate::sketch::format::require_curves(&s, &j.sketch)?;
     let over = load_backdrop(j.over.as_deref(), &s, &j.sketch)?;

@@ -177,6 +177,7 @@ pub fn grow(
             needed: per_strand,
             limit,
             limit_name: "largest buffer binding".into(),
+            unit: "bytes",
         });
     }
     let mut rec = Recording::default();

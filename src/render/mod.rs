@@ -725,38 +725,54 @@ pub fn to_rgb8(r: &Rendered) -> image::RgbImage {
 /// atomically, and a sidecar `<path>.json` with the camera, the settings and the report.
 pub fn write(path: &Path, r: &Rendered, p: &RenderParams, sixteen: bool) -> Result<PathBuf> {
     use image::ImageEncoder;
+    let jpeg = crate::io::outpath::Format::of(path) == Some(crate::io::outpath::Format::Jpeg);
+    if jpeg {
+        jpeg_fits(path, p, sixteen)?;
+    }
     let mut bytes = Vec::new();
     let enc = image::codecs::png::PngEncoder::new(&mut bytes);
-    let res = if sixteen {
-        let px = colour::to_rgba16(&r.pixels);
-        let (data, ct): (Vec<u16>, _) = if r.has_alpha {
-            (px, image::ExtendedColorType::Rgba16)
+    let res =
+        if jpeg {
+            let rgb: Vec<u8> = colour::to_rgba8(&r.pixels)
+                .chunks(4)
+                .flat_map(|c| [c[0], c[1], c[2]])
+                .collect();
+            image::codecs::jpeg::JpegEncoder::new_with_quality(&mut bytes, JPEG_QUALITY)
+                .write_image(&rgb, r.width, r.height, image::ExtendedColorType::Rgb8)
+        } else if sixteen {
+            let px = colour::to_rgba16(&r.pixels);
+            let (data, ct): (Vec<u16>, _) = if r.has_alpha {
+                (px, image::ExtendedColorType::Rgba16)
+            } else {
+                (
+                    px.chunks(4).flat_map(|c| [c[0], c[1], c[2]]).collect(),
+                    image::ExtendedColorType::Rgb16,
+                )
+            };
+            // PNG stores 16-bit samples big-endian.
+            let be: Vec<u8> = data.iter().flat_map(|v| v.to_be_bytes()).collect();
+            enc.write_image(&be, r.width, r.height, ct)
         } else {
-            (
-                px.chunks(4).flat_map(|c| [c[0], c[1], c[2]]).collect(),
-                image::ExtendedColorType::Rgb16,
-            )
+            let px = colour::to_rgba8(&r.pixels);
+            if r.has_alpha {
+                enc.write_image(&px, r.width, r.height, image::ExtendedColorType::Rgba8)
+            } else {
+                let rgb: Vec<u8> = px.chunks(4).flat_map(|c| [c[0], c[1], c[2]]).collect();
+                enc.write_image(&rgb, r.width, r.height, image::ExtendedColorType::Rgb8)
+            }
         };
-        // PNG stores 16-bit samples big-endian.
-        let be: Vec<u8> = data.iter().flat_map(|v| v.to_be_bytes()).collect();
-        enc.write_image(&be, r.width, r.height, ct)
-    } else {
-        let px = colour::to_rgba8(&r.pixels);
-        if r.has_alpha {
-            enc.write_image(&px, r.width, r.height, image::ExtendedColorType::Rgba8)
-        } else {
-            let rgb: Vec<u8> = px.chunks(4).flat_map(|c| [c[0], c[1], c[2]]).collect();
-            enc.write_image(&rgb, r.width, r.height, image::ExtendedColorType::Rgb8)
-        }
-    };
-    res.map_err(|e| Error::bad_file(path, format!("PNG encoding failed: {e}")))?;
+    res.map_err(|e| Error::bad_file(path, format!("image encoding failed: {e}")))?;
     crate::io::write_atomic(path, &bytes)?;
     let side = sidecar_path(path);
     let meta = serde_json::json!({
         "version": 1,
         "coif": env!("CARGO_PKG_VERSION"),
         "image": path.display().to_string(),
-        "encoding": if sixteen { "16-bit sRGB PNG" } else { "8-bit sRGB PNG" },
+        "encoding": match (jpeg, sixteen) {
+            (true, _) => "8-bit sRGB JPEG",
+            (false, true) => "16-bit sRGB PNG",
+            (false, false) => "8-bit sRGB PNG",
+        },
         "camera": r.camera,
         "image_from_model": r.camera.camera.image_from_model(),
         "settings": p,
@@ -769,6 +785,23 @@ pub fn write(path: &Path, r: &Rendered, p: &RenderParams, sixteen: bool) -> Resu
             .as_bytes(),
     )?;
     Ok(side)
+}
+
+/// Quality of a render written as `.jpg` (the `image` crate's scale, 1-100).
+pub const JPEG_QUALITY: u8 = 95;
+
+/// JPEG keeps 8 bits and no alpha: refuses `--16bit` and transparent renders (strands only,
+/// no background) for a `.jpg` output, before any work.
+pub fn jpeg_fits(out: &Path, p: &RenderParams, sixteen: bool) -> Result<()> {
+    let why = if sixteen {
+        "16-bit output needs a .png file (JPEG has 8-bit samples)"
+    } else if p.strands_only && p.background.is_none() {
+        "strands without a background are transparent and JPEG has no alpha: write .png or \
+         give a background colour"
+    } else {
+        return Ok(());
+    };
+    Err(Error::Invalid(format!("{}: {why}", out.display())))
 }
 
 /// `render.png` -> `render.png.json`.

@@ -354,6 +354,7 @@ fn strand_chunks(counts: &[u32], max_vertices: usize) -> Result<Vec<(usize, usiz
                 needed: 16 * c as u64,
                 limit: 16 * max_vertices as u64,
                 limit_name: "largest buffer binding".into(),
+                unit: "bytes",
             });
         }
         if hi - lo + c > max_vertices {

@@ -46,6 +46,7 @@ pub fn compose(
             needed: bytes,
             limit: engine.max_binding_bytes(),
             limit_name: "largest buffer binding".into(),
+            unit: "bytes",
         });
     }
     let cfg = warp_compose::Config {
@@ -117,6 +118,7 @@ pub fn warp_strands(
             needed: field_bytes,
             limit,
             limit_name: "largest buffer binding".into(),
+            unit: "bytes",
         });
     }
     // Vertices are independent: tiles of whole vertices keep each binding under the limit.

@@ -233,8 +233,43 @@ pub fn segment(image: &RgbImage, strokes: &Strokes, p: &SegmentParams) -> Result
         );
     }
     clean(&mut label, &seed, wu, hu, p.min_island, p.max_hole);
+    check_share(&label, &seed, w, h)?;
     let data = label.iter().map(|&l| if l { 255 } else { 0 }).collect();
     Ok(GrayImage::from_raw(w, h, data).expect("w*h buffer"))
+}
+
+/// Above this share of the image as hair, the segmentation has found no edge between hair
+/// and the rest: a portrait's hair with its face, neck and some backdrop cannot fill 98%.
+pub const MAX_HAIR_SHARE: f64 = 0.98;
+
+/// Refuses a segmentation that marks (almost) everything as hair, or nothing beyond the
+/// pixels under the direction strokes: either way the colours did not tell hair apart.
+fn check_share(label: &[bool], seed: &[u8], w: u32, h: u32) -> Result<()> {
+    let n = label.len();
+    let hair = label.iter().filter(|&&l| l).count();
+    let share = hair as f64 / n as f64;
+    if share > MAX_HAIR_SHARE {
+        return Err(Error::Invalid(format!(
+            "the segmentation from the strokes marks {:.1}% of the {w}x{h} image as hair \
+             (over {}%): the hair does not stand apart from the rest in colour (a \
+             solid-colour image?); draw background strokes on what is not hair, or give a mask",
+            100.0 * share,
+            100.0 * MAX_HAIR_SHARE
+        )));
+    }
+    let beyond = label
+        .iter()
+        .zip(seed)
+        .filter(|(&l, &s)| l && s != HAIR)
+        .count();
+    if beyond == 0 {
+        return Err(Error::Invalid(format!(
+            "the segmentation from the strokes marks no hair in the {w}x{h} image beyond the \
+             {hair} pixels under the direction strokes themselves: the colours do not tell \
+             hair apart; draw the strokes on the hair, or give a mask"
+        )));
+    }
+    Ok(())
 }
 
 /// Calls `mark` for every pixel whose centre is within `r` of the polyline. Thin brushes
@@ -611,7 +646,14 @@ mod tests {
             line(20.0, 26.0, 40.0),
             line(50.0, 20.0, 26.0),
         ]);
-        let m = segment(&img, &s, &SegmentParams::default()).unwrap();
+        // With hair strokes on both colours and nothing marked background, all of the image
+        // would be hair, which `segment` refuses: a background stroke keeps part of it out.
+        let mut with_bg = s.clone();
+        with_bg.strokes.push(Stroke {
+            kind: StrokeKind::Background,
+            points: vec![[60.0, 4.0], [60.0, 44.0]],
+        });
+        let m = segment(&img, &with_bg, &SegmentParams::default()).unwrap();
         assert_eq!(m.get_pixel(50, 22)[0], 255, "stroke pixels are hard hair");
         assert_eq!(m.get_pixel(16, 20)[0], 255);
 

@@ -218,8 +218,8 @@ pub struct RenderArgs {
     /// Model folder written by `coif model` (or `coif import`, with --strands-only).
     #[arg(long)]
     model: PathBuf,
-    /// Output PNG (8-bit sRGB; 16-bit with --16bit); a sidecar `<out>.json` records the
-    /// camera, the settings, the adapter and timings.
+    /// Output .png (8-bit sRGB; 16-bit with --16bit) or .jpg; a sidecar `<out>.json`
+    /// records the camera, the settings, the adapter and timings.
     #[arg(long)]
     out: PathBuf,
     /// Turns the head about its vertical axis, degrees (positive: face toward image right).
@@ -258,8 +258,8 @@ pub struct RenderArgs {
     shading: ShadingArg,
     /// Light in view space "x,y,z[,intensity[,r,g,b]]" (x right, y up, z toward the
     /// camera); repeat for several lights.
-    #[arg(long, allow_hyphen_values = true)]
-    light: Vec<String>,
+    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(Light))]
+    light: Vec<Light>,
     /// Strand width in pixels at scale 1.
     #[arg(long, default_value_t = 1.0)]
     width: f32,
@@ -973,12 +973,7 @@ impl RenderArgs {
             ShadingArg::KajiyaKay => ShadingModel::KajiyaKay,
         };
         if !self.light.is_empty() {
-            p.shade.lights = self
-                .light
-                .iter()
-                .map(|l| l.parse::<Light>())
-                .collect::<Result<_, _>>()
-                .map_err(|e| anyhow::anyhow!("--light: {e}"))?;
+            p.shade.lights = self.light;
         }
         p.inpaint.seed = self.seed;
         p.head_texture.inpaint.seed = self.seed;

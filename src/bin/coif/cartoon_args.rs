@@ -11,8 +11,8 @@ pub struct CartoonArgs {
     /// A sketch: hair.czs, sketch.json or sketch.svg.
     #[arg(long)]
     sketch: PathBuf,
-    /// The cartoon: .png (anti-aliased, through the rasteriser) or .svg (one Bézier path
-    /// per curve), by extension.
+    /// The cartoon: .png or .jpg (anti-aliased, through the rasteriser) or .svg (one
+    /// Bézier path per curve), by extension.
     #[arg(long)]
     out: PathBuf,
     /// Stroke width W, px (side boundaries are drawn 1.3 W, stream lines 0.85 W).

@@ -5,7 +5,7 @@ mod cartoon_args;
 mod sketch_edit_args;
 
 use args::{Cli, Request};
-use clap::Parser;
+use clap::Parser as _;
 use coif::gpu::engine::Engine;
 use coif::Error;
 use std::io::Write;
@@ -17,7 +17,15 @@ fn main() {
     if std::env::var_os("XDG_RUNTIME_DIR").is_none_or(|d| !Path::new(&d).is_dir()) {
         std::env::set_var("XDG_RUNTIME_DIR", std::env::temp_dir());
     }
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            let _ = e.print();
+            // --help and --version print to stdout and succeed; every other parse error is a
+            // usage error, EX_USAGE as the README documents (clap's own exit code is 2).
+            std::process::exit(if e.use_stderr() { 64 } else { 0 });
+        }
+    };
     let level = match cli.verbose {
         0 => "warn",
         1 => "info",

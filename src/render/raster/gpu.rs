@@ -279,6 +279,7 @@ pub fn raster(ctx: &GpuContext, s: &Scene, max_chunk_bytes: u64) -> Result<Vec<[
             needed: readback_bytes,
             limit: ctx.limits.max_buffer_size,
             limit_name: "largest buffer".into(),
+            unit: "bytes",
         });
     }
     let chunk_bytes = ctx.max_binding_bytes().min(max_chunk_bytes);
