@@ -1,6 +1,9 @@
 //! The command line on good and bad input: clear messages naming the file or limit, the
 //! documented exit codes, and no half-written output.
 
+mod common;
+
+use common::{fails, stderr};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -19,19 +22,6 @@ fn coif_env(args: &[&str], key: &str, val: &str) -> Output {
         .env(key, val)
         .output()
         .expect("coif runs")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-/// Asserts a failure with `code` whose message contains every needle.
-fn fails(o: &Output, code: i32, needles: &[&str]) {
-    let e = stderr(o);
-    assert_eq!(o.status.code(), Some(code), "exit code; stderr:\n{e}");
-    for n in needles {
-        assert!(e.contains(n), "stderr lacks {n:?}:\n{e}");
-    }
 }
 
 fn write_png(path: &Path, w: u32, h: u32, f: impl Fn(u32, u32) -> [u8; 3]) {

@@ -3,6 +3,9 @@
 //! refused with the wrong code, before the fix.
 
 use std::path::PathBuf;
+mod common;
+
+use common::{fails, stderr};
 use std::process::{Command, Output};
 
 fn coif(args: &[&str]) -> Output {
@@ -11,19 +14,6 @@ fn coif(args: &[&str]) -> Output {
         .env("XDG_RUNTIME_DIR", std::env::temp_dir())
         .output()
         .expect("coif runs")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-/// Asserts a failure with `code` whose message contains every needle.
-fn fails(o: &Output, code: i32, needles: &[&str]) {
-    let e = stderr(o);
-    assert_eq!(o.status.code(), Some(code), "exit code; stderr:\n{e}");
-    for n in needles {
-        assert!(e.contains(n), "stderr lacks {n:?}:\n{e}");
-    }
 }
 
 struct Case {

@@ -124,11 +124,7 @@ pub(super) fn run_sketch(engine: &Engine, j: &SketchJob) -> anyhow::Result<Repor
             t0.elapsed().as_secs_f64(),
             engine.describe()
         ),
-        details: r
-            .seconds
-            .iter()
-            .map(|(k, s)| format!("{k:<16} {s:.2} s"))
-            .collect(),
+        details: stage_lines(&r.seconds),
         warnings: Vec::new(),
     })
 }
@@ -280,11 +276,15 @@ pub(super) fn run_synth_hair(engine: &Engine, j: &SynthHairJob) -> anyhow::Resul
             t0.elapsed().as_secs_f64(),
             engine.describe()
         ),
-        details: r
-            .seconds
-            .iter()
-            .map(|(k, s)| format!("{k:<16} {s:.2} s"))
-            .collect(),
+        details: stage_lines(&r.seconds),
         warnings: Vec::new(),
     })
+}
+
+/// One report line per stage: its name and seconds.
+fn stage_lines(seconds: &[(&'static str, f64)]) -> Vec<String> {
+    seconds
+        .iter()
+        .map(|(k, s)| format!("{k:<16} {s:.2} s"))
+        .collect()
 }

@@ -50,3 +50,17 @@ pub fn mask(w: u32, h: u32) -> Vec<u8> {
         })
         .collect()
 }
+
+/// A process's stderr as text.
+pub fn stderr(o: &std::process::Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Asserts a process failed with `code` whose message contains every needle.
+pub fn fails(o: &std::process::Output, code: i32, needles: &[&str]) {
+    let e = stderr(o);
+    assert_eq!(o.status.code(), Some(code), "exit code; stderr:\n{e}");
+    for n in needles {
+        assert!(e.contains(n), "stderr lacks {n:?}:\n{e}");
+    }
+}
