@@ -60,6 +60,91 @@ fn bad(path: &Path, msg: impl Into<String>) -> Error {
     Error::bad_file(path, msg)
 }
 
+/// What `model.json` says, checked: everything [`Scene::load`] takes from it. Parsed on its
+/// own so that the format can be fuzzed without files.
+#[derive(Clone, Debug)]
+pub struct SceneMeta {
+    pub camera: Option<WeakPerspective>,
+    pub head: Option<Head>,
+    /// The photo's size (0 when not recorded).
+    pub width: u32,
+    pub height: u32,
+    /// The photo's path as recorded, used when the folder has no `photo.png`.
+    pub image: Option<PathBuf>,
+    pub animation: Option<Animation>,
+}
+
+impl SceneMeta {
+    /// Parses `model.json` text; `meta_path` names the file in errors.
+    pub fn parse(text: &str, meta_path: &Path) -> Result<SceneMeta> {
+        let meta: serde_json::Value = serde_json::from_str(text)
+            .map_err(|e| bad(meta_path, format!("not valid JSON: {e}")))?;
+        let camera = match meta.get("camera") {
+            None | Some(serde_json::Value::Null) => None,
+            Some(c) => Some(
+                serde_json::from_value::<WeakPerspective>(c.clone())
+                    .map_err(|e| bad(meta_path, format!("camera: {e}")))?,
+            ),
+        };
+        let head = match meta.pointer("/head/params") {
+            None | Some(serde_json::Value::Null) => None,
+            Some(h) => {
+                let hp: HeadParams = serde_json::from_value(h.clone())
+                    .map_err(|e| bad(meta_path, format!("head parameters: {e}")))?;
+                Some(Head::try_new(&hp).map_err(|e| bad(meta_path, e.to_string()))?)
+            }
+        };
+        let dim = |k: &str| meta.get(k).and_then(|v| v.as_u64()).map(|v| v as u32);
+        let image = meta
+            .get("image")
+            .and_then(|v| v.as_str())
+            .map(PathBuf::from);
+        let animation = match meta.get("animation") {
+            None | Some(serde_json::Value::Null) => None,
+            Some(a) => {
+                let a: Animation = serde_json::from_value(a.clone())
+                    .map_err(|e| bad(meta_path, format!("animation: {e}")))?;
+                let footage_ok = a.footage.as_ref().is_none_or(|f| {
+                    [f.photos.len(), f.masks.len(), f.cameras.len()]
+                        .iter()
+                        .all(|&n| n == a.frames.len())
+                });
+                if a.frames.is_empty()
+                    || a.head.len() != a.frames.len()
+                    || a.fps.is_nan()
+                    || a.fps <= 0.0
+                    || !footage_ok
+                {
+                    return Err(bad(
+                        meta_path,
+                        format!(
+                            "animation: {} frames, {} head poses, fps {}{}",
+                            a.frames.len(),
+                            a.head.len(),
+                            a.fps,
+                            a.footage.as_ref().map_or(String::new(), |f| format!(
+                                ", footage of {} photos, {} masks, {} cameras",
+                                f.photos.len(),
+                                f.masks.len(),
+                                f.cameras.len()
+                            ))
+                        ),
+                    ));
+                }
+                Some(a)
+            }
+        };
+        Ok(SceneMeta {
+            camera,
+            head,
+            width: dim("width").unwrap_or(0),
+            height: dim("height").unwrap_or(0),
+            image,
+            animation,
+        })
+    }
+}
+
 impl Scene {
     /// The files and folders of a model folder that [`Scene::load`] reads: an output there
     /// would overwrite the model (a picture beside them is fine).
@@ -78,37 +163,21 @@ impl Scene {
             path: meta_path.clone(),
             err: e,
         })?;
-        let meta: serde_json::Value = serde_json::from_str(&text)
-            .map_err(|e| bad(&meta_path, format!("not valid JSON: {e}")))?;
+        let SceneMeta {
+            camera,
+            head,
+            mut width,
+            mut height,
+            image,
+            animation,
+        } = SceneMeta::parse(&text, &meta_path)?;
         let strands_path = dir.join("strands.hair");
         let strands = crate::io::strands::read(&strands_path)?;
         check_strands(&strands, &strands_path)?;
-        let camera = match meta.get("camera") {
-            None | Some(serde_json::Value::Null) => None,
-            Some(c) => Some(
-                serde_json::from_value::<WeakPerspective>(c.clone())
-                    .map_err(|e| bad(&meta_path, format!("camera: {e}")))?,
-            ),
-        };
-        let head = match meta.pointer("/head/params") {
-            None | Some(serde_json::Value::Null) => None,
-            Some(h) => {
-                let hp: HeadParams = serde_json::from_value(h.clone())
-                    .map_err(|e| bad(&meta_path, format!("head parameters: {e}")))?;
-                Some(Head::try_new(&hp).map_err(|e| bad(&meta_path, e.to_string()))?)
-            }
-        };
-        let dim = |k: &str| meta.get(k).and_then(|v| v.as_u64()).map(|v| v as u32);
-        let (mut width, mut height) = (dim("width").unwrap_or(0), dim("height").unwrap_or(0));
-        let photo_path = [
-            Some(dir.join("photo.png")),
-            meta.get("image")
-                .and_then(|v| v.as_str())
-                .map(PathBuf::from),
-        ]
-        .into_iter()
-        .flatten()
-        .find(|p| p.is_file());
+        let photo_path = [Some(dir.join("photo.png")), image]
+            .into_iter()
+            .flatten()
+            .find(|p| p.is_file());
         let photo = match (&camera, photo_path) {
             (Some(_), Some(p)) => {
                 let img = crate::io::images::load_rgb(&p)?;
@@ -136,41 +205,6 @@ impl Scene {
                 &mask_path,
             )?),
             _ => None,
-        };
-        let animation = match meta.get("animation") {
-            None | Some(serde_json::Value::Null) => None,
-            Some(a) => {
-                let a: Animation = serde_json::from_value(a.clone())
-                    .map_err(|e| bad(&meta_path, format!("animation: {e}")))?;
-                let footage_ok = a.footage.as_ref().is_none_or(|f| {
-                    [f.photos.len(), f.masks.len(), f.cameras.len()]
-                        .iter()
-                        .all(|&n| n == a.frames.len())
-                });
-                if a.frames.is_empty()
-                    || a.head.len() != a.frames.len()
-                    || a.fps.is_nan()
-                    || a.fps <= 0.0
-                    || !footage_ok
-                {
-                    return Err(bad(
-                        &meta_path,
-                        format!(
-                            "animation: {} frames, {} head poses, fps {}{}",
-                            a.frames.len(),
-                            a.head.len(),
-                            a.fps,
-                            a.footage.as_ref().map_or(String::new(), |f| format!(
-                                ", footage of {} photos, {} masks, {} cameras",
-                                f.photos.len(),
-                                f.masks.len(),
-                                f.cameras.len()
-                            ))
-                        ),
-                    ));
-                }
-                Some(a)
-            }
         };
         Ok(Scene {
             dir: dir.to_path_buf(),

@@ -89,7 +89,11 @@ fn finish(path: &Path, strokes: Vec<Stroke>, none_msg: &str) -> Result<Strokes> 
 
 /// Reads the line strips of a labelme annotation file.
 pub fn strokes_from_labelme(path: &Path) -> Result<Strokes> {
-    let text = read_text(path)?;
+    labelme_from_str(&read_text(path)?, path)
+}
+
+/// Parses labelme annotation text; `path` names the file in errors.
+pub fn labelme_from_str(text: &str, path: &Path) -> Result<Strokes> {
     let bad = |m: String| Error::bad_file(path, m);
     let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| {
         let mut m = format!("malformed JSON: {e}");
@@ -524,7 +528,11 @@ const NOT_RENDERED: [&str; 7] = [
 
 /// Reads the straight-segment polylines and paths of an SVG drawing.
 pub fn strokes_from_svg(path: &Path) -> Result<Strokes> {
-    let text = read_text(path)?;
+    svg_strokes_from_str(&read_text(path)?, path)
+}
+
+/// Parses SVG text into strokes; `path` names the file in errors.
+pub fn svg_strokes_from_str(text: &str, path: &Path) -> Result<Strokes> {
     let bad = |m: String| Error::bad_file(path, m);
     let doc = roxmltree::Document::parse(&text).map_err(|e| bad(format!("malformed XML: {e}")))?;
     let root = doc.root_element();

@@ -74,7 +74,8 @@ pub fn read_f32(path: &Path) -> Result<(Vec<usize>, Vec<f32>)> {
     from_bytes(&bytes).map_err(|msg| Error::bad_file(path, msg))
 }
 
-fn from_bytes(bytes: &[u8]) -> std::result::Result<(Vec<usize>, Vec<f32>), String> {
+/// Parses `.npy` bytes (what [`read_f32`] reads); the error says what is wrong.
+pub fn from_bytes(bytes: &[u8]) -> std::result::Result<(Vec<usize>, Vec<f32>), String> {
     if bytes.len() < 10 || &bytes[..6] != MAGIC {
         return Err("not a .npy file (missing \\x93NUMPY magic)".into());
     }

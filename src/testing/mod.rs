@@ -9,6 +9,8 @@
 //!   `golden/` using a tolerant metric (see [`check_golden_in`]), writes actual/expected/diff
 //!   images on failure, and (re)writes goldens only when `COIF_BLESS=1`.
 //!
+//! * **Fuzzing**: [`fuzz::run`] runs one parser under fuzzing on one input (`fuzz/`).
+//!
 //! The error types print readable messages from both `Display` and `Debug`, so
 //! `.unwrap()` / `.expect()` in a test shows the diagnosis rather than a struct dump.
 
@@ -16,6 +18,7 @@
 // them; they only travel on the failure path of a test, where their size costs nothing.
 #![allow(clippy::result_large_err)]
 
+pub mod fuzz;
 mod golden;
 mod parity;
 
