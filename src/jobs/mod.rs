@@ -20,6 +20,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 mod cartoon;
+mod command;
 mod sketch;
 mod sketch_edit;
 mod video;
@@ -255,7 +256,10 @@ pub fn run_all(engine: &Engine, jobs: &[Job]) -> anyhow::Result<Vec<Report>> {
     let mut reports = Vec::with_capacity(jobs.len());
     for job in jobs {
         bar.set_message(job.label());
-        let r = run(engine, job).with_context(|| job.label())?;
+        // Each job's stages under its command's name (`--timings`).
+        let (r, stages) = crate::timings::collect(|| run(engine, job));
+        crate::timings::record_prefixed(job.command(), &stages);
+        let r = r.with_context(|| job.label())?;
         reports.push(r);
         bar.inc(1);
     }
