@@ -85,6 +85,15 @@ pub fn stage(name: &'static str) -> Span {
     }
 }
 
+impl Span {
+    /// Runs `f` as the stage.
+    pub fn run<T>(self, f: impl FnOnce() -> T) -> T {
+        let out = f();
+        drop(self);
+        out
+    }
+}
+
 impl Drop for Span {
     fn drop(&mut self) {
         if !self.active {
