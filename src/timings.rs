@@ -333,11 +333,12 @@ mod tests {
     }
 
     #[test]
-    fn peak_rss_is_reported_and_grows_with_a_touched_allocation() {
-        let before = peak_rss_bytes().expect("Linux reports VmHWM");
+    fn peak_rss_covers_a_touched_allocation() {
+        // Other tests run alongside: only a lower bound holds.
         let v = vec![1u8; 64 << 20];
         std::hint::black_box(&v);
-        let after = peak_rss_bytes().unwrap();
-        assert!(after >= before + (60 << 20), "{before} -> {after}");
+        let peak = peak_rss_bytes().expect("Linux reports VmHWM");
+        assert!(peak >= 64 << 20, "{peak}");
+        assert!(rusage_max_rss().unwrap() >= 64 << 20);
     }
 }
