@@ -177,6 +177,10 @@ fn info() -> anyhow::Result<()> {
                     g.limits.max_buffer_size,
                     g.limits.max_compute_workgroups_per_dimension
                 );
+                println!(
+                    "  timestamp queries: {} (GPU time per pass in --timings)",
+                    if g.has_timestamps() { "yes" } else { "no" }
+                );
             }
             Err(e) => println!("--backend gpu fails: {e}"),
         }
