@@ -19,6 +19,7 @@ pub mod sketch;
 pub mod stages;
 pub mod synth;
 pub mod testing;
+pub mod timings;
 pub mod video;
 
 pub use error::{Error, Result};

@@ -54,9 +54,12 @@ pub fn run_orient(
     params: &OrientParams,
 ) -> anyhow::Result<OrientRun> {
     use anyhow::Context;
+    let stage = crate::timings::stage("read");
     let (rgb, mask_px) = load_photo(image, mask, params.kernel.ksize)?;
     let gray = GrayImage::from_rgb(&rgb);
+    drop(stage);
     let t = Instant::now();
+    let _s = crate::timings::stage("orientation");
     let map = orient(engine, &gray, mask_px.as_deref(), params)
         .with_context(|| format!("orientation of {}", image.display()))?;
     Ok(OrientRun {
@@ -104,8 +107,10 @@ pub fn run(
     params: &AnalyzeParams,
 ) -> anyhow::Result<(image::RgbImage, Analysis)> {
     use anyhow::Context;
+    let stage = crate::timings::stage("read");
     let (rgb, m) = load_photo(image, mask, params.orient.kernel.ksize)?;
     let s = import::load_strokes(strokes, rgb.dimensions())?;
+    drop(stage);
     let an = analyze(engine, &rgb, &s, m, params)
         .with_context(|| format!("analysis of {} with {}", image.display(), strokes.display()))?;
     for w in &an.warnings {

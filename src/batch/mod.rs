@@ -5,6 +5,7 @@ pub mod manifest;
 pub mod record;
 pub mod run;
 pub mod shard;
+pub mod timings;
 
 pub use manifest::{BatchJob, Entry, Step};
 pub use run::{run, BatchOptions, JobOutcome, Status, Summary};

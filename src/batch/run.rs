@@ -4,8 +4,10 @@
 use super::manifest::{self, BatchJob};
 use super::record::Record;
 use super::shard::Shard;
+use super::timings::BatchTimings;
 use crate::error::Error;
 use crate::gpu::engine::{BackendChoice, Engine};
+use crate::timings::{GpuTime, PeakScope, RunTimings};
 use anyhow::Context;
 use serde::Serialize;
 use serde_json::json;
@@ -44,6 +46,9 @@ pub struct JobOutcome {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub message: Option<String>,
     pub seconds: f64,
+    /// Stages, GPU time and peak memory of a job that ran (not of a skipped one).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub timings: Option<serde_json::Value>,
 }
 
 #[derive(Clone, Debug)]
@@ -80,7 +85,9 @@ fn default_summary(manifest: &Path, shard: Shard) -> PathBuf {
 
 /// Reads and checks the whole manifest, then runs the shard's jobs. Errors are those of the
 /// manifest, the shard or the summary file; a failing job is in the summary instead.
-pub fn run(opts: &BatchOptions) -> anyhow::Result<Summary> {
+/// With `timings`, also writes the batch's timings file there (stages totalled over the
+/// completed jobs).
+pub fn run(opts: &BatchOptions, timings: Option<&Path>) -> anyhow::Result<Summary> {
     let jobs = manifest::load(&opts.manifest)?;
     let shard = match opts.shard {
         Some(s) => s,
@@ -96,8 +103,11 @@ pub fn run(opts: &BatchOptions) -> anyhow::Result<Summary> {
         .filter(|(k, _)| shard.contains(*k))
         .map(|(_, j)| j)
         .collect();
-    let engine = Engine::new(opts.backend)?;
     let t0 = Instant::now();
+    let engine = Engine::new(opts.backend)?;
+    // Every job's GPU passes are timed where the adapter can (for the summary).
+    engine.gpu().map(|g| g.time_passes());
+    let mut done: Vec<RunTimings> = Vec::new();
     let bar = indicatif::ProgressBar::new(mine.len() as u64).with_style(
         indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}")
             .expect("static template"),
@@ -106,7 +116,23 @@ pub fn run(opts: &BatchOptions) -> anyhow::Result<Summary> {
     for job in mine {
         bar.set_message(job.id().to_string());
         let t = Instant::now();
-        let (status, err) = match run_job(&engine, job, opts.resume) {
+        let scope = match crate::timings::reset_peak_rss() {
+            true => PeakScope::Job,
+            false => PeakScope::Process,
+        };
+        let ((result, stages), wall) = (
+            crate::timings::collect(|| run_job(&engine, job, opts.resume)),
+            t.elapsed().as_secs_f64(),
+        );
+        let ran = !matches!(result, Ok((true, _)));
+        let jt = ran.then(|| RunTimings {
+            wall_seconds: wall,
+            stages,
+            gpu: GpuTime::take(&engine),
+            peak_rss_bytes: crate::timings::peak_rss_bytes(),
+            peak_rss_scope: scope,
+        });
+        let (status, err) = match result {
             Ok((skipped, warnings)) => {
                 for w in warnings {
                     bar.suspend(|| eprintln!("coif: warning: {}: {w}", job.id()));
@@ -121,8 +147,12 @@ pub fn run(opts: &BatchOptions) -> anyhow::Result<Summary> {
             status,
             exit_code: err.as_ref().map(exit_code),
             message: err.as_ref().map(|e| format!("{e:#}")),
-            seconds: t.elapsed().as_secs_f64(),
+            seconds: wall,
+            timings: jt.as_ref().map(RunTimings::to_json),
         };
+        if let (Status::Ok, Some(jt)) = (o.status, jt) {
+            done.push(jt);
+        }
         bar.suspend(|| match (&o.status, &o.message) {
             (Status::Failed, Some(m)) => {
                 println!("failed  {} (exit {}): {m}", o.id, o.exit_code.unwrap_or(1))
@@ -135,6 +165,8 @@ pub fn run(opts: &BatchOptions) -> anyhow::Result<Summary> {
     }
     bar.finish_and_clear();
     let exit_code = outcomes.iter().find_map(|o| o.exit_code).unwrap_or(0);
+    let done: Vec<&RunTimings> = done.iter().collect();
+    let agg = BatchTimings::of(&done);
     let summary = Summary {
         path,
         shard,
@@ -157,12 +189,30 @@ pub fn run(opts: &BatchOptions) -> anyhow::Result<Summary> {
         },
         "exit_code": exit_code,
         "seconds": t0.elapsed().as_secs_f64(),
+        "timings": agg,
         "jobs": summary.jobs,
     });
     if let Some(d) = summary.path.parent().filter(|d| !d.as_os_str().is_empty()) {
         crate::io::ensure_dir(d)?;
     }
     crate::io::write_json(&summary.path, &doc)?;
+    if let Some(p) = timings {
+        let t = RunTimings {
+            wall_seconds: t0.elapsed().as_secs_f64(),
+            stages: agg.stage_totals(),
+            gpu: match super::timings::pass_totals(&done) {
+                Some(p) => GpuTime::Measured(p),
+                None => GpuTime::take(&engine),
+            },
+            peak_rss_bytes: done
+                .iter()
+                .filter_map(|t| t.peak_rss_bytes)
+                .chain(crate::timings::peak_rss_bytes())
+                .max(),
+            peak_rss_scope: PeakScope::Process,
+        };
+        crate::timings::write(p, "batch", &engine, &t)?;
+    }
     Ok(summary)
 }
 
@@ -175,8 +225,10 @@ fn run_job(engine: &Engine, job: &BatchJob, resume: bool) -> anyhow::Result<(boo
     Record::remove(job)?;
     let mut warnings = Vec::new();
     for j in job.jobs() {
-        let r = crate::jobs::run(engine, &j).with_context(|| j.label())?;
-        warnings.extend(r.warnings);
+        // Each step's stages under its command's name.
+        let (r, stages) = crate::timings::collect(|| crate::jobs::run(engine, &j));
+        crate::timings::record_prefixed(j.command(), &stages);
+        warnings.extend(r.with_context(|| j.label())?.warnings);
     }
     record.write(job)?;
     Ok((false, warnings))

@@ -1,6 +1,7 @@
 //! GPU context: the adapter is chosen on purpose, described once, and its errors become
 //! `Error::Gpu` instead of panics.
 
+use super::timer::PassTotals;
 use crate::error::{Error, Result};
 use std::sync::{Arc, Mutex};
 
@@ -16,6 +17,10 @@ pub struct GpuContext {
     /// Errors the device reported outside an error scope (e.g. during `poll`); they fail the
     /// next `check_errors`.
     uncaptured: Arc<Mutex<Vec<String>>>,
+    /// The device has timestamp queries (the adapter offers `TIMESTAMP_QUERY`).
+    timestamps: bool,
+    /// GPU time per pass while timing is on (`--timings`); None: passes are not timed.
+    pass_times: Mutex<Option<PassTotals>>,
 }
 
 /// What an adapter is, for `coif info` and logs.
@@ -108,9 +113,16 @@ impl GpuContext {
                 .max_compute_workgroups_per_dimension,
             ..wgpu::Limits::default()
         };
+        // Timestamps only when the adapter has them: GPU time per pass for `--timings`.
+        let timestamps = chosen.features().contains(wgpu::Features::TIMESTAMP_QUERY);
+        let required_features = if timestamps {
+            wgpu::Features::TIMESTAMP_QUERY
+        } else {
+            wgpu::Features::empty()
+        };
         let (device, queue) = pollster::block_on(chosen.request_device(&wgpu::DeviceDescriptor {
             label: Some("coif"),
-            required_features: wgpu::Features::empty(),
+            required_features,
             required_limits: required_limits.clone(),
             experimental_features: wgpu::ExperimentalFeatures::disabled(),
             memory_hints: wgpu::MemoryHints::Performance,
@@ -123,10 +135,11 @@ impl GpuContext {
             sink.lock().unwrap().push(e.to_string());
         }));
         log::info!(
-            "GPU adapter: {}; max storage binding {} B, max buffer {} B",
+            "GPU adapter: {}; max storage binding {} B, max buffer {} B, timestamp queries {}",
             describe(&info),
             required_limits.max_storage_buffer_binding_size,
-            required_limits.max_buffer_size
+            required_limits.max_buffer_size,
+            if timestamps { "yes" } else { "no" }
         );
         Ok(GpuContext {
             device,
@@ -134,7 +147,48 @@ impl GpuContext {
             info,
             limits: required_limits,
             uncaptured,
+            timestamps,
+            pass_times: Mutex::new(None),
         })
+    }
+
+    /// Whether the device has timestamp queries.
+    pub fn has_timestamps(&self) -> bool {
+        self.timestamps
+    }
+
+    /// Starts timing every pass from now on; false when the device has no timestamps.
+    pub fn time_passes(&self) -> bool {
+        if self.timestamps {
+            self.pass_times
+                .lock()
+                .unwrap()
+                .get_or_insert_with(Default::default);
+        }
+        self.timestamps
+    }
+
+    /// Whether passes are being timed.
+    pub fn timing_passes(&self) -> bool {
+        self.pass_times.lock().unwrap().is_some()
+    }
+
+    pub(super) fn add_pass_times<'a>(&self, times: impl Iterator<Item = (&'a str, f64)>) {
+        if let Some(t) = self.pass_times.lock().unwrap().as_mut() {
+            for (label, seconds) in times {
+                t.add(label, seconds);
+            }
+        }
+    }
+
+    /// The pass times since timing started or since the last call (then reset); None when
+    /// passes are not timed.
+    pub fn take_pass_times(&self) -> Option<Vec<crate::timings::PassTime>> {
+        self.pass_times
+            .lock()
+            .unwrap()
+            .as_mut()
+            .map(|t| std::mem::take(t).into_list())
     }
 
     /// Largest buffer one binding may hold.

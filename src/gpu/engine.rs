@@ -394,6 +394,12 @@ impl Engine {
                 label: Some("coif"),
             });
         let mut staging: Vec<(usize, wgpu::Buffer)> = Vec::new();
+        let passes = rec
+            .cmds
+            .iter()
+            .filter(|c| matches!(c, Cmd::Dispatch { .. }))
+            .count();
+        let mut queries = crate::gpu::timer::PassQueries::new(g, passes);
         for cmd in rec.cmds {
             match cmd {
                 Cmd::Create { buf, label, init } => {
@@ -445,7 +451,7 @@ impl Engine {
                     });
                     let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                         label: Some(stage.name),
-                        timestamp_writes: None,
+                        timestamp_writes: queries.as_mut().map(|q| q.compute(stage.name)),
                     });
                     pass.set_pipeline(&pipeline);
                     pass.set_bind_group(0, &bg, &[]);
@@ -463,9 +469,15 @@ impl Engine {
                 }
             }
         }
+        if let Some(q) = &mut queries {
+            q.resolve(g, &mut encoder);
+        }
         g.queue.submit([encoder.finish()]);
         for (_, st) in &staging {
             st.slice(..).map_async(wgpu::MapMode::Read, |_| {});
+        }
+        if let Some(q) = &queries {
+            q.map();
         }
         g.device
             .poll(wgpu::PollType::wait_indefinitely())
@@ -477,6 +489,9 @@ impl Engine {
             return Err(Error::Gpu(e.to_string()));
         }
         g.check_errors()?;
+        if let Some(q) = queries {
+            q.finish(g)?;
+        }
         let mut out = HashMap::new();
         for (id, st) in staging {
             let view = st

@@ -3,6 +3,7 @@
 
 pub mod context;
 pub mod engine;
+pub mod timer;
 pub mod wgsl;
 
 pub use context::{describe, hardware_gpu_present, list_adapters, GpuContext};

@@ -6,6 +6,7 @@ use crate::gpu::engine::Engine;
 use crate::io::outpath::{self, Format};
 use crate::sketch::cartoon::{render, to_svg_with_backdrop, CartoonParams};
 use crate::sketch::format;
+use crate::timings::stage;
 use anyhow::Context;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -46,20 +47,23 @@ pub(super) fn run_cartoon(engine: &Engine, j: &CartoonJob) -> anyhow::Result<Rep
     let mut inputs = vec![j.sketch.as_path()];
     inputs.extend(j.over.as_deref());
     let kind = outpath::check(&j.out, &[Format::Png, Format::Jpeg, Format::Svg], &inputs)?;
+    let read = stage("read");
     let s = format::load(&j.sketch)?;
     format::require_curves(&s, &j.sketch)?;
     let photo = super::sketch::load_backdrop(j.over.as_deref(), &s, &j.sketch)?;
+    drop(read);
     let backend = match kind {
         Format::Png | Format::Jpeg => {
-            let img = render(engine, &s, &j.params, photo.as_ref())
+            let img = stage("draw")
+                .run(|| render(engine, &s, &j.params, photo.as_ref()))
                 .with_context(|| format!("drawing the cartoon of {}", j.sketch.display()))?;
-            super::sketch::write_image(&j.out, &img)?;
+            stage("write").run(|| super::sketch::write_image(&j.out, &img))?;
             engine.describe()
         }
         Format::Svg => {
             let h = j.over.as_deref().map(|o| href(o, &j.out));
-            let text = to_svg_with_backdrop(&s, &j.params, h.as_deref());
-            crate::io::write_atomic(&j.out, text.as_bytes())?;
+            let text = stage("draw").run(|| to_svg_with_backdrop(&s, &j.params, h.as_deref()));
+            stage("write").run(|| crate::io::write_atomic(&j.out, text.as_bytes()))?;
             "svg".to_string()
         }
     };

@@ -14,12 +14,14 @@ use crate::model::{self, ModelParams};
 use crate::render::{self, RenderParams};
 use crate::sim::{self, SimParams};
 use crate::synth::{self, synth3d, SynthParams};
+use crate::timings::{record_all, stage};
 use anyhow::Context;
 use serde_json::json;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 mod cartoon;
+mod command;
 mod sketch;
 mod sketch_edit;
 mod video;
@@ -255,7 +257,10 @@ pub fn run_all(engine: &Engine, jobs: &[Job]) -> anyhow::Result<Vec<Report>> {
     let mut reports = Vec::with_capacity(jobs.len());
     for job in jobs {
         bar.set_message(job.label());
-        let r = run(engine, job).with_context(|| job.label())?;
+        // Each job's stages under its command's name (`--timings`).
+        let (r, stages) = crate::timings::collect(|| run(engine, job));
+        crate::timings::record_prefixed(job.command(), &stages);
+        let r = r.with_context(|| job.label())?;
         reports.push(r);
         bar.inc(1);
     }
@@ -530,6 +535,7 @@ fn run_orient(engine: &Engine, j: &OrientJob) -> anyhow::Result<Report> {
     // Score before writing, so a bad truth folder leaves nothing behind.
     let score = match &j.truth {
         Some(dir) => {
+            let _s = stage("score");
             let (shape, gt) = npy::read_f32(&dir.join("gt_theta.npy"))?;
             let mask_path = dir.join("mask.png");
             let mask = images::open(&mask_path)?.to_luma8();
@@ -552,7 +558,7 @@ fn run_orient(engine: &Engine, j: &OrientJob) -> anyhow::Result<Report> {
         }
         None => None,
     };
-    analyze::write_orient(&j.out, &j.image, &r)?;
+    stage("write").run(|| analyze::write_orient(&j.out, &j.image, &r))?;
     Ok(Report {
         summary: format!(
             "orient: {}x{} on {} in {:.2} s{} -> {}",
@@ -576,7 +582,8 @@ fn run_analyze(engine: &Engine, j: &AnalyzeJob) -> anyhow::Result<Report> {
     }
     let t = Instant::now();
     let (rgb, an) = analyze::run(engine, &j.image, &j.strokes, j.mask.as_deref(), p)?;
-    analyze::write(&j.out, &j.image, &rgb, &an, &engine.describe())?;
+    record_all(&an.timings);
+    stage("write").run(|| analyze::write(&j.out, &j.image, &rgb, &an, &engine.describe()))?;
     Ok(Report {
         summary: format!(
             "analyze: mask {}, {} curve pieces ({} unreachable from strokes) -> {} ({:.2} s on {})",
@@ -607,7 +614,8 @@ fn run_model(engine: &Engine, j: &ModelJob) -> anyhow::Result<Report> {
         j.landmarks.as_deref(),
         p,
     )?;
-    model::write(&j.out, &j.image, &rgb, &m, p, &engine.describe())?;
+    record_all(&m.timings);
+    stage("write").run(|| model::write(&j.out, &j.image, &rgb, &m, p, &engine.describe()))?;
     Ok(Report {
         summary: format!(
             "model: {} strands ({} grown from {} roots on hair, {} added by refinement), {} H \
@@ -649,7 +657,7 @@ fn run_render(engine: &Engine, j: &RenderJob) -> anyhow::Result<Report> {
         render::jpeg_fits(&j.out, p, j.sixteen)?;
     }
     let t = Instant::now();
-    let scene = Scene::load(&j.model)?;
+    let scene = stage("load").run(|| Scene::load(&j.model))?;
     if frames {
         if scene.animation.is_none() {
             // A still scene is one picture, whose type the extension names.
@@ -659,7 +667,8 @@ fn run_render(engine: &Engine, j: &RenderJob) -> anyhow::Result<Report> {
     }
     let r = render::render(engine, &scene, p)
         .with_context(|| format!("rendering {}", j.model.display()))?;
-    let side = render::write(&j.out, &r, p, j.sixteen)?;
+    record_all(&r.report.seconds);
+    let side = stage("write").run(|| render::write(&j.out, &r, p, j.sixteen))?;
     Ok(Report {
         summary: format!(
             "render: {} strands, {}x{} ({}) -> {} ({:.2} s on {}; settings in {})",
@@ -714,7 +723,9 @@ fn render_frames(engine: &Engine, scene: &Scene, j: &RenderJob) -> anyhow::Resul
         };
         let r = render::render(engine, &s, &p)
             .with_context(|| format!("rendering frame {k} of {}", j.model.display()))?;
-        render::write(&j.out.join(format!("{k:04}.png")), &r, &p, j.sixteen)?;
+        record_all(&r.report.seconds);
+        stage("write")
+            .run(|| render::write(&j.out.join(format!("{k:04}.png")), &r, &p, j.sixteen))?;
         bar.inc(1);
     }
     bar.finish_and_clear();
@@ -731,10 +742,11 @@ fn render_frames(engine: &Engine, scene: &Scene, j: &RenderJob) -> anyhow::Resul
 }
 
 fn run_simulate(engine: &Engine, j: &SimulateJob) -> anyhow::Result<Report> {
-    let scene = Scene::load(&j.model)?;
-    let r = sim::run::run(engine, &scene, &j.params, true)
+    let scene = stage("load").run(|| Scene::load(&j.model))?;
+    let r = stage("simulate")
+        .run(|| sim::run::run(engine, &scene, &j.params, true))
         .with_context(|| format!("simulating {}", j.model.display()))?;
-    sim::run::write(&j.out, &scene, &r, &j.params)?;
+    stage("write").run(|| sim::run::write(&j.out, &scene, &r, &j.params))?;
     let worst = |f: fn(&sim::SimFigures) -> f64| r.figures.iter().map(f).fold(0.0, f64::max);
     Ok(Report {
         summary: format!(
@@ -772,10 +784,11 @@ fn run_simulate(engine: &Engine, j: &SimulateJob) -> anyhow::Result<Report> {
 
 fn run_edit(engine: &Engine, j: &EditJob) -> anyhow::Result<Report> {
     use crate::io::annot::StrokeKind;
-    let full = Scene::load(&j.model)?;
+    let full = stage("load").run(|| Scene::load(&j.model))?;
     // At a level above the strands, the strokes act on the cluster centres and the strands
     // are rebuilt from them with their residuals.
     let hierarchy = if j.level > 0 {
+        let _s = stage("hierarchy");
         let h = edit::hierarchy::Hierarchy::build(
             &full.strands,
             &edit::hierarchy::HierarchyParams::default(),
@@ -795,6 +808,7 @@ fn run_edit(engine: &Engine, j: &EditJob) -> anyhow::Result<Report> {
     // Everything is read, checked and computed before the first file is written.
     let (strands, meta, summary, details) = match &j.tool {
         EditTool::Comb { strokes } => {
+            let _s = stage("comb");
             let s = edit::load_strokes(&scene, strokes, StrokeKind::Comb)?;
             let (out, r) = edit::comb(engine, &scene, &s, j.radius)?;
             let details = vec![
@@ -818,6 +832,7 @@ fn run_edit(engine: &Engine, j: &EditJob) -> anyhow::Result<Report> {
             (out, meta, summary, details)
         }
         EditTool::Cut { strokes, seed } => {
+            let _s = stage("cut");
             let s = edit::load_strokes(&scene, strokes, StrokeKind::Cut)?;
             let (out, r) = edit::cut(engine, &scene, &s, j.radius, *seed)?;
             let mut details = vec![
@@ -851,7 +866,7 @@ fn run_edit(engine: &Engine, j: &EditJob) -> anyhow::Result<Report> {
     }
     let (strands, details) = match &hierarchy {
         Some((h, centres)) => {
-            let rebuilt = h.rebuild(j.level, &strands, &full.strands)?;
+            let rebuilt = stage("hierarchy").run(|| h.rebuild(j.level, &strands, &full.strands))?;
             let mut d = details;
             d.push(format!(
                 "hierarchy        level {} of {} ({} centres); {} strands rebuilt",
@@ -870,7 +885,7 @@ fn run_edit(engine: &Engine, j: &EditJob) -> anyhow::Result<Report> {
         animation: None,
         ..full
     };
-    edited.save(&j.out, json!({ "edit": meta, "level": j.level }))?;
+    stage("write").run(|| edited.save(&j.out, json!({ "edit": meta, "level": j.level })))?;
     Ok(Report {
         summary,
         details,

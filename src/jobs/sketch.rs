@@ -7,6 +7,7 @@ use crate::gpu::engine::Engine;
 use crate::io::images;
 use crate::io::outpath::Format;
 use crate::sketch::run::{analyse, write, SketchInputs, SketchParams};
+use crate::timings::{record_all, stage};
 use anyhow::Context;
 use serde_json::json;
 use std::path::PathBuf;
@@ -36,6 +37,7 @@ pub struct SketchJob {
 
 pub(super) fn run_sketch(engine: &Engine, j: &SketchJob) -> anyhow::Result<Report> {
     let t0 = Instant::now();
+    let read = stage("read");
     let photo = images::load_rgb(&j.image)?;
     let (w, h) = photo.dimensions();
     let n = w as usize * h as usize;
@@ -47,6 +49,8 @@ pub(super) fn run_sketch(engine: &Engine, j: &SketchJob) -> anyhow::Result<Repor
         Some(s) => Some(crate::io::import::load_strokes(s, (w, h))?),
         None => None,
     };
+    drop(read);
+    let region = stage("hair_region");
     let hair: Vec<bool> = match &j.region {
         HairRegion::Mask(m) => images::load_mask(m, w, h, &j.image)?
             .into_iter()
@@ -98,6 +102,7 @@ pub(super) fn run_sketch(engine: &Engine, j: &SketchJob) -> anyhow::Result<Repor
         )
         .into());
     }
+    drop(region);
     let inp = SketchInputs {
         image: &photo,
         hair: &hair,
@@ -112,7 +117,8 @@ pub(super) fn run_sketch(engine: &Engine, j: &SketchJob) -> anyhow::Result<Repor
         "method": j.params.method.name(),
         "seed": j.params.seed,
     });
-    write(&j.out, &photo, &r, extra)?;
+    record_all(&r.seconds);
+    stage("write").run(|| write(&j.out, &photo, &r, extra))?;
     let sizes = crate::sketch::format::czs_sizes(&r.sketch);
     Ok(Report {
         summary: format!(
@@ -220,11 +226,15 @@ pub(super) fn run_synth_hair(engine: &Engine, j: &SynthHairJob) -> anyhow::Resul
     let mut inputs = vec![j.sketch.as_path()];
     inputs.extend(j.over.as_deref());
     crate::io::outpath::check(&j.out, &[Format::Png, Format::Jpeg], &inputs)?;
+    let read = stage("read");
     let s = crate::sketch::format::load(&j.sketch)?;
     crate::sketch::format::require_curves(&s, &j.sketch)?;
     let over = load_backdrop(j.over.as_deref(), &s, &j.sketch)?;
+    drop(read);
     let r = crate::sketch::synth::synthesise(engine, &s, over.as_ref(), &j.params)
         .with_context(|| format!("synthesising hair from {}", j.sketch.display()))?;
+    record_all(&r.seconds);
+    let _write = stage("write");
     if let Some(dir) = &j.layers {
         use crate::io::npy;
         crate::io::ensure_dir(dir)?;

@@ -96,10 +96,10 @@ pub(super) fn run_video(engine: &Engine, j: &VideoJob) -> anyhow::Result<Report>
 
 fn run_video_in(engine: &Engine, j: &VideoJob) -> anyhow::Result<Report> {
     use crate::video::frames;
-    let clip = match &j.source {
-        ClipSource::Frames(d) => frames::open_frames_dir(d)?,
-        ClipSource::Video(v) => frames::decode_video(v, &j.out.join("decoded"))?,
-    };
+    let clip = crate::timings::stage("read").run(|| match &j.source {
+        ClipSource::Frames(d) => frames::open_frames_dir(d),
+        ClipSource::Video(v) => frames::decode_video(v, &j.out.join("decoded")),
+    })?;
     let inp = crate::video::run::VideoInputs {
         clip,
         ann: j.ann.clone(),
@@ -158,8 +158,10 @@ fn run_video_in(engine: &Engine, j: &VideoJob) -> anyhow::Result<Report> {
 
 pub(super) fn run_transfer(engine: &Engine, j: &TransferJob) -> anyhow::Result<Report> {
     let t = Instant::now();
-    let video = Scene::load(&j.video_model)?;
-    let new = Scene::load(&j.model)?;
+    let stage = crate::timings::stage;
+    let (video, new) =
+        stage("load").run(|| anyhow::Ok((Scene::load(&j.video_model)?, Scene::load(&j.model)?)))?;
+    let transfer = stage("transfer");
     let s = crate::video::transfer::transfer(&video, &new, &j.out).with_context(|| {
         format!(
             "carrying {} through {}",
@@ -170,13 +172,15 @@ pub(super) fn run_transfer(engine: &Engine, j: &TransferJob) -> anyhow::Result<R
     s.save(&j.out, serde_json::json!({ "transfer": { "video": j.video_model.display().to_string(), "model": j.model.display().to_string() } }))?;
     let gif = crate::video::run::preview(&s)?;
     crate::io::write_atomic(&j.out.join("preview.gif"), &gif)?;
+    drop(transfer);
     let rj = RenderJob {
         model: j.out.clone(),
         out: j.out.join("render"),
         params: j.render.clone(),
         sixteen: false,
     };
-    render_frames(engine, &s, &rj)?;
+    // The frames' own stages (load, shading, ..., write) fall inside this one.
+    stage("render").run(|| render_frames(engine, &s, &rj))?;
     Ok(Report {
         summary: format!(
             "transfer: {} strands through {} frames -> {} (renders in {}, {:.1} s on {})",

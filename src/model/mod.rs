@@ -190,7 +190,7 @@ pub fn model_from_analysis(
     let centre_z = camera.project(Vec3::ZERO).z;
     let s = camera.s;
     let sdf_px = |q: [f32; 3]| head.sdf(camera.unproject(Vec3::from_array(q))) * s;
-    lap("head fit", &mut timings);
+    lap("head_fit", &mut timings);
 
     // Hair volume H.
     let vol = hair_volume(
@@ -205,7 +205,7 @@ pub fn model_from_analysis(
         },
         &p.volume,
     )?;
-    lap("hair volume", &mut timings);
+    lap("hair_volume", &mut timings);
 
     // Constraints: the directed curves and the strokes lifted onto the front of H, and the
     // scalp normal in a band of cells around the scalp. The band's cells inside the head
@@ -256,7 +256,7 @@ pub fn model_from_analysis(
     } else {
         field3d::solve(engine, &vol.grid, &hg, &cons, &p.field)?
     };
-    lap("direction field", &mut timings);
+    lap("direction_field", &mut timings);
 
     // Roots: uniform in scalp parameter space, the face (and any scalp the photo does not
     // show as hair) excluded by the mask. H lies inside the mask (C13: it matches the 2D

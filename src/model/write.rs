@@ -23,7 +23,10 @@ pub fn run(
     use anyhow::Context;
     let (rgb, an) = analyze::run(engine, image, strokes, mask, &p.analyze)?;
     let lm = match landmarks {
-        Some(l) => Some(Landmarks::load(l, Some(rgb.dimensions()))?),
+        Some(l) => {
+            let _s = crate::timings::stage("read");
+            Some(Landmarks::load(l, Some(rgb.dimensions()))?)
+        }
         None => None,
     };
     let m = model_from_analysis(engine, &rgb, an, lm.as_ref(), p)

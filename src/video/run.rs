@@ -274,6 +274,8 @@ pub fn run(
 
     // The reference model, or the one a stopped run of the same inputs already wrote.
     let ref_png = inp.clip.frames[inp.ann.reference].clone();
+    let stage = crate::timings::stage;
+    let reference_model = stage("reference_model");
     let scene = if done.contains(&inp.ann.reference) {
         Scene::load(out).context("resuming: the reference model")?
     } else {
@@ -304,6 +306,8 @@ pub fn run(
             .context("the reference model has no hair mask")?,
     };
     let beta_v = crate::video::warp::beta(&r.strands, tp.beta_ramp_m);
+    drop(reference_model);
+    let features_stage = stage("features");
 
     // Gray frames for the features; every frame is loaded once here to check it.
     let rgb_ref = inp.clip.load_rgb(inp.ann.reference)?;
@@ -329,6 +333,8 @@ pub fn run(
         &out.join("features.json"),
         &json!({ "version": 1, "reference": inp.ann.reference, "features": list }),
     )?;
+    drop(features_stage);
+    let frames_stage = stage("frames");
     let guide = Guide::from_rgb(&rgb_ref);
     let surface = reference_surface(&r, size.0, size.1);
 
@@ -467,6 +473,8 @@ pub fn run(
         }
     }
     bar.finish_and_clear();
+    drop(frames_stage);
+    let _s = stage("write");
 
     // The scene with its animation, and the preview, once every frame is there.
     let mut cams = Vec::with_capacity(n);

@@ -27,6 +27,10 @@ pub struct Cli {
     /// More log output (-v info, -vv debug); RUST_LOG overrides.
     #[arg(short, long, action = clap::ArgAction::Count, global = true)]
     pub verbose: u8,
+    /// Writes where the run's time went to FILE (.json): wall time per stage, GPU time per
+    /// pass on adapters with timestamp queries, peak resident memory.
+    #[arg(long, global = true, value_name = "FILE")]
+    pub timings: Option<PathBuf>,
     #[command(subcommand)]
     pub cmd: Command,
 }

@@ -34,7 +34,12 @@ fn main() {
     env_logger::Builder::from_env(env_logger::Env::default().default_filter_or(level))
         .format_timestamp(None)
         .init();
-    if let Err(e) = cli.cmd.request().and_then(run) {
+    let timings = cli.timings;
+    if let Err(e) = cli
+        .cmd
+        .request()
+        .and_then(|req| run(req, timings.as_deref()))
+    {
         eprintln!("coif: error: {e:#}");
         let code = e
             .chain()
@@ -44,9 +49,18 @@ fn main() {
     }
 }
 
-fn run(req: Request) -> anyhow::Result<()> {
+fn run(req: Request, timings: Option<&Path>) -> anyhow::Result<()> {
+    if let Some(p) = timings {
+        if matches!(req, Request::Info) {
+            return Err(coif::Error::Invalid(
+                "--timings is for the commands that run a pipeline, not `info`".into(),
+            )
+            .into());
+        }
+        coif::timings::check_path(p)?;
+    }
     if let Request::Batch(opts) = &req {
-        return batch(opts);
+        return batch(opts, timings);
     }
     let Request::Jobs {
         jobs,
@@ -57,19 +71,45 @@ fn run(req: Request) -> anyhow::Result<()> {
     else {
         return info();
     };
-    let mut engine = Engine::new(backend)?;
-    if let Some(b) = max_binding_bytes {
-        engine.set_max_binding_bytes(b);
+    let t0 = std::time::Instant::now();
+    let (reports, stages) = coif::timings::collect(|| -> anyhow::Result<_> {
+        let mut engine = {
+            let _s = coif::timings::stage("engine");
+            Engine::new(backend)?
+        };
+        if timings.is_some() {
+            engine.gpu().map(|g| g.time_passes());
+        }
+        if let Some(b) = max_binding_bytes {
+            engine.set_max_binding_bytes(b);
+        }
+        if let Some(b) = &banner {
+            println!("{b} on {}", engine.describe());
+        }
+        // One job reports as it ends; several get a progress bar and report at the end.
+        let reports = if jobs.len() == 1 {
+            vec![coif::jobs::run(&engine, &jobs[0])?]
+        } else {
+            coif::jobs::run_all(&engine, &jobs)?
+        };
+        Ok((engine, reports))
+    });
+    let (engine, reports) = reports?;
+    if let Some(p) = timings {
+        let t = coif::timings::RunTimings {
+            wall_seconds: t0.elapsed().as_secs_f64(),
+            stages,
+            gpu: coif::timings::GpuTime::take(&engine),
+            peak_rss_bytes: coif::timings::peak_rss_bytes(),
+            peak_rss_scope: coif::timings::PeakScope::Process,
+        };
+        // A list of jobs (`demo`) names its stages `<command>/<stage>`.
+        let command = match jobs.as_slice() {
+            [one] => one.command(),
+            _ => "demo",
+        };
+        coif::timings::write(p, command, &engine, &t)?;
     }
-    if let Some(b) = banner {
-        println!("{b} on {}", engine.describe());
-    }
-    // One job reports as it ends; several get a progress bar and report at the end.
-    let reports = if jobs.len() == 1 {
-        vec![coif::jobs::run(&engine, &jobs[0])?]
-    } else {
-        coif::jobs::run_all(&engine, &jobs)?
-    };
     // Stage timings only for a single job: a list reads better as one line per job.
     let single = reports.len() == 1;
     // A closed pipe (`coif ... | head`) is not an error of the run: the files are written.
@@ -87,9 +127,9 @@ fn run(req: Request) -> anyhow::Result<()> {
 }
 
 /// `coif batch`: exits with the first failing job's code after the summary is written.
-fn batch(opts: &coif::batch::BatchOptions) -> anyhow::Result<()> {
+fn batch(opts: &coif::batch::BatchOptions, timings: Option<&Path>) -> anyhow::Result<()> {
     use coif::batch::Status;
-    let s = coif::batch::run(opts)?;
+    let s = coif::batch::run(opts, timings)?;
     println!(
         "batch: shard {}/{}: {} jobs, {} ok, {} skipped, {} failed; summary {}",
         s.shard.index,
@@ -136,6 +176,10 @@ fn info() -> anyhow::Result<()> {
                     g.limits.max_storage_buffer_binding_size,
                     g.limits.max_buffer_size,
                     g.limits.max_compute_workgroups_per_dimension
+                );
+                println!(
+                    "  timestamp queries: {} (GPU time per pass in --timings)",
+                    if g.has_timestamps() { "yes" } else { "no" }
                 );
             }
             Err(e) => println!("--backend gpu fails: {e}"),

@@ -414,6 +414,7 @@ pub fn raster(ctx: &GpuContext, s: &Scene, max_chunk_bytes: u64) -> Result<Vec<[
     let mut encoder = d.create_command_encoder(&wgpu::CommandEncoderDescriptor {
         label: Some("raster"),
     });
+    let mut queries = crate::gpu::timer::PassQueries::new(ctx, 1);
     {
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("raster"),
@@ -438,7 +439,7 @@ pub fn raster(ctx: &GpuContext, s: &Scene, max_chunk_bytes: u64) -> Result<Vec<[
                 }),
                 stencil_ops: None,
             }),
-            timestamp_writes: None,
+            timestamp_writes: queries.as_mut().map(|q| q.render("raster")),
             occlusion_query_set: None,
             multiview_mask: None,
         });
@@ -489,8 +490,14 @@ pub fn raster(ctx: &GpuContext, s: &Scene, max_chunk_bytes: u64) -> Result<Vec<[
             depth_or_array_layers: 1,
         },
     );
+    if let Some(q) = &mut queries {
+        q.resolve(ctx, &mut encoder);
+    }
     ctx.queue.submit([encoder.finish()]);
     readback.slice(..).map_async(wgpu::MapMode::Read, |_| {});
+    if let Some(q) = &queries {
+        q.map();
+    }
     d.poll(wgpu::PollType::wait_indefinitely())
         .map_err(|e| Error::Gpu(format!("device poll failed: {e}")))?;
     if let Some(e) = pollster::block_on(oom.pop()) {
@@ -500,6 +507,9 @@ pub fn raster(ctx: &GpuContext, s: &Scene, max_chunk_bytes: u64) -> Result<Vec<[
         return Err(Error::Gpu(format!("raster: {e}")));
     }
     ctx.check_errors()?;
+    if let Some(q) = queries {
+        q.finish(ctx)?;
+    }
     let view = readback
         .slice(..)
         .get_mapped_range()
