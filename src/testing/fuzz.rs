@@ -42,13 +42,12 @@ pub fn run(name: &str, data: &[u8]) -> bool {
         "npy" => {
             let r = crate::io::npy::from_bytes(data);
             if let Ok((shape, values)) = &r {
-                let (shape, values) = (shape.clone(), values.clone());
                 let n: usize = shape.iter().product();
                 assert_eq!(n, values.len(), "npy: shape {shape:?} vs {}", values.len());
-                let back = crate::io::npy::from_bytes(&crate::io::npy::to_bytes(&shape, &values))
+                let back = crate::io::npy::from_bytes(&crate::io::npy::to_bytes(shape, values))
                     .expect("npy: written bytes read back");
-                assert_eq!(back.0, shape);
-                assert_eq!(bits(&back.1), bits(&values), "npy: values changed");
+                assert_eq!(&back.0, shape);
+                assert_eq!(bits(&back.1), bits(values), "npy: values changed");
             }
             r.is_ok()
         }
