@@ -69,7 +69,7 @@ impl Error {
             Error::BadFile { .. } => 65, // EX_DATAERR
             Error::Invalid(_) => 64,     // EX_USAGE
             Error::TooLarge { .. } => 65,
-            Error::Gpu(_) => 70, // EX_SOFTWARE
+            Error::Gpu(_) => 70,      // EX_SOFTWARE
             Error::Busy { .. } => 75, // EX_TEMPFAIL
             Error::Interrupted(sig) => 128 + sig,
         }

@@ -212,7 +212,12 @@ mod tests {
         let e = check_file(d.path(), &[&a]).unwrap_err();
         assert_eq!(e.exit_code(), 64);
         assert!(e.to_string().contains("is a folder"), "{e}");
-        assert_eq!(check_file(&d.path().join("no/b.hair"), &[]).unwrap_err().exit_code(), 74);
+        assert_eq!(
+            check_file(&d.path().join("no/b.hair"), &[])
+                .unwrap_err()
+                .exit_code(),
+            74
+        );
         check_file(&d.path().join("b.hair"), &[&a]).unwrap();
     }
 }

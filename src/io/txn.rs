@@ -26,7 +26,9 @@ pub const LOCK_TAG: &str = ".coif-lock";
 static LIVE: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 
 fn live_insert(p: &Path) {
-    LIVE.lock().unwrap_or_else(|e| e.into_inner()).push(p.into());
+    LIVE.lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .push(p.into());
 }
 
 fn live_remove(p: &Path) {
@@ -508,7 +510,10 @@ mod tests {
         // flock locks are per open file: a second open in this process conflicts too.
         let e = Txn::begin(&out).unwrap_err();
         assert_eq!(e.exit_code(), 75, "{e}");
-        assert!(e.to_string().contains(&std::process::id().to_string()), "{e}");
+        assert!(
+            e.to_string().contains(&std::process::id().to_string()),
+            "{e}"
+        );
         drop(t);
         Txn::begin(&out).unwrap().commit().unwrap();
         assert!(out.is_dir());

@@ -21,8 +21,8 @@ use std::time::Instant;
 
 mod cartoon;
 mod sketch;
-mod staged;
 mod sketch_edit;
+mod staged;
 mod video;
 
 use cartoon::run_cartoon;
