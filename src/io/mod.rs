@@ -1,5 +1,6 @@
 //! File output that never leaves a half-written file behind: write a temporary file in the
-//! destination folder, then rename it over the target.
+//! destination folder, then rename it over the target. [`txn`] does the same for a run's
+//! whole output folder.
 
 pub mod annot;
 pub mod assets;
