@@ -32,6 +32,18 @@ pub enum Error {
     /// The device reported an error (validation, out of memory, lost device).
     #[error("GPU error: {0}")]
     Gpu(String),
+    /// Another run holds the lock of the folder this one would write (exit 75, EX_TEMPFAIL:
+    /// try again later).
+    #[error("{}: {msg}", path.display())]
+    Busy { path: PathBuf, msg: String },
+    /// SIGINT or SIGTERM (the signal's number) stopped the run at a stage boundary; exit
+    /// 128 + the number, as a shell reports a process the signal ended.
+    #[error(
+        "interrupted by {}: stopped at a stage boundary, the run's temporary files removed and \
+         its output folder left as it was",
+        crate::interrupt::name(*.0)
+    )]
+    Interrupted(i32),
 }
 
 impl Error {
@@ -57,7 +69,9 @@ impl Error {
             Error::BadFile { .. } => 65, // EX_DATAERR
             Error::Invalid(_) => 64,     // EX_USAGE
             Error::TooLarge { .. } => 65,
-            Error::Gpu(_) => 70, // EX_SOFTWARE
+            Error::Gpu(_) => 70,      // EX_SOFTWARE
+            Error::Busy { .. } => 75, // EX_TEMPFAIL
+            Error::Interrupted(sig) => 128 + sig,
         }
     }
 }

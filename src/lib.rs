@@ -10,6 +10,7 @@ pub mod error;
 pub mod eval;
 pub mod gpu;
 pub mod hair;
+pub mod interrupt;
 pub mod io;
 pub mod jobs;
 pub mod model;

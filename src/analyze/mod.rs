@@ -134,6 +134,7 @@ pub fn analyze(
     let t = Instant::now();
     let om = orient(engine, &GrayImage::from_rgb(image), Some(&mask), &p.orient)?;
     timings.push(("orientation", t.elapsed().as_secs_f64()));
+    crate::interrupt::check()?;
     let t = Instant::now();
     let traced = split_curves(
         &trace_curves(&om.theta, &om.confidence, &mask, w, h, &p.trace),
@@ -143,6 +144,7 @@ pub fn analyze(
     let t = Instant::now();
     let resolved = resolve_directions(&traced, &dir_strokes, &p.resolve);
     timings.push(("resolve", t.elapsed().as_secs_f64()));
+    crate::interrupt::check()?;
     if !resolved.unreachable.is_empty() {
         warnings.push(format!(
             "{} of {} curves had no resolved neighbour within {} px of any stroke and were \

@@ -340,8 +340,12 @@ impl BatchJob {
     /// The steps as library jobs, in order. Under `out`: `orient/`, `analyze/`, `model/`,
     /// `render.png` (of `model/`), `sketch/`, `synth-hair.png` (of `sketch/hair.czs`).
     pub fn jobs(&self) -> Vec<Job> {
+        self.jobs_into(&self.out())
+    }
+
+    /// [`BatchJob::jobs`] writing under `out` (the job's temporary folder) instead.
+    pub fn jobs_into(&self, out: &Path) -> Vec<Job> {
         let e = &self.entry;
-        let out = self.out();
         let image = self.path(&e.image);
         let strokes = e.strokes.as_ref().map(|p| self.path(p));
         let mask = e.mask.as_ref().map(|p| self.path(p));

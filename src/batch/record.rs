@@ -50,18 +50,11 @@ impl Record {
         serde_json::from_str(&text).ok()
     }
 
-    pub fn write(&self, job: &BatchJob) -> crate::Result<()> {
+    /// Writes the record into `dir`, the job's temporary folder: it is put in place with the
+    /// job's files, all together or not at all.
+    pub fn write_in(&self, dir: &Path) -> crate::Result<()> {
         let v = serde_json::to_value(self).map_err(|e| Error::Invalid(e.to_string()))?;
-        crate::io::write_json(&Record::path(job), &v)
-    }
-
-    /// Removes the record before a job runs, so that a run that stops half-way leaves none.
-    pub fn remove(job: &BatchJob) -> crate::Result<()> {
-        let p = Record::path(job);
-        match std::fs::remove_file(&p) {
-            Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(Error::io(p, e)),
-            _ => Ok(()),
-        }
+        crate::io::write_json(&dir.join(RECORD), &v)
     }
 }
 

@@ -33,6 +33,11 @@ pub enum Status {
     /// `--resume` found a matching record.
     Skipped,
     Failed,
+    /// SIGINT/SIGTERM stopped it at a stage boundary; its folder is as it was.
+    Interrupted,
+    /// Not started: the batch was interrupted before it.
+    #[serde(rename = "not-run")]
+    NotRun,
 }
 
 /// One job's outcome, as the summary lists it.
@@ -56,7 +61,10 @@ pub struct Summary {
     pub path: PathBuf,
     pub shard: Shard,
     pub jobs: Vec<JobOutcome>,
-    /// 0 when every job succeeded or was skipped, else the first failing job's exit code.
+    /// The signal that interrupted the batch, if one did.
+    pub interrupted: Option<i32>,
+    /// 0 when every job succeeded or was skipped; 128 + the signal when interrupted; else
+    /// the first failing job's exit code.
     pub exit_code: i32,
 }
 
@@ -114,6 +122,19 @@ pub fn run(opts: &BatchOptions, timings: Option<&Path>) -> anyhow::Result<Summar
     );
     let mut outcomes = Vec::with_capacity(mine.len());
     for job in mine {
+        // A job boundary: after a signal the rest are listed as not run.
+        if crate::interrupt::pending().is_some() {
+            outcomes.push(JobOutcome {
+                id: job.id().to_string(),
+                line: job.line,
+                status: Status::NotRun,
+                exit_code: None,
+                message: None,
+                seconds: 0.0,
+                timings: None,
+            });
+            continue;
+        }
         bar.set_message(job.id().to_string());
         let t = Instant::now();
         let scope = match crate::timings::reset_peak_rss() {
@@ -139,6 +160,7 @@ pub fn run(opts: &BatchOptions, timings: Option<&Path>) -> anyhow::Result<Summar
                 }
                 (if skipped { Status::Skipped } else { Status::Ok }, None)
             }
+            Err(e) if is_interrupt(&e) => (Status::Interrupted, Some(e)),
             Err(e) => (Status::Failed, Some(e)),
         };
         let o = JobOutcome {
@@ -158,19 +180,25 @@ pub fn run(opts: &BatchOptions, timings: Option<&Path>) -> anyhow::Result<Summar
                 println!("failed  {} (exit {}): {m}", o.id, o.exit_code.unwrap_or(1))
             }
             (Status::Skipped, _) => println!("skipped {} (record matches)", o.id),
+            (Status::Interrupted, _) => println!("stopped {} (interrupted)", o.id),
             _ => println!("ok      {} in {:.1} s", o.id, o.seconds),
         });
         outcomes.push(o);
         bar.inc(1);
     }
     bar.finish_and_clear();
-    let exit_code = outcomes.iter().find_map(|o| o.exit_code).unwrap_or(0);
+    let interrupted = crate::interrupt::pending();
+    let exit_code = match interrupted {
+        Some(sig) => 128 + sig,
+        None => outcomes.iter().find_map(|o| o.exit_code).unwrap_or(0),
+    };
     let done: Vec<&RunTimings> = done.iter().collect();
     let agg = BatchTimings::of(&done);
     let summary = Summary {
         path,
         shard,
         jobs: outcomes,
+        interrupted,
         exit_code,
     };
     let doc = json!({
@@ -186,7 +214,10 @@ pub fn run(opts: &BatchOptions, timings: Option<&Path>) -> anyhow::Result<Summar
             "ok": summary.count(Status::Ok),
             "skipped": summary.count(Status::Skipped),
             "failed": summary.count(Status::Failed),
+            "interrupted": summary.count(Status::Interrupted),
+            "not_run": summary.count(Status::NotRun),
         },
+        "interrupted": interrupted.map(crate::interrupt::name),
         "exit_code": exit_code,
         "seconds": t0.elapsed().as_secs_f64(),
         "timings": agg,
@@ -216,20 +247,34 @@ pub fn run(opts: &BatchOptions, timings: Option<&Path>) -> anyhow::Result<Summar
     Ok(summary)
 }
 
-/// Runs a job's steps; Ok(true) when `--resume` skipped it. Returns the steps' warnings.
+fn is_interrupt(e: &anyhow::Error) -> bool {
+    e.chain()
+        .any(|c| matches!(c.downcast_ref::<Error>(), Some(Error::Interrupted(_))))
+}
+
+/// Runs a job's steps; Ok(true) when `--resume` skipped it. Returns the steps' warnings. The
+/// steps and the record are written into a temporary folder put in place of `out` when all
+/// are done: a job that fails or is interrupted leaves its folder (and its old record) as
+/// they were.
 fn run_job(engine: &Engine, job: &BatchJob, resume: bool) -> anyhow::Result<(bool, Vec<String>)> {
     let record = Record::of(job)?;
     if resume && Record::read(job).as_ref() == Some(&record) {
         return Ok((true, Vec::new()));
     }
-    Record::remove(job)?;
+    let out = job.out();
+    let txn = crate::io::txn::Txn::begin(&out)?;
+    let tmp = txn.dir().to_path_buf();
     let mut warnings = Vec::new();
-    for j in job.jobs() {
-        // Each step's stages under its command's name.
+    // Labels and messages name the real folder, not the temporary one; each step's stages
+    // under its command's name.
+    for (shown, j) in job.jobs().iter().zip(job.jobs_into(&tmp)) {
         let (r, stages) = crate::timings::collect(|| crate::jobs::run(engine, &j));
         crate::timings::record_prefixed(j.command(), &stages);
-        warnings.extend(r.with_context(|| j.label())?.warnings);
+        let r = r.with_context(|| shown.label())?;
+        warnings.extend(r.relabel(&tmp, &out).warnings);
     }
-    record.write(job)?;
+    record.write_in(&tmp)?;
+    crate::interrupt::check()?;
+    txn.commit()?;
     Ok((false, warnings))
 }

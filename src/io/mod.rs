@@ -1,5 +1,6 @@
 //! File output that never leaves a half-written file behind: write a temporary file in the
-//! destination folder, then rename it over the target.
+//! destination folder, then rename it over the target. [`txn`] does the same for a run's
+//! whole output folder.
 
 pub mod annot;
 pub mod assets;
@@ -8,6 +9,7 @@ pub mod import;
 pub mod npy;
 pub mod outpath;
 pub mod strands;
+pub mod txn;
 pub mod vis;
 
 use crate::error::{Error, Result};
@@ -15,14 +17,16 @@ use serde_json::json;
 use std::io::Write;
 use std::path::Path;
 
-/// Writes `bytes` to `path` atomically (temporary file in the same folder, then rename).
+/// Writes `bytes` to `path` atomically (temporary file in the same folder, then rename). The
+/// temporary, `.coif-<pid>-XXXXXX.tmp`, carries the pid so that a later run can tell one
+/// left by a killed process ([`txn::clean_stale`]).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
     };
     let mut tmp = tempfile::Builder::new()
-        .prefix(".coif-")
+        .prefix(&format!(".coif-{}-", std::process::id()))
         .suffix(".tmp")
         .tempfile_in(dir)
         .map_err(|e| Error::io(path, e))?;

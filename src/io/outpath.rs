@@ -74,6 +74,21 @@ pub fn check(out: &Path, formats: &[Format], inputs: &[&Path]) -> Result<Format>
     Ok(format)
 }
 
+/// Checks a command's single output file whose type its writer checks by extension (strand
+/// and sketch files): not one of `inputs`, not an existing folder (64), its folder existing
+/// (74). Without it `convert a.hair a.hair` rewrote its input and `export --to somedir`
+/// failed only after reading the model.
+pub fn check_file(out: &Path, inputs: &[&Path]) -> Result<()> {
+    refuse_inputs(out, inputs)?;
+    if out.is_dir() {
+        return Err(Error::Invalid(format!(
+            "{}: is a folder; this command writes one file there: give a file name",
+            out.display()
+        )));
+    }
+    require_folder(out)
+}
+
 /// Refuses `out` when the folder it would be written in does not exist (74).
 pub fn require_folder(out: &Path) -> Result<()> {
     let parent = match out.parent() {
@@ -184,5 +199,25 @@ mod tests {
         let e = check(&d.path().join("no/b.png"), &png, &[]).unwrap_err();
         assert_eq!(e.exit_code(), 74);
         assert!(e.to_string().contains("does not exist"), "{e}");
+    }
+
+    #[test]
+    fn a_single_file_output_is_not_an_input_nor_a_folder() {
+        let d = tempfile::tempdir().unwrap();
+        let a = d.path().join("a.hair");
+        std::fs::write(&a, b"x").unwrap();
+        let e = check_file(&a, &[&a]).unwrap_err();
+        assert_eq!(e.exit_code(), 64);
+        assert!(e.to_string().contains("overwrite the input"), "{e}");
+        let e = check_file(d.path(), &[&a]).unwrap_err();
+        assert_eq!(e.exit_code(), 64);
+        assert!(e.to_string().contains("is a folder"), "{e}");
+        assert_eq!(
+            check_file(&d.path().join("no/b.hair"), &[])
+                .unwrap_err()
+                .exit_code(),
+            74
+        );
+        check_file(&d.path().join("b.hair"), &[&a]).unwrap();
     }
 }

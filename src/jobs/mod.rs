@@ -24,6 +24,7 @@ mod cartoon;
 mod command;
 mod sketch;
 mod sketch_edit;
+mod staged;
 mod video;
 
 use cartoon::run_cartoon;
@@ -222,8 +223,14 @@ impl Job {
     }
 }
 
-/// Runs one job on `engine`.
+/// Runs one job on `engine`; a job that writes a folder writes it all or not at all (see
+/// [`staged`]).
 pub fn run(engine: &Engine, job: &Job) -> anyhow::Result<Report> {
+    staged::run(engine, job)
+}
+
+/// Runs one job writing straight to its outputs.
+fn run_here(engine: &Engine, job: &Job) -> anyhow::Result<Report> {
     match job {
         Job::Synth(j) => run_synth(j),
         Job::SynthVideo(j) => run_synth_video(j),
@@ -256,6 +263,7 @@ pub fn run_all(engine: &Engine, jobs: &[Job]) -> anyhow::Result<Vec<Report>> {
     );
     let mut reports = Vec::with_capacity(jobs.len());
     for job in jobs {
+        crate::interrupt::check()?;
         bar.set_message(job.label());
         // Each job's stages under its command's name (`--timings`).
         let (r, stages) = crate::timings::collect(|| run(engine, job));
@@ -698,12 +706,14 @@ fn run_render(engine: &Engine, j: &RenderJob) -> anyhow::Result<Report> {
 fn render_frames(engine: &Engine, scene: &Scene, j: &RenderJob) -> anyhow::Result<Report> {
     let a = scene.animation.as_ref().expect("checked by the caller");
     let t = Instant::now();
-    ensure_dir(&j.out)?;
+    // All frames or none: written into a temporary folder put in place at the end.
+    let txn = crate::io::txn::Txn::begin(&j.out)?;
     let bar = indicatif::ProgressBar::new(a.frames.len() as u64).with_style(
         indicatif::ProgressStyle::with_template("render {bar:30} {pos}/{len} frames {eta}")
             .expect("static template"),
     );
     for (k, pose) in a.head.iter().enumerate() {
+        crate::interrupt::check()?;
         let mut p = j.params.clone();
         // A tracked video: each frame over its own photo, seen by its own camera.
         let s = match scene.footage_frame(k)? {
@@ -725,10 +735,11 @@ fn render_frames(engine: &Engine, scene: &Scene, j: &RenderJob) -> anyhow::Resul
             .with_context(|| format!("rendering frame {k} of {}", j.model.display()))?;
         record_all(&r.report.seconds);
         stage("write")
-            .run(|| render::write(&j.out.join(format!("{k:04}.png")), &r, &p, j.sixteen))?;
+            .run(|| render::write(&txn.dir().join(format!("{k:04}.png")), &r, &p, j.sixteen))?;
         bar.inc(1);
     }
     bar.finish_and_clear();
+    txn.commit()?;
     Ok(Report {
         summary: format!(
             "render: {} frames -> {} ({:.2} s on {})",

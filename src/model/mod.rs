@@ -166,9 +166,11 @@ pub fn model_from_analysis(
     let (w, h) = (an.width, an.height);
     let mut timings = an.timings.clone();
     let mut clock = Instant::now();
+    // A stage boundary: SIGINT/SIGTERM stop the run here.
     let mut lap = |name: &'static str, timings: &mut Vec<(&'static str, f64)>| {
         timings.push((name, clock.elapsed().as_secs_f64()));
         clock = Instant::now();
+        crate::interrupt::check()
     };
 
     // Head and camera.
@@ -190,7 +192,7 @@ pub fn model_from_analysis(
     let centre_z = camera.project(Vec3::ZERO).z;
     let s = camera.s;
     let sdf_px = |q: [f32; 3]| head.sdf(camera.unproject(Vec3::from_array(q))) * s;
-    lap("head_fit", &mut timings);
+    lap("head_fit", &mut timings)?;
 
     // Hair volume H.
     let vol = hair_volume(
@@ -205,7 +207,7 @@ pub fn model_from_analysis(
         },
         &p.volume,
     )?;
-    lap("hair_volume", &mut timings);
+    lap("hair_volume", &mut timings)?;
 
     // Constraints: the directed curves and the strokes lifted onto the front of H, and the
     // scalp normal in a band of cells around the scalp. The band's cells inside the head
@@ -231,7 +233,7 @@ pub fn model_from_analysis(
     let mut cons = curve_cons.clone();
     let taken: std::collections::HashSet<u32> = cons.iter().map(|c| c.0).collect();
     cons.extend(scalp_cons.iter().filter(|c| !taken.contains(&c.0)).copied());
-    lap("constraints", &mut timings);
+    lap("constraints", &mut timings)?;
     if curve_cons.is_empty() {
         return Err(Error::Invalid(
             "no directed curve or stroke lands on the hair volume: draw strokes on the hair".into(),
@@ -256,7 +258,7 @@ pub fn model_from_analysis(
     } else {
         field3d::solve(engine, &vol.grid, &hg, &cons, &p.field)?
     };
-    lap("direction_field", &mut timings);
+    lap("direction_field", &mut timings)?;
 
     // Roots: uniform in scalp parameter space, the face (and any scalp the photo does not
     // show as hair) excluded by the mask. H lies inside the mask (C13: it matches the 2D
@@ -283,7 +285,7 @@ pub fn model_from_analysis(
     }
     let signs = vec![1.0f32; roots.len()];
     let grown = grow(engine, &grid, &d, &hg, &roots, &signs, &p.grow)?;
-    lap("growth", &mut timings);
+    lap("growth", &mut timings)?;
     let grown_strands = grown.len();
     let mut rp = p.refine;
     rp.grow = p.grow;
@@ -295,10 +297,10 @@ pub fn model_from_analysis(
     };
     let (strands, refine_report) =
         refine(engine, &grid, &d, &hg, grown, &rp, p.seed, Some(&cover))?;
-    lap("refinement", &mut timings);
+    lap("refinement", &mut timings)?;
 
     let (set, image_view) = to_model_space(&strands, &grid, &camera, image, &an.mask);
-    lap("colour", &mut timings);
+    lap("colour", &mut timings)?;
 
     Ok(Model {
         head,

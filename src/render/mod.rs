@@ -767,7 +767,9 @@ pub fn write(path: &Path, r: &Rendered, p: &RenderParams, sixteen: bool) -> Resu
     let meta = serde_json::json!({
         "version": 1,
         "coif": env!("CARGO_PKG_VERSION"),
-        "image": path.display().to_string(),
+        // Its name only: the side file lies beside it, and the folder may be a run's
+        // temporary one, renamed when the run ends.
+        "image": path.file_name().map(|n| n.to_string_lossy().into_owned()),
         "encoding": match (jpeg, sixteen) {
             (true, _) => "8-bit sRGB JPEG",
             (false, true) => "16-bit sRGB PNG",

@@ -52,6 +52,7 @@ pub fn run(engine: &Engine, scene: &Scene, p: &SimParams, progress: bool) -> Res
     let mut figures = vec![sim.figures()];
     let mut poses = vec![p.track.pose(0.0)];
     for f in 1..=p.frames {
+        crate::interrupt::check()?;
         sim.advance(engine, p.substeps)?;
         frames.push(sim.strands());
         figures.push(sim.figures());

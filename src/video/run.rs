@@ -465,6 +465,8 @@ pub fn run(
         write_progress(out, &sig, &done, &per_frame)?;
         bar.inc(1);
         computed += 1;
+        // A frame boundary: the frames done so far are recorded, a rerun resumes after them.
+        crate::interrupt::check()?;
         if stop_after == Some(computed) {
             return Err(Error::Invalid(format!(
                 "stopped after {computed} frames ({STOP_AFTER_ENV} test hook)"

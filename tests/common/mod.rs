@@ -1,6 +1,8 @@
 //! Shared test fixtures.
 #![allow(dead_code)] // each test binary uses a different subset
 
+pub mod procs;
+
 use coif::analyze::orient::GrayImage;
 use coif::gpu::engine::{BackendChoice, Engine};
 

@@ -34,6 +34,11 @@ fn main() {
     env_logger::Builder::from_env(env_logger::Env::default().default_filter_or(level))
         .format_timestamp(None)
         .init();
+    // SIGINT/SIGTERM stop a run at its next stage boundary, its temporaries removed (exit
+    // 130/143); without the handlers they would end it mid-write.
+    if let Err(e) = coif::interrupt::install() {
+        log::warn!("signal handlers not installed: {e}");
+    }
     let timings = cli.timings;
     if let Err(e) = cli
         .cmd
@@ -140,6 +145,15 @@ fn batch(opts: &coif::batch::BatchOptions, timings: Option<&Path>) -> anyhow::Re
         s.count(Status::Failed),
         s.path.display()
     );
+    if let Some(sig) = s.interrupted {
+        eprintln!(
+            "coif: batch interrupted by {}: {} job(s) stopped, {} not run; run it again with \
+             --resume to complete them",
+            coif::interrupt::name(sig),
+            s.count(Status::Interrupted),
+            s.count(Status::NotRun)
+        );
+    }
     if s.exit_code != 0 {
         let _ = std::io::stdout().flush();
         std::process::exit(s.exit_code);
