@@ -22,6 +22,8 @@ pub struct BatchOptions {
     /// None: `<manifest>.summary.json`, or `<manifest>.shard-I-of-N.summary.json`.
     pub summary: Option<PathBuf>,
     pub backend: BackendChoice,
+    /// `--max-memory`; None: the machine's ([`crate::base::budget::Budget::machine`]).
+    pub max_memory: Option<crate::base::budget::Budget>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -96,7 +98,10 @@ pub fn run(opts: &BatchOptions) -> anyhow::Result<Summary> {
         .filter(|(k, _)| shard.contains(*k))
         .map(|(_, j)| j)
         .collect();
-    let engine = Engine::new(opts.backend)?;
+    let mut engine = Engine::new(opts.backend)?;
+    if let Some(b) = &opts.max_memory {
+        engine.set_budget(b.clone());
+    }
     let t0 = Instant::now();
     let bar = indicatif::ProgressBar::new(mine.len() as u64).with_style(
         indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}")

@@ -20,6 +20,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 mod cartoon;
+pub mod memory;
 mod sketch;
 mod sketch_edit;
 mod video;
@@ -222,6 +223,7 @@ impl Job {
 
 /// Runs one job on `engine`.
 pub fn run(engine: &Engine, job: &Job) -> anyhow::Result<Report> {
+    memory::check(engine, job)?;
     match job {
         Job::Synth(j) => run_synth(j),
         Job::SynthVideo(j) => run_synth_video(j),

@@ -27,6 +27,11 @@ pub struct Cli {
     /// More log output (-v info, -vv debug); RUST_LOG overrides.
     #[arg(short, long, action = clap::ArgAction::Count, global = true)]
     pub verbose: u8,
+    /// Memory budget (e.g. 4G, 512M; K/M/G/T are powers of 1024): work estimated to need
+    /// more is refused before it starts. Default: the cgroup limit, ulimit -v or
+    /// MemAvailable, whichever is smallest.
+    #[arg(long, global = true, value_name = "SIZE", value_parser = coif::base::budget::Budget::from_option)]
+    pub max_memory: Option<coif::base::budget::Budget>,
     #[command(subcommand)]
     pub cmd: Command,
 }

@@ -34,7 +34,8 @@ fn main() {
     env_logger::Builder::from_env(env_logger::Env::default().default_filter_or(level))
         .format_timestamp(None)
         .init();
-    if let Err(e) = cli.cmd.request().and_then(run) {
+    let budget = cli.max_memory;
+    if let Err(e) = cli.cmd.request().and_then(|r| run(r, budget)) {
         eprintln!("coif: error: {e:#}");
         let code = e
             .chain()
@@ -44,9 +45,10 @@ fn main() {
     }
 }
 
-fn run(req: Request) -> anyhow::Result<()> {
-    if let Request::Batch(opts) = &req {
-        return batch(opts);
+fn run(req: Request, budget: Option<coif::base::budget::Budget>) -> anyhow::Result<()> {
+    if let Request::Batch(mut opts) = req {
+        opts.max_memory = budget;
+        return batch(&opts);
     }
     let Request::Jobs {
         jobs,
@@ -60,6 +62,9 @@ fn run(req: Request) -> anyhow::Result<()> {
     let mut engine = Engine::new(backend)?;
     if let Some(b) = max_binding_bytes {
         engine.set_max_binding_bytes(b);
+    }
+    if let Some(b) = budget {
+        engine.set_budget(b);
     }
     if let Some(b) = banner {
         println!("{b} on {}", engine.describe());
