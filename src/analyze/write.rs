@@ -56,6 +56,8 @@ pub fn run_orient(
     use anyhow::Context;
     let (rgb, mask_px) = load_photo(image, mask, params.kernel.ksize)?;
     let gray = GrayImage::from_rgb(&rgb);
+    // Only the gray image is needed from here: the colour copy would stay for the whole run.
+    drop(rgb);
     let t = Instant::now();
     let map = orient(engine, &gray, mask_px.as_deref(), params)
         .with_context(|| format!("orientation of {}", image.display()))?;
