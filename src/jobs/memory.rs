@@ -66,10 +66,14 @@ fn orient_bytes(engine: &Engine, w: u32, h: u32, p: &OrientParams) -> crate::Res
     Ok((
         BASE_BYTES + whole + tile,
         format!(
-            "{} for the whole image, {} for {} of {tiles} {tw}x{th} tiles on {}",
+            "{} for the whole image, {} for {} on {}",
             Bytes(whole),
             Bytes(tile),
-            if tiles > 1 { "each" } else { "the one" },
+            if tiles > 1 {
+                format!("each of {tiles} tiles of {tw}x{th} kept px")
+            } else {
+                "it in one piece".to_string()
+            },
             if engine.is_gpu() {
                 "the gpu"
             } else {
