@@ -26,6 +26,13 @@ pub enum Error {
         limit_name: String,
         unit: &'static str,
     },
+    /// A run's estimated memory is over the budget (`--max-memory`, else the machine's): 64
+    /// when an option sizes it, 65 when an input does.
+    #[error("{msg}")]
+    OverBudget {
+        cause: crate::base::budget::Cause,
+        msg: String,
+    },
     /// No adapter matched the request (exit code 69, EX_UNAVAILABLE).
     #[error("no GPU adapter: {0}")]
     NoAdapter(String),
@@ -69,6 +76,10 @@ impl Error {
             Error::BadFile { .. } => 65, // EX_DATAERR
             Error::Invalid(_) => 64,     // EX_USAGE
             Error::TooLarge { .. } => 65,
+            Error::OverBudget { cause, .. } => match cause {
+                crate::base::budget::Cause::Option => 64,
+                crate::base::budget::Cause::Input => 65,
+            },
             Error::Gpu(_) => 70,      // EX_SOFTWARE
             Error::Busy { .. } => 75, // EX_TEMPFAIL
             Error::Interrupted(sig) => 128 + sig,

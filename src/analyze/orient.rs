@@ -289,12 +289,80 @@ fn record_tile(
     (theta, conf_out)
 }
 
-/// Largest tile side (kept pixels) whose padded buffers fit in `max_binding` bytes.
-fn tile_side(max_binding: u64, halo: u32) -> Option<u32> {
-    let max_px = max_binding / 4;
+/// Largest tile side (kept pixels) whose padded tile has at most `max_px` pixels.
+fn tile_side(max_px: u64, halo: u32) -> Option<u32> {
     let side = (max_px as f64).sqrt().floor() as u64;
     let keep = side.checked_sub(2 * halo as u64)?;
     (keep >= 16).then_some(keep.min(u32::MAX as u64) as u32)
+}
+
+/// Memory the cpu backend's tiles may take: past about 1500² px a tile gains little (the
+/// halo is already under 20% of it) and an 8000² image must fit in a few GiB. A constant,
+/// not a share of the budget, so results depend on the image and the options alone.
+pub const CPU_TILE_BYTES: u64 = 1 << 30;
+
+/// Bytes per pixel of a `w` x `h` tile on the cpu backend, from what holds them: the
+/// recording's buffers (gray, DoG 2x2, mask, 3 per Gabor pass, smoothing 2x2, theta and
+/// confidence: 4 B each), their downloads (twice: the run's copy and the caller's), the
+/// host's crop and mask (8 B); and, per pixel of the FFT size, the bank's kernel spectra
+/// (n/2 complex), the responses (n f32), the image's spectrum and a product with its inverse's
+/// transposes (4 complex).
+pub fn cpu_bytes_per_px(p: &OrientParams, w: u32, h: u32) -> f64 {
+    let passes = p.refine_iters as u64 + 1;
+    let buffers = 4 * (1 + 4 + 1 + 3 * passes + 4 + 2) + 2 * 8 + 8;
+    let half = p.kernel.half() as usize;
+    let (fw, fh) = (
+        gabor::fft_size(w as usize + 2 * half),
+        gabor::fft_size(h as usize + 2 * half),
+    );
+    let fft_ratio = (fw * fh) as f64 / (w as f64 * h as f64);
+    let n = p.kernel.n_orient as u64;
+    let gabor = (n / 2) * 8 + n * 4 + 4 * 8;
+    buffers as f64 + fft_ratio * gabor as f64
+}
+
+/// The padded tile size (w, h, tiles) [`orient`] uses for a `w` x `h` image on `engine`.
+pub fn tiling(engine: &Engine, w: u32, h: u32, p: &OrientParams) -> Result<(u32, u32, usize)> {
+    let halo = p.halo();
+    let limit = engine.max_binding_bytes();
+    let mut max_px = limit / 4;
+    if !engine.is_gpu() {
+        // The FFT size of a large tile is within a few % of it; 1.1 bounds the ratio.
+        let per_px = cpu_bytes_per_px(p, 4096, 4096) * 1.1;
+        max_px = max_px.min((CPU_TILE_BYTES as f64 / per_px) as u64);
+    }
+    let (tw, th) = if w as u64 * h as u64 <= max_px {
+        (w, h)
+    } else {
+        let side = tile_side(max_px, halo).ok_or_else(|| Error::TooLarge {
+            what: format!(
+                "an orientation tile of {0}x{0} px (16 kept + a {1} px halo each side)",
+                16 + 2 * halo,
+                halo
+            ),
+            needed: (16 + 2 * halo as u64).pow(2) * 4,
+            limit,
+            limit_name: "largest buffer binding".into(),
+            unit: "bytes",
+        })?;
+        (side.min(w), side.min(h))
+    };
+    let tiles = w.div_ceil(tw) as usize * h.div_ceil(th) as usize;
+    Ok((tw, th, tiles))
+}
+
+/// Peak bytes of one tile of [`orient`] for a `w` x `h` image on `engine` (the host's
+/// side on the GPU: uploads and downloads).
+pub fn tile_bytes(engine: &Engine, w: u32, h: u32, p: &OrientParams) -> Result<u64> {
+    let (tw, th, tiles) = tiling(engine, w, h, p)?;
+    let halo = if tiles > 1 { 2 * p.halo() } else { 0 };
+    let (pw, ph) = ((tw + halo).min(w), (th + halo).min(h));
+    let per_px = if engine.is_gpu() {
+        8.0 + 2.0 * 8.0
+    } else {
+        cpu_bytes_per_px(p, pw, ph)
+    };
+    Ok((per_px * pw as f64 * ph as f64) as u64)
 }
 
 /// Runs the orientation stage. `mask` (one byte per pixel, nonzero on hair) limits the
@@ -325,24 +393,7 @@ pub fn orient(
         ));
     }
     let halo = p.halo();
-    let limit = engine.max_binding_bytes();
-    let full_bytes = w as u64 * h as u64 * 4;
-    let (tw, th) = if full_bytes <= limit {
-        (w, h)
-    } else {
-        let side = tile_side(limit, halo).ok_or_else(|| Error::TooLarge {
-            what: format!(
-                "an orientation tile of {0}x{0} px (16 kept + a {1} px halo each side)",
-                16 + 2 * halo,
-                halo
-            ),
-            needed: (16 + 2 * halo as u64).pow(2) * 4,
-            limit,
-            limit_name: "largest buffer binding".into(),
-            unit: "bytes",
-        })?;
-        (side.min(w), side.min(h))
-    };
+    let (tw, th, _) = tiling(engine, w, h, p)?;
     let mut out = OrientMap {
         width: w,
         height: h,
@@ -354,14 +405,20 @@ pub fn orient(
         .collect();
     if tiles.len() > 1 {
         log::info!(
-            "orientation: {}x{} image in {} tiles of {}x{} (+{} px halo) to stay within {} B per binding",
+            "orientation: {}x{} image in {} tiles of {}x{} (+{} px halo) to stay within {} B per \
+             binding{}",
             w,
             h,
             tiles.len(),
             tw,
             th,
             halo,
-            limit
+            engine.max_binding_bytes(),
+            if engine.is_gpu() {
+                String::new()
+            } else {
+                format!(" and {CPU_TILE_BYTES} B per tile")
+            }
         );
     }
     for (x0, y0) in tiles {

@@ -58,6 +58,8 @@ pub fn run_orient(
     let (rgb, mask_px) = load_photo(image, mask, params.kernel.ksize)?;
     let gray = GrayImage::from_rgb(&rgb);
     drop(stage);
+    // Only the gray image is needed from here: the colour copy would stay for the whole run.
+    drop(rgb);
     let t = Instant::now();
     let _s = crate::timings::stage("orientation");
     let map = orient(engine, &gray, mask_px.as_deref(), params)

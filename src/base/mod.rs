@@ -1,6 +1,7 @@
 //! Small shared building blocks with no knowledge of hair: grids, random numbers, mask
-//! morphology, distance functions, order statistics, the buffer sentinel.
+//! morphology, distance functions, order statistics, the buffer sentinel, the memory budget.
 
+pub mod budget;
 pub mod colour;
 pub mod grid;
 pub mod mask;

@@ -24,6 +24,8 @@ pub struct BatchOptions {
     /// None: `<manifest>.summary.json`, or `<manifest>.shard-I-of-N.summary.json`.
     pub summary: Option<PathBuf>,
     pub backend: BackendChoice,
+    /// `--max-memory`; None: the machine's ([`crate::base::budget::Budget::machine`]).
+    pub max_memory: Option<crate::base::budget::Budget>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -112,7 +114,10 @@ pub fn run(opts: &BatchOptions, timings: Option<&Path>) -> anyhow::Result<Summar
         .map(|(_, j)| j)
         .collect();
     let t0 = Instant::now();
-    let engine = Engine::new(opts.backend)?;
+    let mut engine = Engine::new(opts.backend)?;
+    if let Some(b) = &opts.max_memory {
+        engine.set_budget(b.clone());
+    }
     // Every job's GPU passes are timed where the adapter can (for the summary).
     engine.gpu().map(|g| g.time_passes());
     let mut done: Vec<RunTimings> = Vec::new();

@@ -233,6 +233,8 @@ pub struct Engine {
     pipelines: Mutex<HashMap<PipelineKey, wgpu::ComputePipeline>>,
     /// Largest single buffer a stage may bind; hosts tile work to stay under it.
     max_binding: u64,
+    /// Memory the jobs run on this engine may use; checked before work starts.
+    budget: crate::base::budget::Budget,
 }
 
 /// The CPU backend has no binding limit of its own; tiles this size keep memory bounded.
@@ -260,6 +262,7 @@ impl Engine {
             gpu,
             pipelines: Mutex::new(HashMap::new()),
             max_binding,
+            budget: crate::base::budget::Budget::machine(),
         })
     }
 
@@ -290,6 +293,15 @@ impl Engine {
     /// Lowers the binding limit, to exercise tiling in tests or to bound memory.
     pub fn set_max_binding_bytes(&mut self, bytes: u64) {
         self.max_binding = self.max_binding.min(bytes);
+    }
+
+    pub fn budget(&self) -> &crate::base::budget::Budget {
+        &self.budget
+    }
+
+    /// Sets the memory budget (`--max-memory`); the default is the machine's.
+    pub fn set_budget(&mut self, budget: crate::base::budget::Budget) {
+        self.budget = budget;
     }
 
     /// Runs every command of `rec` in order and returns the requested downloads.

@@ -22,6 +22,7 @@ use std::time::Instant;
 
 mod cartoon;
 mod command;
+pub mod memory;
 mod sketch;
 mod sketch_edit;
 mod staged;
@@ -226,6 +227,7 @@ impl Job {
 /// Runs one job on `engine`; a job that writes a folder writes it all or not at all (see
 /// [`staged`]).
 pub fn run(engine: &Engine, job: &Job) -> anyhow::Result<Report> {
+    memory::check(engine, job)?;
     staged::run(engine, job)
 }
 

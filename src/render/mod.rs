@@ -317,6 +317,7 @@ pub fn render(engine: &Engine, m: &Scene, p: &RenderParams) -> Result<Rendered> 
         clock = Instant::now();
     };
 
+    check_memory(engine, m, p, w, h)?;
     // Strands: colours resampled along them from the photo, shaded in model space, then
     // projected.
     let dense = resample_colours(m, p.colour_spacing_px);
@@ -490,6 +491,66 @@ fn strand_photo(
 /// vertices (C13 §4). The model's vertices sit half a grid cell apart (~3 px at 512²), while
 /// the photo's hair varies at the scale of a pixel across strands: sampling only at the
 /// vertices smears it along the strand. None without a photo, or when `spacing` is 0.
+/// Bytes per strand vertex drawn: the resampled set (point, colour, transparency: 28), its
+/// base and shaded colours (24), the shading pass's buffers and their read-back (80) and the
+/// projected points (16); the rasteriser's quads come on top ([`BYTES_PER_SEGMENT`]).
+pub const BYTES_PER_VERTEX: u64 = 148;
+/// Bytes per segment rasterised (a quad's four corners with colour and coverage).
+pub const BYTES_PER_SEGMENT: u64 = 128;
+/// Bytes per output pixel: 4x MSAA samples of colour and depth, the layers (photo,
+/// inpainted background, head) in linear f32 RGBA and the 8/16-bit output.
+pub const BYTES_PER_PIXEL: u64 = 4 * 20 + 3 * 16 + 8;
+
+/// Refuses a render whose vertices (`--colour-spacing` adds up to 63 per segment) or pixels
+/// (`--scale`, `--size`) would take more than the engine's memory budget, before any of
+/// them is allocated.
+fn check_memory(engine: &Engine, m: &Scene, p: &RenderParams, w: u32, h: u32) -> Result<()> {
+    use crate::base::budget::{Bytes, Cause};
+    let verts = dense_vertices(m, p.colour_spacing_px);
+    let segs = verts.saturating_sub(m.strands.len() as u64);
+    let strands = verts * BYTES_PER_VERTEX + segs * BYTES_PER_SEGMENT;
+    let pixels = w as u64 * h as u64 * BYTES_PER_PIXEL;
+    let detail = format!(
+        "{verts} strand vertices: {}; a {w}x{h} picture: {}",
+        Bytes(strands),
+        Bytes(pixels)
+    );
+    let what = if strands >= pixels && p.colour_spacing_px > 0.0 {
+        format!("--colour-spacing {}", p.colour_spacing_px)
+    } else if strands >= pixels {
+        format!("the model's {} strands", m.strands.len())
+    } else {
+        format!("a {w}x{h} render (--scale {}, --size)", p.scale)
+    };
+    engine
+        .budget()
+        .check(Cause::Option, &what, strands + pixels, &detail)
+}
+
+/// The vertex count [`resample_colours`] gives, counted without building the set.
+fn dense_vertices(m: &Scene, spacing: f32) -> u64 {
+    let n = m.strands.points.len() as u64;
+    let (Some(_), Some(cam)) = (m.photo.as_ref(), m.camera) else {
+        return n;
+    };
+    if spacing.is_nan() || spacing <= 0.0 || m.strands.colors.is_none() {
+        return n;
+    }
+    let mut total = 0u64;
+    let mut start = 0usize;
+    for &c in &m.strands.counts {
+        let pts = &m.strands.points[start..start + c as usize];
+        start += c as usize;
+        total += pts.len() as u64;
+        for s in pts.windows(2) {
+            let (a, b) = (Vec3::from_array(s[0]), Vec3::from_array(s[1]));
+            let len = (cam.project(b) - cam.project(a)).truncate().length();
+            total += ((len / spacing).ceil() as u64).clamp(1, 64) - 1;
+        }
+    }
+    total
+}
+
 fn resample_colours(m: &Scene, spacing: f32) -> Option<StrandSet> {
     let (photo, cam) = (m.photo.as_ref()?, m.camera?);
     if spacing.is_nan() || spacing <= 0.0 || m.strands.colors.is_none() {

@@ -31,6 +31,11 @@ pub struct Cli {
     /// pass on adapters with timestamp queries, peak resident memory.
     #[arg(long, global = true, value_name = "FILE")]
     pub timings: Option<PathBuf>,
+    /// Memory budget (e.g. 4G, 512M; K/M/G/T are powers of 1024): work estimated to need
+    /// more is refused before it starts. Default: the cgroup limit, ulimit -v or
+    /// MemAvailable, whichever is smallest.
+    #[arg(long, global = true, value_name = "SIZE", value_parser = coif::base::budget::Budget::from_option)]
+    pub max_memory: Option<coif::base::budget::Budget>,
     #[command(subcommand)]
     pub cmd: Command,
 }

@@ -39,11 +39,11 @@ fn main() {
     if let Err(e) = coif::interrupt::install() {
         log::warn!("signal handlers not installed: {e}");
     }
-    let timings = cli.timings;
+    let (timings, budget) = (cli.timings, cli.max_memory);
     if let Err(e) = cli
         .cmd
         .request()
-        .and_then(|req| run(req, timings.as_deref()))
+        .and_then(|req| run(req, timings.as_deref(), budget))
     {
         eprintln!("coif: error: {e:#}");
         let code = e
@@ -54,7 +54,11 @@ fn main() {
     }
 }
 
-fn run(req: Request, timings: Option<&Path>) -> anyhow::Result<()> {
+fn run(
+    req: Request,
+    timings: Option<&Path>,
+    budget: Option<coif::base::budget::Budget>,
+) -> anyhow::Result<()> {
     if let Some(p) = timings {
         if matches!(req, Request::Info) {
             return Err(coif::Error::Invalid(
@@ -64,8 +68,9 @@ fn run(req: Request, timings: Option<&Path>) -> anyhow::Result<()> {
         }
         coif::timings::check_path(p)?;
     }
-    if let Request::Batch(opts) = &req {
-        return batch(opts, timings);
+    if let Request::Batch(mut opts) = req {
+        opts.max_memory = budget;
+        return batch(&opts, timings);
     }
     let Request::Jobs {
         jobs,
@@ -84,6 +89,9 @@ fn run(req: Request, timings: Option<&Path>) -> anyhow::Result<()> {
         };
         if timings.is_some() {
             engine.gpu().map(|g| g.time_passes());
+        }
+        if let Some(b) = budget {
+            engine.set_budget(b);
         }
         if let Some(b) = max_binding_bytes {
             engine.set_max_binding_bytes(b);

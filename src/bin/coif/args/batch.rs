@@ -39,6 +39,8 @@ impl BatchArgs {
             resume: self.resume,
             summary: self.summary,
             backend: self.backend.backend,
+            // Set from the global --max-memory by main.
+            max_memory: None,
         })
     }
 }
