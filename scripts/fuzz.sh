@@ -66,6 +66,7 @@ if [ ! -d "$seeds/done" ]; then
 fi
 
 stats=fuzz/target/fuzz-stats.tsv
+mkdir -p fuzz/target
 for t in "${TARGETS[@]}"; do
     corpus="fuzz/corpus/$t"
     mkdir -p "$corpus" "fuzz/artifacts/$t"
