@@ -18,9 +18,7 @@ RUNS="${FUZZ_RUNS:-1000000}"
 if ! command -v cargo-fuzz >/dev/null; then
     cargo install cargo-fuzz --locked --version 0.13.2
 fi
-# libFuzzer's instrumentation needs unstable rustc flags; the stable toolchain allows them
-# with RUSTC_BOOTSTRAP rather than a nightly download (machines here have only stable).
-export RUSTC_BOOTSTRAP=1
+# `-s none` (no sanitizer) needs no nightly flags: the stable toolchain builds the targets.
 
 mapfile -t ALL < <(sed -n '/^pub const TARGETS/,/];/p' src/testing/fuzz.rs | grep -o '"[a-z_]*"' | tr -d '"')
 TARGETS=("$@")
@@ -28,7 +26,7 @@ TARGETS=("$@")
 
 # Seeds: the repo's own files of each format, and what a 96² synthetic run writes.
 seeds=fuzz/target/seeds
-if [ ! -d "$seeds/done" ]; then
+if [ ! -e "$seeds/done" ]; then
     rm -rf "$seeds" && mkdir -p "$seeds"
     cargo build --release --bin coif
     coif=target/release/coif
