@@ -103,7 +103,7 @@ pub fn strokes_from_labelme(path: &Path) -> Result<Strokes> {
 /// Parses labelme annotation text; `path` names the file in errors.
 pub fn labelme_from_str(text: &str, path: &Path) -> Result<Strokes> {
     let bad = |m: String| Error::bad_file(path, m);
-    let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| {
+    let v: serde_json::Value = serde_json::from_str(text).map_err(|e| {
         let mut m = format!("malformed JSON: {e}");
         // Python's json module writes NaN/Infinity, which JSON (and serde) reject.
         let line = text.lines().nth(e.line().saturating_sub(1)).unwrap_or("");
@@ -542,7 +542,7 @@ pub fn strokes_from_svg(path: &Path) -> Result<Strokes> {
 /// Parses SVG text into strokes; `path` names the file in errors.
 pub fn svg_strokes_from_str(text: &str, path: &Path) -> Result<Strokes> {
     let bad = |m: String| Error::bad_file(path, m);
-    let doc = roxmltree::Document::parse(&text).map_err(|e| bad(format!("malformed XML: {e}")))?;
+    let doc = roxmltree::Document::parse(text).map_err(|e| bad(format!("malformed XML: {e}")))?;
     let root = doc.root_element();
     if root.tag_name().name() != "svg" {
         return Err(bad(format!(
