@@ -182,10 +182,23 @@ pub struct BatchJob {
     pub base: PathBuf,
 }
 
-/// Reads and checks a manifest: every error names the file, the line and the key.
+/// Reads and checks a manifest: every error names the file, the line and the key. A
+/// manifest that is not a regular file (`/dev/stdin`, `<(...)`) has no folder of its own,
+/// so its relative paths are read against the current folder.
 pub fn load(path: &Path) -> crate::Result<Vec<BatchJob>> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    parse(path, &text)
+    let mut jobs = parse(path, &text)?;
+    if !is_regular(path) {
+        for j in &mut jobs {
+            j.base = PathBuf::new();
+        }
+    }
+    Ok(jobs)
+}
+
+/// Whether `path` is a regular file (symbolic links followed): false for pipes and devices.
+pub fn is_regular(path: &Path) -> bool {
+    std::fs::metadata(path).is_ok_and(|m| m.is_file())
 }
 
 /// Parses manifest text; `path` names the file in errors and gives the base folder.

@@ -31,7 +31,10 @@ impl Record {
         let inputs = job
             .inputs()
             .into_iter()
-            .map(|(k, p)| Ok((k.to_string(), sha256_file(&p)?)))
+            .map(|(k, p)| {
+                refuse_stream(k, &p)?;
+                Ok((k.to_string(), sha256_file(&p)?))
+            })
             .collect::<crate::Result<_>>()?;
         Ok(Record {
             coif_version: env!("CARGO_PKG_VERSION").to_string(),
@@ -55,6 +58,23 @@ impl Record {
     pub fn write_in(&self, dir: &Path) -> crate::Result<()> {
         let v = serde_json::to_value(self).map_err(|e| Error::Invalid(e.to_string()))?;
         crate::io::write_json(&dir.join(RECORD), &v)
+    }
+}
+
+/// A job's input is hashed here and read again by each step, so a pipe or device (which
+/// reads once) would reach the steps empty: refused with a message naming it. Missing files
+/// are left to the hash, which names them.
+fn refuse_stream(key: &str, path: &Path) -> crate::Result<()> {
+    match std::fs::metadata(path) {
+        Ok(m) if !m.is_file() && !m.is_dir() => Err(Error::bad_file(
+            path,
+            format!(
+                "key `{key}`: not a regular file (a pipe or device); a batch job's inputs are \
+                 hashed for its record and read by every step, so they must be files that can \
+                 be read more than once"
+            ),
+        )),
+        _ => Ok(()),
     }
 }
 

@@ -103,10 +103,19 @@ pub fn run(opts: &BatchOptions, timings: Option<&Path>) -> anyhow::Result<Summar
         Some(s) => s,
         None => Shard::from_env(|k| std::env::var(k).ok())?.unwrap_or(Shard::ALL),
     };
-    let path = opts
-        .summary
-        .clone()
-        .unwrap_or_else(|| default_summary(&opts.manifest, shard));
+    let path = match &opts.summary {
+        Some(p) => p.clone(),
+        // Beside /dev/stdin or /dev/fd/63 is no place for a file.
+        None if !manifest::is_regular(&opts.manifest) => {
+            return Err(Error::Invalid(format!(
+                "{}: the manifest is not a regular file (a pipe?), so the summary has no \
+                 folder to go beside it: give --summary FILE",
+                opts.manifest.display()
+            ))
+            .into())
+        }
+        None => default_summary(&opts.manifest, shard),
+    };
     let mine: Vec<&BatchJob> = jobs
         .iter()
         .enumerate()

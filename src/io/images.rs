@@ -6,9 +6,11 @@ use std::path::Path;
 /// Largest image accepted, in pixels: beyond it one f32 plane alone passes 1 GiB.
 pub const MAX_PIXELS: u64 = 1 << 28;
 
+/// Reads `path` once (so a pipe such as `/dev/stdin` works), then checks the header and
+/// decodes from memory, the format guessed from the bytes.
 pub fn open(path: &Path) -> Result<image::DynamicImage> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    let reader = image::ImageReader::new(std::io::Cursor::new(bytes))
+    let reader = image::ImageReader::new(std::io::Cursor::new(&bytes[..]))
         .with_guessed_format()
         .map_err(|e| Error::io(path, e))?;
     if reader.format().is_none() {
@@ -29,8 +31,7 @@ pub fn open(path: &Path) -> Result<image::DynamicImage> {
             unit: "pixels",
         });
     }
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
+    let mut reader = image::ImageReader::new(std::io::Cursor::new(&bytes[..]))
         .with_guessed_format()
         .map_err(|e| Error::io(path, e))?;
     reader.no_limits();

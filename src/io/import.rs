@@ -34,22 +34,30 @@ pub fn import_strokes(path: &Path) -> Result<Strokes> {
 }
 
 /// Strokes for an image of `size`: a `strokes.json` (version 1), or strokes drawn elsewhere,
-/// an `.svg` or a labelme `.json` (told apart from `strokes.json` by its "shapes").
+/// an `.svg` or a labelme `.json` (told apart from `strokes.json` by its "shapes"). The
+/// file is read once, so a pipe (`/dev/stdin`, `<(...)`) works; without a `.svg` or `.json`
+/// extension, text starting with `<` is taken as SVG.
 pub fn load_strokes(path: &Path, size: (u32, u32)) -> Result<Strokes> {
     let ext = path
         .extension()
         .map(|e| e.to_string_lossy().to_lowercase())
         .unwrap_or_default();
-    let imported = if ext == "svg" {
-        Some(strokes_from_svg(path)?)
+    // Not text (a PNG given as strokes) is a bad file, not a failed read.
+    let text = read_text(path)?;
+    let svg = ext == "svg"
+        || (ext != "json"
+            && text
+                .trim_start_matches('\u{feff}')
+                .trim_start()
+                .starts_with('<'));
+    let imported = if svg {
+        Some(svg_strokes_from_str(&text, path)?)
     } else {
-        // Not text (a PNG given as strokes) is a bad file, not a failed read.
-        let text = read_text(path)?;
         let labelme = serde_json::from_str::<serde_json::Value>(&text)
             .ok()
             .is_some_and(|v| v.get("shapes").is_some() && v.get("strokes").is_none());
         if labelme {
-            Some(strokes_from_labelme(path)?)
+            Some(labelme_from_str(&text, path)?)
         } else {
             None
         }
@@ -60,7 +68,7 @@ pub fn load_strokes(path: &Path, size: (u32, u32)) -> Result<Strokes> {
                 .map_err(|m| Error::bad_file(path, m))?;
             Ok(s)
         }
-        None => Strokes::load(path, Some(size)),
+        None => Strokes::parse(&text, path, Some(size)),
     }
 }
 

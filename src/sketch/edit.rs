@@ -526,11 +526,12 @@ pub fn curves_from_file(
     like: &Sketch,
 ) -> Result<Vec<(Curve, f32)>> {
     let bad = |m: String| Error::bad_file(path, m);
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(|e| e.to_ascii_lowercase());
-    let text = || std::fs::read_to_string(path).map_err(|e| Error::io(path, e));
+    // Read once, so a pipe works; the format by extension, else by content.
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let text = || {
+        std::str::from_utf8(&bytes)
+            .map_err(|e| bad(format!("not UTF-8 text (byte {})", e.valid_up_to())))
+    };
     let drawn = |kind_here: Option<Kind>, pts: &[[f32; 2]], extra: Extra| {
         let k = kind.or(kind_here).unwrap_or(Kind::Stream);
         curve_from_points(
@@ -555,14 +556,14 @@ pub fn curves_from_file(
             })
             .collect()
     };
-    let out = match ext.as_deref() {
-        Some("czs") => from_sketch(format::load(path)?),
-        Some("svg") => {
+    let out = match format::FileKind::of(path, &bytes) {
+        Some(format::FileKind::Czs) => from_sketch(format::from_czs(&bytes, path)?),
+        Some(format::FileKind::Svg) => {
             let t = text()?;
             if t.contains("data-cz-format") {
-                from_sketch(format::from_svg(&t, path)?)
+                from_sketch(format::from_svg(t, path)?)
             } else {
-                let strokes = crate::io::import::strokes_from_svg(path)?;
+                let strokes = crate::io::import::svg_strokes_from_str(t, path)?;
                 let mut out = Vec::new();
                 for (n, st) in strokes.strokes.iter().enumerate() {
                     let c = drawn(None, &st.points, Extra::default())
@@ -572,12 +573,12 @@ pub fn curves_from_file(
                 out
             }
         }
-        Some("json") => {
+        Some(format::FileKind::Json) => {
             let t = text()?;
             let v: serde_json::Value =
-                serde_json::from_str(&t).map_err(|e| bad(format!("malformed JSON: {e}")))?;
+                serde_json::from_str(t).map_err(|e| bad(format!("malformed JSON: {e}")))?;
             if v.get("format").is_some() {
-                from_sketch(format::from_json(&t, path)?)
+                from_sketch(format::from_json(t, path)?)
             } else {
                 let items = match v {
                     serde_json::Value::Array(a) => a,
@@ -596,7 +597,7 @@ pub fn curves_from_file(
                 out
             }
         }
-        _ => {
+        None => {
             return Err(bad(
                 "cannot tell what to add: expected a .svg (a drawing or a sketch), a .json \
                  curve or sketch, or a .czs sketch"

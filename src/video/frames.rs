@@ -324,8 +324,17 @@ pub fn decode_video(video: &Path, out_dir: &Path) -> Result<Clip> {
 /// Where a decoded folder came from: a later run reuses the frames only when this matches.
 fn source_stamp(video: &Path) -> Result<serde_json::Value> {
     let meta = std::fs::metadata(video).map_err(|e| Error::io(video, e))?;
-    if !meta.is_file() {
+    if meta.is_dir() {
         return Err(Error::bad_file(video, "not a video file (it is a folder)"));
+    }
+    if !meta.is_file() {
+        // ffprobe and ffmpeg each read the video, and the stamp needs its size and time.
+        return Err(Error::bad_file(
+            video,
+            "not a regular file (a pipe or device): a video is read twice (probed, then \
+             decoded) and its size and time are kept to reuse the frames, so save the stream \
+             to a file first",
+        ));
     }
     let modified = meta
         .modified()

@@ -63,11 +63,50 @@ impl Format {
     }
 }
 
-/// Reads a `.hair`, `.data`, `.ply` or `.obj` strand file (format by extension).
+/// Reads a `.hair`, `.data`, `.ply` or `.obj` strand file: the format by extension, else
+/// (a pipe such as `/dev/stdin` has none) by content, see [`sniff`]. Read once, so a pipe
+/// works.
 pub fn read(path: &Path) -> Result<StrandSet> {
-    let format = Format::from_path(path)?;
+    let by_ext = Format::from_path(path);
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    decode(&bytes, format, path)
+    match by_ext {
+        Ok(format) => decode(&bytes, format, path),
+        Err(_) => sniff(&bytes, path),
+    }
+}
+
+/// Decodes a strand file whose name does not give its format: `.hair` by its `HAIR` magic,
+/// `.ply` by its `ply` header line, `.obj` when it is text whose first statement is an OBJ
+/// one; anything else is tried as `.data`, which has no magic but a strict layout.
+pub fn sniff(bytes: &[u8], path: &Path) -> Result<StrandSet> {
+    if bytes.starts_with(b"HAIR") {
+        return decode(bytes, Format::Hair, path);
+    }
+    if bytes.starts_with(b"ply\n") || bytes.starts_with(b"ply\r\n") {
+        return decode(bytes, Format::Ply, path);
+    }
+    if let Ok(text) = std::str::from_utf8(bytes) {
+        let first = text
+            .lines()
+            .map(str::trim)
+            .find(|l| !l.is_empty() && !l.starts_with('#'));
+        let obj = ["v", "l", "o", "g", "vn", "vt", "mtllib", "usemtl", "s"];
+        if first.is_some_and(|l| obj.contains(&l.split_ascii_whitespace().next().unwrap_or(""))) {
+            return decode(bytes, Format::Obj, path);
+        }
+    }
+    decode_data(bytes)
+        .and_then(|s| s.check().map(|()| s))
+        .map_err(|msg| {
+            Error::bad_file(
+                path,
+                format!(
+                    "cannot tell the strand format: the name has no .hair, .data, .ply or .obj \
+                 extension and the content is not .hair (HAIR magic), .ply (ply header) or \
+                 .obj text; read as .data (which has no magic): {msg}"
+                ),
+            )
+        })
 }
 
 /// Decodes file bytes; `path` only names the file in errors. `.usda` is write-only.

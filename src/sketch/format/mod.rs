@@ -586,24 +586,64 @@ pub fn quantise_colour(c: &ColourMap) -> ColourMap {
 // ---------------------------------------------------------------------------------------
 // Files
 
-/// Reads a sketch from `hair.czs`, `sketch.json` or `sketch.svg`, by extension, checked
-/// by [`validate`] (each reader runs it).
-pub fn load(path: &Path) -> Result<Sketch> {
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(|e| e.to_ascii_lowercase());
-    let text = || std::fs::read_to_string(path).map_err(|e| Error::io(path, e));
-    match ext.as_deref() {
-        Some("czs") => {
-            let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-            from_czs(&bytes, path)
+/// The three sketch files.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FileKind {
+    Czs,
+    Json,
+    Svg,
+}
+
+impl FileKind {
+    /// By extension (case-insensitive) when it is `.czs`, `.json` or `.svg`; otherwise (a
+    /// pipe such as `/dev/stdin` has none) by content: the `.czs` magic, JSON's `{` or `[`, SVG's `<`.
+    pub fn of(path: &Path, bytes: &[u8]) -> Option<FileKind> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(|e| e.to_ascii_lowercase());
+        match ext.as_deref() {
+            Some("czs") => return Some(FileKind::Czs),
+            Some("json") => return Some(FileKind::Json),
+            Some("svg") => return Some(FileKind::Svg),
+            _ => {}
         }
-        Some("json") => from_json(&text()?, path),
-        Some("svg") => from_svg(&text()?, path),
-        _ => Err(Error::bad_file(
+        if bytes.starts_with(MAGIC) {
+            return Some(FileKind::Czs);
+        }
+        let text = bytes.strip_prefix("\u{feff}".as_bytes()).unwrap_or(bytes);
+        match text.iter().find(|b| !b.is_ascii_whitespace()) {
+            Some(b'{' | b'[') => Some(FileKind::Json),
+            Some(b'<') => Some(FileKind::Svg),
+            _ => None,
+        }
+    }
+}
+
+/// Reads a sketch from `hair.czs`, `sketch.json` or `sketch.svg` (format by extension, else
+/// by content, see [`FileKind::of`]), checked by [`validate`] (each reader runs it). The
+/// file is read once, so a pipe works.
+pub fn load(path: &Path) -> Result<Sketch> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    from_bytes(&bytes, path)
+}
+
+/// Parses the bytes of a sketch file; `path` names it in errors and its extension, if one
+/// of the three, chooses the format.
+pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<Sketch> {
+    let text = || {
+        std::str::from_utf8(bytes).map_err(|e| {
+            Error::bad_file(path, format!("not UTF-8 text (byte {})", e.valid_up_to()))
+        })
+    };
+    match FileKind::of(path, bytes) {
+        Some(FileKind::Czs) => from_czs(bytes, path),
+        Some(FileKind::Json) => from_json(text()?, path),
+        Some(FileKind::Svg) => from_svg(text()?, path),
+        None => Err(Error::bad_file(
             path,
-            "unknown sketch file type: expected a .czs, .json or .svg extension",
+            "unknown sketch file type: expected a .czs, .json or .svg extension, or content \
+             that starts like one (the CZS magic, a JSON object, an SVG element)",
         )),
     }
 }
