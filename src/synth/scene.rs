@@ -578,10 +578,29 @@ impl Scene {
     /// 4-6 direction strokes along the true field, well inside the hair, spread out; for
     /// fields with a part at least one on each side.
     pub(super) fn make_strokes(&self, mask: &[u8], gt_dir: &[f32], rng: &mut Rng) -> Strokes {
+        // Thin hair at a small size (short hair at 128²) has no room for strokes that keep
+        // the full margin from the edge: then a smaller margin, rather than no strokes.
+        let mut strokes = Strokes::new(Vec::new());
+        for margin_scale in [1.0, 0.5, 0.25] {
+            strokes = self.make_strokes_with(mask, gt_dir, rng, margin_scale);
+            if !strokes.strokes.is_empty() {
+                break;
+            }
+        }
+        strokes
+    }
+
+    fn make_strokes_with(
+        &self,
+        mask: &[u8],
+        gt_dir: &[f32],
+        rng: &mut Rng,
+        margin_scale: f32,
+    ) -> Strokes {
         let (w, h) = (self.w as usize, self.h as usize);
         let s = self.s;
         let want = 4 + rng.below(3) as usize;
-        let margin = 7.0 * s.max(0.6);
+        let margin = 7.0 * s.max(0.6) * margin_scale;
         // Deep hair points, as candidate starting places.
         let mut cands = Vec::new();
         for _ in 0..4000 {

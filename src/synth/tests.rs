@@ -580,3 +580,24 @@ fn fast_enough() {
         assert!(dt < 3.0, "{style}: {dt} s");
     }
 }
+
+/// Short hair at 128² once got no stroke at all (the full margin left no room), and the
+/// empty strokes.json then failed every `coif model` on it.
+#[test]
+fn every_style_has_direction_strokes_at_small_sizes() {
+    for style in Style::ALL {
+        for size in [96, 128] {
+            for seed in 1..=3 {
+                let c = synth(&SynthParams {
+                    style,
+                    seed,
+                    width: size,
+                    height: size,
+                });
+                let n = c.strokes.strokes.len();
+                assert!(n >= 1, "{style} {size}² seed {seed}: no direction stroke");
+                c.strokes.validate(Some((c.width, c.height))).unwrap();
+            }
+        }
+    }
+}
