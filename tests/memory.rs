@@ -226,3 +226,116 @@ fn tiled_orient_on_the_cpu_equals_one_piece() {
         "{far} angles differ by > 0.5°"
     );
 }
+
+/// A modelled 128² synthetic case (cpu backend) in `dir`.
+fn modelled(dir: &Path) -> std::path::PathBuf {
+    let case = synth(dir, 128);
+    let model = dir.join("model");
+    ok(&coif(&[
+        "model",
+        "--image",
+        s(&case.join("image.png")),
+        "--strokes",
+        s(&case.join("strokes.json")),
+        "--out",
+        s(&model),
+        "--backend",
+        "cpu",
+    ]));
+    model
+}
+
+#[test]
+fn simulate_frames_over_the_budget_are_refused_before_work() {
+    let t = tempfile::tempdir().unwrap();
+    let model = modelled(t.path());
+    let out = t.path().join("sim");
+    let sim = |extra: &[&str]| {
+        let mut a = vec![
+            "simulate",
+            "--model",
+            s(&model),
+            "--out",
+            s(&out),
+            "--backend",
+            "cpu",
+        ];
+        a.extend_from_slice(extra);
+        coif(&a)
+    };
+    // Every frame is held until written: a million frames of this model are terabytes.
+    let o = sim(&["--max-memory", "2G", "--frames", "1000000"]);
+    fails(&o, 64, &["--frames 1000000", "2.0 GiB (--max-memory)"]);
+    // A budget the model alone does not fit names the model.
+    let o = sim(&["--max-memory", "1M", "--frames", "1"]);
+    fails(
+        &o,
+        65,
+        &[&format!("--model {}", model.display()), "vertices"],
+    );
+    assert!(!out.exists(), "a refused run wrote {}", out.display());
+    // The same run under the machine's budget goes through.
+    ok(&sim(&["--frames", "1", "--substeps", "1"]));
+    assert!(out.join("frames/0001.hair").exists());
+}
+
+#[test]
+fn sketch_and_synth_hair_over_the_budget_are_refused_before_work() {
+    let t = tempfile::tempdir().unwrap();
+    let case = synth(t.path(), 128);
+    let (img, strokes) = (case.join("image.png"), case.join("strokes.json"));
+    let out = t.path().join("sketch");
+    let sketch = |extra: &[&str]| {
+        let mut a = vec![
+            "sketch",
+            "--image",
+            s(&img),
+            "--strokes",
+            s(&strokes),
+            "--out",
+            s(&out),
+            "--backend",
+            "cpu",
+        ];
+        a.extend_from_slice(extra);
+        coif(&a)
+    };
+    let o = sketch(&["--max-memory", "2M"]);
+    fails(
+        &o,
+        65,
+        &[
+            &format!("--image {} (128x128 px)", img.display()),
+            "2.0 MiB (--max-memory)",
+        ],
+    );
+    assert!(!out.exists(), "a refused run wrote {}", out.display());
+    ok(&sketch(&[]));
+    let czs = out.join("hair.czs");
+    let png = t.path().join("hair.png");
+    let synth_hair = |extra: &[&str]| {
+        let mut a = vec![
+            "synth-hair",
+            "--sketch",
+            s(&czs),
+            "--out",
+            s(&png),
+            "--backend",
+            "cpu",
+        ];
+        a.extend_from_slice(extra);
+        coif(&a)
+    };
+    let o = synth_hair(&["--max-memory", "2M"]);
+    fails(
+        &o,
+        65,
+        &[
+            &format!("--sketch {} (128x128 px)", czs.display()),
+            "2.0 MiB (--max-memory)",
+        ],
+    );
+    assert!(!png.exists(), "a refused run wrote {}", png.display());
+    ok(&synth_hair(&[]));
+    assert!(png.exists());
+}

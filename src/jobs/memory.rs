@@ -3,7 +3,7 @@
 //! is derived from the structures that hold the data and was checked against measured peaks
 //! (README, "Memory").
 
-use super::{AnalyzeJob, Job, ModelJob, OrientJob};
+use super::{AnalyzeJob, Job, ModelJob, OrientJob, SketchJob};
 use crate::analyze::orient::{self, OrientParams};
 use crate::base::budget::{Bytes, Cause};
 use crate::gpu::engine::Engine;
@@ -43,6 +43,7 @@ pub fn check(engine: &Engine, job: &Job) -> crate::Result<()> {
         Job::Orient(j) => check_orient(engine, j),
         Job::Analyze(j) => check_analyze(engine, j),
         Job::Model(j) => check_model(engine, j),
+        Job::Sketch(j) => check_sketch(engine, j),
         _ => Ok(()),
     }
 }
@@ -163,6 +164,89 @@ fn check_model(engine: &Engine, j: &ModelJob) -> crate::Result<()> {
             Bytes(image),
             Bytes(grid),
             Bytes(roots)
+        ),
+    )
+}
+
+/// Bytes per pixel of `coif sketch`: the photo and its hair mask, the segmentation from the
+/// strokes (the analysis' graph), the orientation field, the curves' maps and the pictures
+/// it writes. Measured (README, "Memory"): 394 B/px from 256² to 512²; half again kept for
+/// what the measurement did not vary (the hair's share of the image, the strokes).
+pub const SKETCH_BYTES_PER_PX: u64 = 600;
+
+/// Bytes per pixel of `coif synth-hair`: the filled field (θ, its vectors, ρ), the two
+/// texture bands, the synthesised picture and a backdrop. Measured: 174 B/px from 256² to
+/// 512² (README, "Memory"); the estimate keeps the same margin as the sketch's.
+pub const SYNTH_HAIR_BYTES_PER_PX: u64 = 300;
+
+fn check_sketch(engine: &Engine, j: &SketchJob) -> crate::Result<()> {
+    let Some((w, h)) = image_pixels(&j.image) else {
+        return Ok(());
+    };
+    let px = w as u64 * h as u64;
+    // Measured: 27.5 MiB at no pixels (the segmentation's and the oracle's fixed tables).
+    let bytes = 2 * BASE_BYTES + px * SKETCH_BYTES_PER_PX;
+    engine.budget().check(
+        Cause::Input,
+        &format!("--image {} ({w}x{h} px)", j.image.display()),
+        bytes,
+        &format!("{SKETCH_BYTES_PER_PX} B per pixel"),
+    )
+}
+
+/// Refuses to synthesise hair from `sketch` (its size is in the file, read first: it is
+/// small) when the picture's working set is over the budget.
+pub fn check_synth_hair(engine: &Engine, sketch: &Path, w: u32, h: u32) -> crate::Result<()> {
+    let px = w as u64 * h as u64;
+    engine.budget().check(
+        Cause::Input,
+        &format!("--sketch {} ({w}x{h} px)", sketch.display()),
+        BASE_BYTES.saturating_add(px.saturating_mul(SYNTH_HAIR_BYTES_PER_PX)),
+        &format!("{SYNTH_HAIR_BYTES_PER_PX} B per pixel"),
+    )
+}
+
+/// Bytes per vertex a frame of `coif simulate` holds: the frame is the model's strands as
+/// the skin moves them, a copy with every attribute (points 12, colours 12, thickness 4,
+/// transparency 4, all counted as present). Measured: 32 B per vertex per frame, 2 to 12
+/// frames of 1.25M vertices; a quarter more for the allocator.
+pub const SIM_FRAME_BYTES_PER_VERTEX: u64 = 40;
+
+/// Bytes per vertex `coif simulate` holds whatever the frame count: the loaded scene, the
+/// skin (its rest copy, segment, parameter and offset per vertex), the simulated guides,
+/// and while writing, a frame's positions and their encoded bytes. Measured: 157 B per
+/// vertex (README, "Memory").
+pub const SIM_FIXED_BYTES_PER_VERTEX: u64 = 200;
+
+/// Refuses a simulation of `scene` whose frames, all held until they are written, would be
+/// over the budget: the model first (it alone may be too large), then `--frames`.
+pub fn check_simulate(
+    engine: &Engine,
+    scene: &crate::hair::scene::Scene,
+    frames: u32,
+) -> crate::Result<()> {
+    let verts = scene.strands.points.len() as u64;
+    let strands = scene.strands.counts.len() as u64;
+    // The preview GIF grows by an encoded frame of the photo each frame (measured 0.4 B/px).
+    let photo_px = scene.width as u64 * scene.height as u64;
+    let fixed = BASE_BYTES + verts * SIM_FIXED_BYTES_PER_VERTEX;
+    let per_frame = verts * SIM_FRAME_BYTES_PER_VERTEX + strands * 4 + photo_px;
+    let budget = engine.budget();
+    budget.check(
+        Cause::Input,
+        &format!("--model {} ({verts} vertices)", scene.dir.display()),
+        fixed + per_frame,
+        &format!("{SIM_FIXED_BYTES_PER_VERTEX} B per vertex and one frame"),
+    )?;
+    let n = frames as u64 + 1;
+    budget.check(
+        Cause::Option,
+        &format!("--frames {frames}"),
+        fixed.saturating_add(n.saturating_mul(per_frame)),
+        &format!(
+            "{n} frames of {} held until written, {} for the model",
+            Bytes(per_frame),
+            Bytes(fixed)
         ),
     )
 }

@@ -756,6 +756,7 @@ fn render_frames(engine: &Engine, scene: &Scene, j: &RenderJob) -> anyhow::Resul
 
 fn run_simulate(engine: &Engine, j: &SimulateJob) -> anyhow::Result<Report> {
     let scene = stage("load").run(|| Scene::load(&j.model))?;
+    memory::check_simulate(engine, &scene, j.params.frames)?;
     let r = stage("simulate")
         .run(|| sim::run::run(engine, &scene, &j.params, true))
         .with_context(|| format!("simulating {}", j.model.display()))?;

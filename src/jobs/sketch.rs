@@ -229,6 +229,7 @@ pub(super) fn run_synth_hair(engine: &Engine, j: &SynthHairJob) -> anyhow::Resul
     let read = stage("read");
     let s = crate::sketch::format::load(&j.sketch)?;
     crate::sketch::format::require_curves(&s, &j.sketch)?;
+    super::memory::check_synth_hair(engine, &j.sketch, s.width, s.height)?;
     let over = load_backdrop(j.over.as_deref(), &s, &j.sketch)?;
     drop(read);
     let r = crate::sketch::synth::synthesise(engine, &s, over.as_ref(), &j.params)
