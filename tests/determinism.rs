@@ -8,20 +8,14 @@
 mod common;
 
 use coif::io::{npy, strands};
+use common::procs::{coif, ok};
 use serde_json::Value;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-fn coif(dir: &Path) -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_coif"));
-    c.current_dir(dir);
-    c
-}
-
 fn run(c: &mut Command, what: &str) {
-    let o = c.output().unwrap();
-    assert!(o.status.success(), "{what}: {}", common::stderr(&o));
+    ok(c.output().unwrap(), what);
 }
 
 fn case(root: &Path) {
