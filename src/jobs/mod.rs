@@ -71,6 +71,8 @@ pub struct SynthJob {
     pub params: SynthParams,
     /// 3D ground truth: strands grown on the parametric head, drawn through a known camera.
     pub gt3d: bool,
+    /// Texture variation of the 2D portrait's hair (the default: the usual look).
+    pub texture: synth::Texture,
 }
 
 /// The embedded astronaut photo and its strokes, written to a folder.
@@ -297,6 +299,7 @@ pub fn demo(out: &Path) -> Vec<Job> {
                 height: 512,
             },
             gt3d: false,
+            texture: Default::default(),
         }),
         Job::Orient(OrientJob {
             image: case.join("image.png"),
@@ -489,6 +492,12 @@ fn run_synth(j: &SynthJob) -> anyhow::Result<Report> {
             return Err(Error::Invalid(format!("--size {side} is outside 64..=4096")).into());
         }
     }
+    if j.gt3d && !j.texture.is_plain() {
+        let t = &j.texture;
+        return Err(
+            Error::Invalid(format!("--texture {t} applies to 2D only (drop --gt3d)")).into(),
+        );
+    }
     if j.gt3d && !p.style.has_3d() {
         return Err(Error::Invalid(format!(
             "--style {} has no 3D ground truth (drop --gt3d)",
@@ -505,8 +514,8 @@ fn run_synth(j: &SynthJob) -> anyhow::Result<Report> {
             c.yaw_deg
         )
     } else {
-        synth::synth(p).write(&j.out)?;
-        "2D ground truth".to_string()
+        synth::synth_textured(p, &j.texture).write(&j.out)?;
+        format!("2D ground truth, texture {}", j.texture)
     };
     Ok(Report {
         summary: format!(

@@ -1,6 +1,7 @@
 //! The analytic 2D growth field the synthetic hair follows (the orientation ground truth).
 
 use super::smoothstep;
+use super::texture::Curl;
 use std::f32::consts::FRAC_PI_2;
 
 #[derive(Clone, Debug)]
@@ -51,6 +52,10 @@ pub(super) enum Field {
         beta1: f32,
         rest: Box<Field>,
     },
+    /// `base` turned by the curl's smooth angle: wavy strands whose ground truth is the
+    /// turned field itself. Turning keeps unit length, so no singular point is added, and a
+    /// part stays a part (both sides turn alike).
+    Curled { base: Box<Field>, curl: Curl },
 }
 
 impl Field {
@@ -130,6 +135,11 @@ impl Field {
                 let beta = beta0 + beta1 * u;
                 [sweep * beta.cos(), beta.sin()]
             }
+            Field::Curled { ref base, ref curl } => {
+                let d = base.dir(x, y);
+                let (s, c) = curl.angle(x, y).sin_cos();
+                [d[0] * c - d[1] * s, d[0] * s + d[1] * c]
+            }
         }
     }
 
@@ -139,6 +149,7 @@ impl Field {
             Field::Fringe {
                 ex, ey, erx, ery, ..
             } => ((x - ex) / erx).powi(2) + ((y - ey) / ery).powi(2) < 1.0,
+            Field::Curled { ref base, .. } => base.in_fringe(x, y),
             _ => false,
         }
     }
@@ -153,6 +164,7 @@ impl Field {
                     -1
                 }
             }
+            Field::Curled { ref base, .. } => base.side(x),
             _ => 0,
         }
     }

@@ -13,11 +13,13 @@ mod draw;
 mod field;
 mod scene;
 pub mod synth3d;
+pub mod texture;
 pub mod video;
 
 // Drawing helpers and looks shared with `synth3d`.
 pub(crate) use draw::*;
 use scene::Scene;
+pub use texture::Texture;
 
 use crate::base::rng::Rng;
 use crate::error::{Error, Result};
@@ -195,7 +197,7 @@ pub fn seam(p: &SynthParams) -> Option<Seam> {
         return None;
     }
     let [mut geo_rng, mut look_rng, ..] = streams(p, style_salt(p.style));
-    let scene = Scene::new(p, &mut geo_rng, &mut look_rng);
+    let scene = Scene::new(p, &Texture::default(), &mut geo_rng, &mut look_rng);
     let (w, h) = (p.width as usize, p.height as usize);
     let mut hair = vec![false; w * h];
     let mut fringe = vec![false; w * h];
@@ -318,10 +320,15 @@ pub fn orientation_error_deg(a: f32, b: f32) -> f32 {
 
 /// Generates the portrait. Panics if a side is below [`SynthParams::MIN_SIZE`].
 pub fn synth(p: &SynthParams) -> SynthCase {
+    synth_textured(p, &Texture::default())
+}
+
+/// [`synth`] with a texture variation; the default texture gives [`synth`]'s portrait.
+pub fn synth_textured(p: &SynthParams, t: &Texture) -> SynthCase {
     let [mut geo_rng, mut look_rng, mut strand_rng, mut stroke_rng] =
         streams(p, style_salt(p.style));
 
-    let scene = Scene::new(p, &mut geo_rng, &mut look_rng);
+    let scene = Scene::new(p, t, &mut geo_rng, &mut look_rng);
     let (w, h) = (p.width as usize, p.height as usize);
 
     // Mask and ground truth: the analytic region and field at pixel centres.
@@ -350,7 +357,13 @@ pub fn synth(p: &SynthParams) -> SynthCase {
     scene.draw_hair(&mut rgb, &mask, &mut strand_rng);
     let strokes = scene.make_strokes(&mask, &gt_dir, &mut stroke_rng);
 
-    let image = to_image(&rgb, p.width, p.height);
+    // Its own stream, so noise leaves the strands and strokes as they were.
+    let mut noise_rng = Rng::new(p.seed ^ style_salt(p.style) ^ 0x6e6f_6973_6500);
+    texture::degrade(&mut rgb, w, h, t, &mut noise_rng);
+    let mut image = to_image(&rgb, p.width, p.height);
+    if t.jpeg > 0 {
+        image = texture::jpeg_round_trip(&image, t.jpeg);
+    }
     SynthCase {
         image,
         mask: GrayImage::from_raw(p.width, p.height, mask).expect("mask size"),

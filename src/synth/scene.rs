@@ -2,6 +2,7 @@
 
 use super::draw::{mark_disk, StrandCanvas};
 use super::field::{normalize, Field};
+use super::texture::{Curl, Texture};
 use super::*;
 
 #[derive(Clone, Debug)]
@@ -60,10 +61,13 @@ pub(super) struct Scene {
     /// No strand starts closer than this to an earlier one, px; neighbouring strands end up
     /// one to two times this apart.
     spacing: f32,
+    /// Strand width and contrast factors of the texture.
+    width_scale: f32,
+    contrast: f32,
 }
 
 impl Scene {
-    pub(super) fn new(p: &SynthParams, g: &mut Rng, look: &mut Rng) -> Scene {
+    pub(super) fn new(p: &SynthParams, t: &Texture, g: &mut Rng, look: &mut Rng) -> Scene {
         let (w, h) = (p.width as f32, p.height as f32);
         let s = w.min(h) / 512.0;
         let a = 84.0 * s * (1.0 + 0.05 * g.range_f32(-1.0, 1.0));
@@ -220,6 +224,14 @@ impl Scene {
             }
         };
 
+        // Drawn last, and only with curl, so the default texture keeps every draw it had.
+        let field = match Curl::new(t, s, g) {
+            Some(curl) => Field::Curled {
+                base: Box::new(field),
+                curl,
+            },
+            None => field,
+        };
         let look = Look::new(look);
         Scene {
             w,
@@ -237,6 +249,8 @@ impl Scene {
             look,
             strand_len,
             spacing,
+            width_scale: t.width,
+            contrast: t.contrast,
         }
     }
 
@@ -520,7 +534,8 @@ impl Scene {
             if pts.len() < 3 {
                 continue;
             }
-            let bright = (1.0 + 0.4 * rng.normal_f32()).clamp(0.55, 1.6);
+            let bright =
+                1.0 + self.contrast * ((1.0 + 0.4 * rng.normal_f32()).clamp(0.55, 1.6) - 1.0);
             let tint = [
                 1.0 + 0.05 * rng.range_f32(-1.0, 1.0),
                 1.0 + 0.05 * rng.range_f32(-1.0, 1.0),
@@ -534,8 +549,8 @@ impl Scene {
                 (self.look.hair[1] + sheen) * bright * tint[1],
                 (self.look.hair[2] + sheen) * bright * tint[2],
             ];
-            let width = rng.range_f32(1.0, 1.5) * self.s.clamp(0.75, 1.5);
-            let alpha = rng.range_f32(0.6, 0.95);
+            let width = rng.range_f32(1.0, 1.5) * self.s.clamp(0.75, 1.5) * self.width_scale;
+            let alpha = rng.range_f32(0.6, 0.95) * self.contrast;
             canvas.draw(&pts, width, self.s);
             canvas.composite(rgb, |x, y| {
                 let sd = self.hair_sdf(x, y);

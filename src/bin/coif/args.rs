@@ -7,7 +7,7 @@ use coif::analyze::AnalyzeParams;
 use coif::gpu::engine::BackendChoice;
 use coif::jobs::{
     AnalyzeJob, ClipSource, ConvertJob, EditJob, EditTool, ExportJob, ImportJob, Job, ModelJob,
-    OrientJob, RenderJob, SimulateJob, SynthJob, SynthVideoJob, TransferJob, VideoJob,
+    OrientJob, RenderJob, SimulateJob, SynthVideoJob, TransferJob, VideoJob,
 };
 use coif::render::shade::{Light, ShadingModel};
 use coif::sim::{HeadKey, HeadTrack, SimParams};
@@ -15,6 +15,7 @@ use coif::synth;
 use std::path::PathBuf;
 
 mod batch;
+mod synth_args;
 mod synth_hair;
 
 #[derive(Parser)]
@@ -43,7 +44,7 @@ pub struct Cli {
 #[derive(Subcommand)]
 pub enum Command {
     /// Synthetic portrait with exact ground truth (orientation, growth direction, mask, strokes).
-    Synth(SynthArgs),
+    Synth(synth_args::SynthArgs),
     /// Synthetic clip with exact ground truth: the 3D synthetic portrait under a known head
     /// motion (yaw/pitch within ±10°, a shift) and hair motion (strands turned about the view
     /// axis, roots and lengths kept): frames, masks, landmarks, per-frame strands, cameras,
@@ -584,24 +585,6 @@ pub struct ConvertArgs {
 }
 
 #[derive(Args)]
-pub struct SynthArgs {
-    /// Output folder (created).
-    #[arg(long)]
-    out: PathBuf,
-    #[arg(long, default_value = "long")]
-    style: synth::Style,
-    #[arg(long, default_value_t = 1)]
-    seed: u64,
-    /// Image width and height in pixels.
-    #[arg(long, default_value_t = 512)]
-    size: u32,
-    /// 3D ground truth: a strand model grown on the parametric head and rendered through a
-    /// known camera (writes gt_strands.hair and camera.json too).
-    #[arg(long)]
-    gt3d: bool,
-}
-
-#[derive(Args)]
 pub struct SynthVideoArgs {
     /// Output folder (created).
     #[arg(long)]
@@ -760,19 +743,7 @@ impl Command {
         // Jobs that run no pass open the CPU backend, which cannot fail.
         let cpu = BackendChoice::Cpu;
         Ok(match self {
-            Command::Synth(a) => Request::one(
-                Job::Synth(SynthJob {
-                    out: a.out,
-                    params: synth::SynthParams {
-                        style: a.style,
-                        seed: a.seed,
-                        width: a.size,
-                        height: a.size,
-                    },
-                    gt3d: a.gt3d,
-                }),
-                cpu,
-            ),
+            Command::Synth(a) => a.request(),
             Command::SynthVideo(a) => {
                 let mut params = synth::video::VideoParams::new(a.style, a.seed, a.size, a.frames);
                 params.strands = a.strands;
