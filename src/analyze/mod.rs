@@ -4,6 +4,7 @@
 
 pub mod direction;
 pub mod orient;
+pub mod recut;
 pub mod resolve;
 pub mod segment;
 pub mod trace;
@@ -13,6 +14,7 @@ pub use write::{load_photo, run, run_orient, write, write_orient, OrientRun};
 
 use crate::analyze::direction::{dense_direction, DirectionParams, Domain};
 use crate::analyze::orient::{orient, GrayImage, OrientMap, OrientParams};
+use crate::analyze::recut::{cut_disagreeing, RecutParams};
 use crate::analyze::resolve::{resolve_directions, ResolveParams, Resolved};
 use crate::analyze::segment::{segment, SegmentParams};
 use crate::analyze::trace::{split_curves, trace_curves, Curve, TraceParams};
@@ -31,6 +33,9 @@ pub struct AnalyzeParams {
     /// [`split_curves`].
     pub piece_vertices: usize,
     pub resolve: ResolveParams,
+    /// Curves cut where they point against their neighbours, then resolved again (parts that
+    /// curled or swept hair leaves at an angle); see [`crate::analyze::recut`].
+    pub recut: RecutParams,
     pub direction: DirectionParams,
 }
 
@@ -136,13 +141,29 @@ pub fn analyze(
     timings.push(("orientation", t.elapsed().as_secs_f64()));
     crate::interrupt::check()?;
     let t = Instant::now();
-    let traced = split_curves(
+    let mut traced = split_curves(
         &trace_curves(&om.theta, &om.confidence, &mask, w, h, &p.trace),
         p.piece_vertices,
     );
     timings.push(("trace", t.elapsed().as_secs_f64()));
     let t = Instant::now();
-    let resolved = resolve_directions(&traced, &dir_strokes, &p.resolve);
+    let mut resolved = resolve_directions(&traced, &dir_strokes, &p.resolve);
+    let recut_resolve = ResolveParams {
+        radius: p.recut.resolve_radius.min(p.resolve.radius),
+        ..p.resolve.clone()
+    };
+    for _ in 0..p.recut.rounds {
+        let Some(cut) = cut_disagreeing(
+            &resolved.curves,
+            &dir_strokes,
+            p.resolve.stroke_weight,
+            &p.recut,
+        ) else {
+            break;
+        };
+        traced = cut;
+        resolved = resolve_directions(&traced, &dir_strokes, &recut_resolve);
+    }
     timings.push(("resolve", t.elapsed().as_secs_f64()));
     crate::interrupt::check()?;
     if !resolved.unreachable.is_empty() {
