@@ -67,6 +67,7 @@ pub(super) fn layers(
         Some(mk) => mk.iter().map(|&v| (v != 0) as u8).collect(),
         None => vec![0; pwu * phu],
     };
+    let hair0 = hair.clone();
     let hair = dilate(&hair, pwu, phu, p.hair_margin_px as usize);
     let original = p.is_original_view() && (vc.width, vc.height) == (pw, ph);
     let head = m.head.as_ref();
@@ -81,12 +82,13 @@ pub(super) fn layers(
     });
     if original {
         // The photo, recoloured in the hair as the strands are (their photo colour goes
-        // through the same HSV step), so uncovered hair reads as the strands beside it.
+        // through the same HSV step), so uncovered hair reads as the strands beside it; the
+        // margin around the mask is mostly background and keeps its colour.
         let sp = &p.shade;
         let hsv = (!sp.hsv_is_identity()).then_some([sp.hue, sp.saturation, sp.value]);
         let bg: Vec<[f32; 4]> = lin
             .iter()
-            .zip(&hair)
+            .zip(&hair0)
             .map(|(c, &hr)| {
                 let c = match hsv {
                     Some([h, s, v]) if hr != 0 => colour::hsv_adjust(*c, h, s, v),
@@ -160,11 +162,14 @@ pub(super) fn layers(
     };
     // Triangles the photo shows as something else than head (clothing, background) go:
     // below the chin only skin stays (the neck); above it, a triangle facing the photo's
-    // camera stays when it lands on face or hair (a few px of slack for the fit), one turned
-    // away stays (the photo says nothing against it).
+    // camera stays when it lands on face or hair (a few px of slack for the fit).
     let head_or_hair: Vec<u8> = face.iter().zip(&hair).map(|(&a, &b)| a | b).collect();
     let head_or_hair = dilate(&head_or_hair, pwu, phu, 3);
     let toward0 = cam0.r.row(2);
+    let mouth_y = match (head.landmark("mouth_left"), head.landmark("mouth_right")) {
+        (Some(a), Some(b)) => 0.5 * (a.y + b.y),
+        _ => chin.y,
+    };
     let mut above = Vec::new();
     let triangles: Vec<[u32; 3]> = th
         .triangles
@@ -183,7 +188,11 @@ pub(super) fn layers(
                 }
                 keep
             } else {
-                true
+                // Turned away from the photo's camera: the photo says nothing about it. The
+                // back of the skull stays; below the mouth it is the jaw's back and the
+                // neck's far side, which a novel view would show as a pale slab of guessed
+                // skin beside the neck, so it goes (the inpainted background shows there).
+                v.iter().any(|q| q.y > mouth_y)
             }
         })
         .collect();
@@ -281,19 +290,22 @@ fn face_frame(head: &Head, cam: &WeakPerspective) -> Option<(Vec2, Vec2, f32)> {
     (d.is_finite() && d > 1.0).then_some((0.5 * (le + re), 0.5 * (ml + mr), d))
 }
 
-/// The inner face (eyes, brows, nose, mouth) as an ellipse in the photo: features whose
-/// colour is not skin but which belong on the face texture.
+/// The inner face (brows, eyes, nose, mouth) in the photo: features whose colour is not
+/// skin but which belong on the face texture. A rounded box (a superellipse of degree 4)
+/// from above the brows (0.75 eye distances over the eyes) to below the lower lip (0.35
+/// under the mouth), 1.05 eye distances either side, inside the face's outline.
 fn inner_face(head: &Head, cam: &WeakPerspective, w: u32, h: u32) -> Vec<u8> {
     let mut out = vec![0u8; (w * h) as usize];
     let Some((eyes, mouth, d)) = face_frame(head, cam) else {
         return out;
     };
-    let c = 0.5 * (eyes + mouth);
-    let (ax, ay) = (0.8 * d, 0.5 * (mouth - eyes).length() + 0.45 * d);
+    let (top, bottom) = (eyes.y - 0.75 * d, mouth.y + 0.35 * d);
+    let c = Vec2::new(0.5 * (eyes.x + mouth.x), 0.5 * (top + bottom));
+    let (ax, ay) = (1.05 * d, 0.5 * (bottom - top));
     for y in 0..h {
         for x in 0..w {
             let q = Vec2::new(x as f32 + 0.5, y as f32 + 0.5) - c;
-            if (q.x / ax).powi(2) + (q.y / ay).powi(2) <= 1.0 {
+            if (q.x / ax).powi(4) + (q.y / ay).powi(4) <= 1.0 {
                 out[(y * w + x) as usize] = 1;
             }
         }
