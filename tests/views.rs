@@ -11,9 +11,10 @@
 //!   (grown by the hair margin and 3 px), so the bound above cannot be widened by a hole
 //!   over the clothing;
 //! * the background is the same for every view.
+//!
 //! The astronaut at yaw ±25° and the synthetic case at yaw −25° are goldens on lavapipe.
-//! The pictures (render, photo and the pixels that broke the bound in red) are written to
-//!   `<target>/views-pictures/` to look at.
+//! The pictures (render, photo, and the render with the photo's skin region tinted green
+//! and the pixels that broke the bound in red) are written to `<target>/views-pictures/`.
 
 mod common;
 

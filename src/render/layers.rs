@@ -5,13 +5,16 @@
 //!   So wherever no strand covers a hair pixel of the mask, or the fitted head hides strands
 //!   the photo shows in front of it, the composite yields to the photo: every hair pixel of
 //!   the mask comes back as hair, never as skin or inpainted background (issue 19).
-//! * **Novel view**: the background is the photo with the hair and the head above the chin
-//!   removed and inpainted, the same for every novel view. The head mesh keeps the head above
-//!   the chin and, below it, only the neck triangles the photo shows as skin ([`skin_mask`]):
-//!   clothing stays in the background, where the body stays put. The neck twists: its
+//! * **Novel view**: the background is the photo with the hair and the face removed and
+//!   inpainted (the face: the photo's skin and inner face under the fitted head above the
+//!   chin, grown by the hair margin and 3 px), the same for every novel view. The head mesh
+//!   keeps what the photo shows as head: below the chin only the neck triangles the photo
+//!   shows as skin ([`skin_mask`]); above it, triangles facing the photo's camera when they
+//!   land on face or hair, and turned-away ones above the mouth (the back of the skull).
+//!   Clothing stays in the background, where the body stays put. The neck twists: its
 //!   vertices turn with the head in proportion to their height between the lowest visible
 //!   skin (not turned, so the neck stays on the photo's neck) and the chin (turned fully).
-//!   The face texture is projected only from skin and from the inner face (eyes, brows,
+//!   The face texture is projected only from skin and from the inner face (brows, eyes,
 //!   mouth), so background and clothing pixels inside the parametric outline do not smear
 //!   onto the head.
 

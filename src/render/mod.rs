@@ -1,12 +1,15 @@
 //! Rendering a hair model back into its photo (C13 §4).
 //!
 //! Layers, back to front:
-//! 1. the background: the photo with the hair (and, for a novel view, the head) removed and
-//!    filled by PatchMatch inpainting ([`crate::render::inpaint`]);
-//! 2. the head mesh, depth-tested: at the original view it carries the inpainted photo itself
-//!    (screen-space uvs, texel centres on pixel centres, so it reproduces the photo exactly
-//!    and only hides strands behind the head); at a novel view it carries the face texture
-//!    projected from the photo with its unseen parts filled ([`crate::hair::head::texture`]);
+//! 1. the background ([`layers`]): at the original view the photo itself (so hair pixels no
+//!    strand covers come back as the photo's hair); at a novel view the photo with the hair
+//!    and the face removed and filled by PatchMatch inpainting ([`crate::render::inpaint`]),
+//!    the same for every novel view;
+//! 2. the head mesh, depth-tested: at the original view it carries the photo itself
+//!    (screen-space uvs, texel centres on pixel centres, so it only hides strands behind the
+//!    head); at a novel view it keeps what the photo shows as head and neck skin and carries
+//!    the face texture projected from the photo with its unseen parts mirrored or filled
+//!    ([`crate::hair::head::texture`]);
 //! 3. the strands, one screen-aligned quad per segment with per-vertex colour and alpha
 //!    (the colours sampled from the photo by `coif model`, recoloured in HSV and given
 //!    highlights by [`crate::render::shade`]), MSAA with alpha-to-coverage, no depth sorting
