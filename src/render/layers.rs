@@ -221,8 +221,24 @@ pub(super) fn layers(
         .map(|(&a, &b)| (a != 0 || b != 0) as u8)
         .collect();
     report.hole_pixels = hole.iter().filter(|&&v| v != 0).count();
+    // Behind the face below the mouth is the neck: that part of the hole takes the colour
+    // under the chin (neck or collar), not PatchMatch's, which fills it from the backdrop
+    // and leaves a pale strip beside the jaw where a turned head uncovers it.
+    let mut lin_pre = lin.to_vec();
+    let mut hole_pm = hole.clone();
+    if let (Some(neck), Some((_, mouth, _))) = (
+        colour_under_chin(lin, &hole, pw, ph, head, &cam0),
+        face_frame(head, &cam0),
+    ) {
+        for i in 0..pwu * phu {
+            if head_px[i] != 0 && hair[i] == 0 && (i / pwu) as f32 + 0.5 >= mouth.y {
+                lin_pre[i] = neck;
+                hole_pm[i] = 0;
+            }
+        }
+    }
     // The hole depends on the photo's camera only, so every novel view gets the same fill.
-    let (filled, _) = inpaint(engine, pw, ph, lin, &hole, &p.inpaint)?;
+    let (filled, _) = inpaint(engine, pw, ph, &lin_pre, &hole_pm, &p.inpaint)?;
     let background: Vec<[f32; 4]> = filled.iter().map(|c| [c[0], c[1], c[2], 1.0]).collect();
 
     // The lowest photo row of skin below the chin, under the face.
@@ -291,6 +307,48 @@ fn face_frame(head: &Head, cam: &WeakPerspective) -> Option<(Vec2, Vec2, f32)> {
     let (ml, mr) = (at("mouth_left")?, at("mouth_right")?);
     let d = (re - le).length();
     (d.is_finite() && d > 1.0).then_some((0.5 * (le + re), 0.5 * (ml + mr), d))
+}
+
+/// The median colour (per channel) of the photo under the chin, outside the hole: a box
+/// 0.8 eye distances wide from 0.15 to 0.6 eye distances under the chin. None when it holds
+/// fewer than 8 such pixels.
+fn colour_under_chin(
+    lin: &[[f32; 3]],
+    hole: &[u8],
+    w: u32,
+    h: u32,
+    head: &Head,
+    cam: &WeakPerspective,
+) -> Option<[f32; 3]> {
+    let (_, _, d) = face_frame(head, cam)?;
+    let chin = cam.project(head.landmark("chin")?).truncate();
+    let (x0, x1) = (
+        (chin.x - 0.4 * d).max(0.0),
+        (chin.x + 0.4 * d).min(w as f32),
+    );
+    let (y0, y1) = (
+        (chin.y + 0.15 * d).max(0.0),
+        (chin.y + 0.6 * d).min(h as f32),
+    );
+    let mut px: Vec<[f32; 3]> = Vec::new();
+    for y in (y0 as usize)..(y1.max(0.0) as usize) {
+        for x in (x0 as usize)..(x1.max(0.0) as usize) {
+            let i = y * w as usize + x;
+            if hole[i] == 0 {
+                px.push(lin[i]);
+            }
+        }
+    }
+    if px.len() < 8 {
+        return None;
+    }
+    let mut out = [0.0f32; 3];
+    for (k, o) in out.iter_mut().enumerate() {
+        let mut v: Vec<f32> = px.iter().map(|c| c[k]).collect();
+        v.sort_by(f32::total_cmp);
+        *o = v[v.len() / 2];
+    }
+    Some(out)
 }
 
 /// The inner face (brows, eyes, nose, mouth) in the photo: features whose colour is not
