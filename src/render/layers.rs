@@ -7,7 +7,8 @@
 //!   the mask comes back as hair, never as skin or inpainted background (issue 19).
 //! * **Novel view**: the background is the photo with the hair and the face removed and
 //!   inpainted (the face: the photo's skin and inner face under the fitted head above the
-//!   chin, grown by the hair margin and 3 px), the same for every novel view. The head mesh
+//!   chin, grown by the hair margin and 3 px; below the mouth it takes the colour under the
+//!   chin, the neck behind the jaw), the same for every novel view. The head mesh
 //!   keeps what the photo shows as head: below the chin only the neck triangles the photo
 //!   shows as skin ([`skin_mask`]); above it, triangles facing the photo's camera when they
 //!   land on face or hair, and turned-away ones above the mouth (the back of the skull).
