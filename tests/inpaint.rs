@@ -12,7 +12,7 @@
 use coif::analyze::orient::SENTINEL;
 use coif::gpu::engine::{BackendChoice, BufProxy, Engine, Recording};
 use coif::hair::head::texture::{
-    head_texture, sphere_uv, uv_centre, TEXEL_PATCHMATCH, TEXEL_PHOTO, TEXEL_SMOOTH,
+    head_texture, sphere_uv, uv_centre, TEXEL_MIRROR, TEXEL_PATCHMATCH, TEXEL_PHOTO, TEXEL_SMOOTH,
 };
 use coif::hair::head::{Head, WeakPerspective};
 use coif::render::inpaint::{diffusion_fill, inpaint, jump_steps, InpaintParams, Level};
@@ -573,12 +573,13 @@ fn head_texture_reproduces_a_frontal_photo() {
         .iter()
         .all(|c| c.iter().all(|v| v.is_finite()) && c[0] + c[1] + c[2] > 0.05));
     let count = |s: u8| t.texel_source.iter().filter(|&&x| x == s).count();
-    let (np, npm, ns) = (
+    let (np, npm, ns, nm) = (
         count(TEXEL_PHOTO),
         count(TEXEL_PATCHMATCH),
         count(TEXEL_SMOOTH),
+        count(TEXEL_MIRROR),
     );
-    assert_eq!(np + npm + ns, tex.len());
+    assert_eq!(np + npm + ns + nm, tex.len());
     assert!(
         np > tex.len() / 8 && npm > 0 && ns > 0,
         "{np} photo, {npm} PatchMatch, {ns} smooth"

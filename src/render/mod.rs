@@ -1,12 +1,15 @@
 //! Rendering a hair model back into its photo (C13 §4).
 //!
 //! Layers, back to front:
-//! 1. the background: the photo with the hair (and, for a novel view, the head) removed and
-//!    filled by PatchMatch inpainting ([`crate::render::inpaint`]);
-//! 2. the head mesh, depth-tested: at the original view it carries the inpainted photo itself
-//!    (screen-space uvs, texel centres on pixel centres, so it reproduces the photo exactly
-//!    and only hides strands behind the head); at a novel view it carries the face texture
-//!    projected from the photo with its unseen parts filled ([`crate::hair::head::texture`]);
+//! 1. the background ([`layers`]): at the original view the photo itself (so hair pixels no
+//!    strand covers come back as the photo's hair); at a novel view the photo with the hair
+//!    and the face removed and filled by PatchMatch inpainting ([`crate::render::inpaint`]),
+//!    the same for every novel view;
+//! 2. the head mesh, depth-tested: at the original view it carries the photo itself
+//!    (screen-space uvs, texel centres on pixel centres, so it only hides strands behind the
+//!    head); at a novel view it keeps what the photo shows as head and neck skin and carries
+//!    the face texture projected from the photo with its unseen parts mirrored or filled
+//!    ([`crate::hair::head::texture`]);
 //! 3. the strands, one screen-aligned quad per segment with per-vertex colour and alpha
 //!    (the colours sampled from the photo by `coif model`, recoloured in HSV and given
 //!    highlights by [`crate::render::shade`]), MSAA with alpha-to-coverage, no depth sorting
@@ -18,18 +21,18 @@
 //! which is refused.
 
 pub mod inpaint;
+pub mod layers;
 pub mod raster;
 pub mod shade;
 
 use crate::base::colour;
-use crate::base::mask::dilate;
 use crate::error::{Error, Result};
-use crate::hair::head::texture::{head_texture_with, HeadTextureParams};
+use crate::hair::head::texture::HeadTextureParams;
 use crate::hair::head::WeakPerspective;
 use crate::hair::scene::Scene;
 use crate::hair::strands::StrandSet;
-use crate::render::inpaint::{inpaint, InpaintParams};
-use crate::render::raster::{Frame, RasterParams, ScreenMesh, ScreenStrands, StrandPhoto, Texture};
+use crate::render::inpaint::InpaintParams;
+use crate::render::raster::{Frame, RasterParams, ScreenStrands, StrandPhoto, Texture};
 use crate::render::shade::ShadeParams;
 use crate::Engine;
 use glam::{Mat3, Vec2, Vec3};
@@ -408,9 +411,10 @@ pub fn render(engine: &Engine, m: &Scene, p: &RenderParams) -> Result<Rendered> 
         let lin = lin
             .as_deref()
             .expect("checked above: composite renders have a photo");
-        let (bg, mesh) = layers(engine, m, lin, &vc, p, &mut report)?;
+        let l = layers::layers(engine, m, lin, &vc, p, &mut report)?;
         lap("layers", &mut report);
-        (Some(bg), mesh)
+        let (pw, ph) = m.photo.as_ref().expect("composite").dimensions();
+        (Some(resample_to(&l.background, pw, ph, &vc)), l.mesh)
     } else {
         let bg = p
             .background
@@ -604,153 +608,6 @@ fn resample_colours(m: &Scene, spacing: f32) -> Option<StrandSet> {
     Some(out)
 }
 
-/// The background layer and the head mesh of a composite render.
-fn layers(
-    engine: &Engine,
-    m: &Scene,
-    lin: &[[f32; 3]],
-    vc: &ViewCamera,
-    p: &RenderParams,
-    report: &mut RenderReport,
-) -> Result<(Vec<[f32; 4]>, Option<ScreenMesh>)> {
-    let photo = m.photo.as_ref().expect("checked by the caller");
-    let cam0 = m.camera.expect("checked by the caller");
-    let (pw, ph) = photo.dimensions();
-    let (pwu, phu) = (pw as usize, ph as usize);
-    let hair: Vec<u8> = match &m.mask {
-        Some(mk) => mk.iter().map(|&v| (v != 0) as u8).collect(),
-        None => vec![0; pwu * phu],
-    };
-    let hair = dilate(&hair, pwu, phu, p.hair_margin_px as usize);
-    let original = p.is_original_view() && (vc.width, vc.height) == (pw, ph);
-    let head = m.head.as_ref();
-    // The head mesh once, in model space and as the photo's camera sees it.
-    let head_mesh = head.map(|hd| {
-        let (verts, tris) = hd.mesh(p.head_texture.mesh_res);
-        let seen = crate::model::volume::Mesh {
-            verts: verts.iter().map(|&v| cam0.project(v).to_array()).collect(),
-            tris: tris.clone(),
-        };
-        (verts, tris, seen)
-    });
-    // Pixels of the photo the head mesh covers.
-    let covered = |mesh: &crate::model::volume::Mesh| -> Result<Vec<bool>> {
-        let dm = crate::model::volume::rasterize_depth(engine, pw, ph, &[mesh])?;
-        Ok((0..pwu * phu).map(|i| dm.covered(i)).collect())
-    };
-    let head_px: Vec<u8> = match (head, &head_mesh) {
-        (Some(hd), Some((verts, _, seen))) if !original => {
-            let mut above = seen.clone();
-            // Only the head above the chin leaves the background: the neck hardly moves in
-            // the photo's body, and inpainting a neck-sized hole through the collar smears it.
-            if let Some(chin) = hd.landmark("chin") {
-                above
-                    .tris
-                    .retain(|t| t.iter().any(|&i| verts[i as usize].y > chin.y));
-            }
-            let cov: Vec<u8> = covered(&above)?.into_iter().map(u8::from).collect();
-            // The parametric head's outline differs from the real face by a few percent of
-            // the image: a wider hole keeps slivers of the photo's face out of the background.
-            let grow = p.hair_margin_px as usize + (0.03 * pwu.min(phu) as f32).round() as usize;
-            dilate(&cov, pwu, phu, grow)
-        }
-        _ => vec![0; pwu * phu],
-    };
-    let hole: Vec<u8> = hair
-        .iter()
-        .zip(&head_px)
-        .map(|(&a, &b)| (a != 0 || b != 0) as u8)
-        .collect();
-    report.hole_pixels = hole.iter().filter(|&&v| v != 0).count();
-    let (filled, _) = inpaint(engine, pw, ph, lin, &hole, &p.inpaint)?;
-    let bg_photo: Vec<[f32; 4]> = filled.iter().map(|c| [c[0], c[1], c[2], 1.0]).collect();
-
-    let (Some(head), Some((verts, tris, seen))) = (head, head_mesh) else {
-        return Ok((resample_to(&bg_photo, pw, ph, vc), None));
-    };
-    if original {
-        // The head hides strands behind it and shows the (inpainted) photo itself.
-        let positions: Vec<[f32; 3]> = verts
-            .iter()
-            .map(|&v| vc.project(v).unwrap_or([f32::NAN; 3]))
-            .collect();
-        let uvs = positions
-            .iter()
-            .map(|q| [q[0] / pw as f32, q[1] / ph as f32])
-            .collect();
-        let mesh = ScreenMesh {
-            positions,
-            uvs,
-            triangles: tris,
-            texture: Texture {
-                width: pw,
-                height: ph,
-                texels: bg_photo.clone(),
-            },
-        };
-        return Ok((bg_photo, Some(mesh)));
-    }
-    // Novel view: the face texture from the photo where skin shows, the rest inpainted.
-    let usable: Vec<u8> = covered(&seen)?
-        .iter()
-        .zip(&hair)
-        .map(|(&c, &hr)| (c && hr == 0) as u8)
-        .collect();
-    let th = head_texture_with(engine, head, &cam0, lin, pw, ph, &usable, &p.head_texture)?;
-    let positions: Vec<[f32; 3]> = th
-        .positions
-        .iter()
-        .map(|&v| vc.project(Vec3::from_array(v)).unwrap_or([f32::NAN; 3]))
-        .collect();
-    let (tw, tht, texels) = th.texture;
-    let mesh = ScreenMesh {
-        positions,
-        uvs: th.uvs,
-        triangles: th.triangles,
-        texture: Texture {
-            width: tw,
-            height: tht,
-            texels,
-        },
-    };
-    Ok((resample_to(&bg_photo, pw, ph, vc), Some(mesh)))
-}
-
-/// The background layer at the view's size (a scaled view resamples it bilinearly).
-fn resample_to(bg: &[[f32; 4]], w: u32, h: u32, vc: &ViewCamera) -> Vec<[f32; 4]> {
-    if (vc.width, vc.height) == (w, h) {
-        return bg.to_vec();
-    }
-    let (sx, sy) = (w as f32 / vc.width as f32, h as f32 / vc.height as f32);
-    let at = |x: i64, y: i64| {
-        bg[(y.clamp(0, h as i64 - 1) * w as i64 + x.clamp(0, w as i64 - 1)) as usize]
-    };
-    let mut out = Vec::with_capacity((vc.width * vc.height) as usize);
-    for j in 0..vc.height {
-        for i in 0..vc.width {
-            let x = (i as f32 + 0.5) * sx - 0.5;
-            let y = (j as f32 + 0.5) * sy - 0.5;
-            let (x0, y0) = (x.floor(), y.floor());
-            let (fx, fy) = (x - x0, y - y0);
-            let (x0, y0) = (x0 as i64, y0 as i64);
-            let mut c = [0.0f32; 4];
-            for (dx, dy, wgt) in [
-                (0, 0, (1.0 - fx) * (1.0 - fy)),
-                (1, 0, fx * (1.0 - fy)),
-                (0, 1, (1.0 - fx) * fy),
-                (1, 1, fx * fy),
-            ] {
-                let v = at(x0 + dx, y0 + dy);
-                for k in 0..4 {
-                    c[k] += wgt * v[k];
-                }
-            }
-            out.push(c);
-        }
-    }
-    out
-}
-
 /// PSNR (dB) of `a` against `b` (sRGB 8-bit RGB) over the pixels where `region` is set.
 pub fn psnr_region(a: &image::RgbImage, b: &image::RgbImage, region: &[bool]) -> f64 {
     let mut se = 0.0f64;
@@ -872,4 +729,39 @@ pub fn sidecar_path(path: &Path) -> PathBuf {
     let mut s = path.as_os_str().to_owned();
     s.push(".json");
     PathBuf::from(s)
+}
+
+/// The background layer at the view's size (a scaled view resamples it bilinearly).
+fn resample_to(bg: &[[f32; 4]], w: u32, h: u32, vc: &ViewCamera) -> Vec<[f32; 4]> {
+    if (vc.width, vc.height) == (w, h) {
+        return bg.to_vec();
+    }
+    let (sx, sy) = (w as f32 / vc.width as f32, h as f32 / vc.height as f32);
+    let at = |x: i64, y: i64| {
+        bg[(y.clamp(0, h as i64 - 1) * w as i64 + x.clamp(0, w as i64 - 1)) as usize]
+    };
+    let mut out = Vec::with_capacity((vc.width * vc.height) as usize);
+    for j in 0..vc.height {
+        for i in 0..vc.width {
+            let x = (i as f32 + 0.5) * sx - 0.5;
+            let y = (j as f32 + 0.5) * sy - 0.5;
+            let (x0, y0) = (x.floor(), y.floor());
+            let (fx, fy) = (x - x0, y - y0);
+            let (x0, y0) = (x0 as i64, y0 as i64);
+            let mut c = [0.0f32; 4];
+            for (dx, dy, wgt) in [
+                (0, 0, (1.0 - fx) * (1.0 - fy)),
+                (1, 0, fx * (1.0 - fy)),
+                (0, 1, (1.0 - fx) * fy),
+                (1, 1, fx * fy),
+            ] {
+                let v = at(x0 + dx, y0 + dy);
+                for k in 0..4 {
+                    c[k] += wgt * v[k];
+                }
+            }
+            out.push(c);
+        }
+    }
+    out
 }

@@ -19,6 +19,9 @@
 //!   pixel centres at i + 0.5) when it faces the camera (normal · view ≥ `min_facing`), is the
 //!   front-most surface there (the head's own depth map, from coif's depth rasteriser, so the
 //!   nose or an ear hides what is behind it) and all four photo taps are `usable`.
+//! * **Mirror**: a texel the photo did not show takes the colour of its mirror image across
+//!   the face's symmetry plane (u ↔ 1 − u) when the photo showed that one, so a face side
+//!   hidden by hair or turned away continues the other side's skin and features.
 //! * **Fill**: texels within `near_band` of the photo texels (hidden by hair: forehead,
 //!   temples, ears, the sides of the neck) are inpainted by PatchMatch in texture space, so
 //!   skin texture continues into them. The far back of the head gets a smooth push-pull fill
@@ -40,6 +43,9 @@ pub const TEXEL_PHOTO: u8 = 1;
 pub const TEXEL_PATCHMATCH: u8 = 2;
 /// A texel filled by the smooth push-pull fill (the far back).
 pub const TEXEL_SMOOTH: u8 = 3;
+/// A texel the photo did not show, copied from its mirror image across the face's
+/// symmetry plane (u ↔ 1 − u), which the photo did show.
+pub const TEXEL_MIRROR: u8 = 4;
 
 /// Tuning of [`head_texture_with`].
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
@@ -80,6 +86,7 @@ pub struct HeadTextureReport {
     pub photo_texels: usize,
     pub patchmatch_texels: usize,
     pub smooth_texels: usize,
+    pub mirror_texels: usize,
     /// Triangles clipped on the uv seam.
     pub seam_triangles: usize,
     pub inpaint: Option<InpaintReport>,
@@ -95,8 +102,8 @@ pub struct TexturedHead {
     /// (width, height, linear RGBA with alpha 1), row 0 at v = 0; texel centres at
     /// ((i + 0.5) / width, (j + 0.5) / height).
     pub texture: (u32, u32, Vec<[f32; 4]>),
-    /// Where each texel's colour came from: [`TEXEL_PHOTO`], [`TEXEL_PATCHMATCH`] or
-    /// [`TEXEL_SMOOTH`].
+    /// Where each texel's colour came from: [`TEXEL_PHOTO`], [`TEXEL_MIRROR`],
+    /// [`TEXEL_PATCHMATCH`] or [`TEXEL_SMOOTH`].
     pub texel_source: Vec<u8>,
     pub report: HeadTextureReport,
 }
@@ -435,8 +442,26 @@ pub fn head_texture_with(
         ));
     }
 
-    // 4. Fill: smooth everywhere first (periodic in u), then PatchMatch in the near band.
-    let known: Vec<bool> = source.iter().map(|&s| s == TEXEL_PHOTO).collect();
+    // 4. Mirror: the head is symmetric about the plane x = centre.x, which the map sends to
+    // u = 0.5 (and the seam), so texel column i mirrors to tw - 1 - i. A texel the photo
+    // did not show (hair over one side of the face, the far side turned away) takes its
+    // mirror image's photo colour: the face's other side rather than a guess.
+    for j in 0..th as usize {
+        for i in 0..tw as usize {
+            let k = j * tw as usize + i;
+            let km = j * tw as usize + (tw as usize - 1 - i);
+            if texels[k].is_some() && source[k] == 0 && source[km] == TEXEL_PHOTO {
+                tex[k] = tex[km];
+                source[k] = TEXEL_MIRROR;
+            }
+        }
+    }
+
+    // 5. Fill: smooth everywhere first (periodic in u), then PatchMatch in the near band.
+    let known: Vec<bool> = source
+        .iter()
+        .map(|&s| s == TEXEL_PHOTO || s == TEXEL_MIRROR)
+        .collect();
     let smooth = push_pull(tw, th, &tex, &known, true);
     let dist = distance_wrap_x(tw, th, &known);
     let band = p.near_band * th as f32;
@@ -464,6 +489,7 @@ pub fn head_texture_with(
         photo_texels,
         patchmatch_texels: count(TEXEL_PATCHMATCH),
         smooth_texels: count(TEXEL_SMOOTH),
+        mirror_texels: count(TEXEL_MIRROR),
         seam_triangles,
         inpaint: inpaint_report,
     };

@@ -1,0 +1,485 @@
+//! The layers a composite render draws under the strands: the background and the head mesh.
+//!
+//! * **Original view**: the background is the photo itself (recoloured inside the hair mask
+//!   as the strands are), and the head mesh carries the same picture with screen-space uvs.
+//!   So wherever no strand covers a hair pixel of the mask, or the fitted head hides strands
+//!   the photo shows in front of it, the composite yields to the photo: every hair pixel of
+//!   the mask comes back as hair, never as skin or inpainted background (issue 19).
+//! * **Novel view**: the background is the photo with the hair and the face removed and
+//!   inpainted (the face: the photo's skin and inner face under the fitted head above the
+//!   chin, grown by the hair margin and 3 px; below the mouth it takes the colour under the
+//!   chin, the neck behind the jaw), the same for every novel view. The head mesh
+//!   keeps what the photo shows as head: below the chin only the neck triangles the photo
+//!   shows as skin ([`skin_mask`]); above it, triangles facing the photo's camera when they
+//!   land on face or hair, and turned-away ones above the mouth (the back of the skull).
+//!   Clothing stays in the background, where the body stays put. The neck twists: its
+//!   vertices turn with the head in proportion to their height between the lowest visible
+//!   skin (not turned, so the neck stays on the photo's neck) and the chin (turned fully).
+//!   The face texture is projected only from skin and from the inner face (brows, eyes,
+//!   mouth), so background and clothing pixels inside the parametric outline do not smear
+//!   onto the head.
+
+use super::{rotation, RenderParams, RenderReport, ViewCamera};
+use crate::base::colour;
+use crate::base::mask::{dilate, erode};
+use crate::error::Result;
+use crate::hair::head::texture::head_texture_with;
+use crate::hair::head::{Head, WeakPerspective};
+use crate::hair::scene::Scene;
+use crate::render::inpaint::inpaint;
+use crate::render::raster::{ScreenMesh, Texture};
+use crate::Engine;
+use glam::{Mat3, Vec2, Vec3};
+
+/// The layers under the strands of a composite render, at the photo's size.
+pub struct Layers {
+    /// Linear RGBA, alpha 1.
+    pub background: Vec<[f32; 4]>,
+    /// Photo pixels the background fills by inpainting (none at the original view).
+    pub hole: Vec<u8>,
+    /// The photo's skin region ([`skin_mask`]; all zero without a head or at the original view).
+    pub skin: Vec<u8>,
+    /// The head mesh as the view sees it.
+    pub mesh: Option<ScreenMesh>,
+}
+
+/// The layers of a render of `m` with `p` (what [`crate::render::render`] draws the strands
+/// over), for checks of what a view may change.
+pub fn render_layers(engine: &Engine, m: &Scene, p: &RenderParams) -> Result<Layers> {
+    let vc = super::view_camera(m, p)?;
+    let photo = m.photo.as_ref().ok_or_else(|| {
+        crate::error::Error::Invalid(format!("{} has no photo to render into", m.dir.display()))
+    })?;
+    let lin = super::linear_photo(photo);
+    layers(engine, m, &lin, &vc, p, &mut RenderReport::default())
+}
+
+/// The background layer and the head mesh of a composite render (see the module notes).
+pub(super) fn layers(
+    engine: &Engine,
+    m: &Scene,
+    lin: &[[f32; 3]],
+    vc: &ViewCamera,
+    p: &RenderParams,
+    report: &mut RenderReport,
+) -> Result<Layers> {
+    let photo = m.photo.as_ref().expect("checked by the caller");
+    let cam0 = m.camera.expect("checked by the caller");
+    let (pw, ph) = photo.dimensions();
+    let (pwu, phu) = (pw as usize, ph as usize);
+    let hair: Vec<u8> = match &m.mask {
+        Some(mk) => mk.iter().map(|&v| (v != 0) as u8).collect(),
+        None => vec![0; pwu * phu],
+    };
+    let hair0 = hair.clone();
+    let hair = dilate(&hair, pwu, phu, p.hair_margin_px as usize);
+    let original = p.is_original_view() && (vc.width, vc.height) == (pw, ph);
+    let head = m.head.as_ref();
+    // The head mesh once, in model space and as the photo's camera sees it.
+    let head_mesh = head.map(|hd| {
+        let (verts, tris) = hd.mesh(p.head_texture.mesh_res);
+        let seen = crate::model::volume::Mesh {
+            verts: verts.iter().map(|&v| cam0.project(v).to_array()).collect(),
+            tris: tris.clone(),
+        };
+        (verts, tris, seen)
+    });
+    if original {
+        // The photo, recoloured in the hair as the strands are (their photo colour goes
+        // through the same HSV step), so uncovered hair reads as the strands beside it; the
+        // margin around the mask is mostly background and keeps its colour.
+        let sp = &p.shade;
+        let hsv = (!sp.hsv_is_identity()).then_some([sp.hue, sp.saturation, sp.value]);
+        let bg: Vec<[f32; 4]> = lin
+            .iter()
+            .zip(&hair0)
+            .map(|(c, &hr)| {
+                let c = match hsv {
+                    Some([h, s, v]) if hr != 0 => colour::hsv_adjust(*c, h, s, v),
+                    _ => *c,
+                };
+                [c[0], c[1], c[2], 1.0]
+            })
+            .collect();
+        // The head hides strands behind it and shows the same picture (screen-space uvs).
+        let mesh = head_mesh.map(|(verts, tris, _)| {
+            let positions: Vec<[f32; 3]> = verts
+                .iter()
+                .map(|&v| vc.project(v).unwrap_or([f32::NAN; 3]))
+                .collect();
+            let uvs = positions
+                .iter()
+                .map(|q| [q[0] / pw as f32, q[1] / ph as f32])
+                .collect();
+            ScreenMesh {
+                positions,
+                uvs,
+                triangles: tris,
+                texture: Texture {
+                    width: pw,
+                    height: ph,
+                    texels: bg.clone(),
+                },
+            }
+        });
+        return Ok(Layers {
+            background: bg,
+            hole: vec![0; pwu * phu],
+            skin: vec![0; pwu * phu],
+            mesh,
+        });
+    }
+    // Pixels of the photo a mesh covers.
+    let covered = |mesh: &crate::model::volume::Mesh| -> Result<Vec<bool>> {
+        let dm = crate::model::volume::rasterize_depth(engine, pw, ph, &[mesh])?;
+        Ok((0..pwu * phu).map(|i| dm.covered(i)).collect())
+    };
+    let chin = head.and_then(|hd| hd.landmark("chin"));
+    let (Some(head), Some((_, _, seen)), Some(chin)) = (head, head_mesh, chin) else {
+        // No head: only the hair leaves the background.
+        report.hole_pixels = hair.iter().filter(|&&v| v != 0).count();
+        let (filled, _) = inpaint(engine, pw, ph, lin, &hair, &p.inpaint)?;
+        return Ok(Layers {
+            background: filled.iter().map(|c| [c[0], c[1], c[2], 1.0]).collect(),
+            hole: hair,
+            skin: vec![0; pwu * phu],
+            mesh: None,
+        });
+    };
+    let skin = skin_mask(lin, pw, ph, head, &cam0, &hair);
+    let inner = inner_face(head, &cam0, pw, ph);
+    let face: Vec<u8> = skin.iter().zip(&inner).map(|(&a, &b)| a | b).collect();
+    // The face texture from the photo where skin (or the inner face) shows, the rest filled.
+    let usable: Vec<u8> = covered(&seen)?
+        .iter()
+        .enumerate()
+        .map(|(i, &c)| (c && hair[i] == 0 && face[i] != 0) as u8)
+        .collect();
+    let th = head_texture_with(engine, head, &cam0, lin, pw, ph, &usable, &p.head_texture)?;
+    let at = |m: &[u8], q: Vec3| {
+        let (x, y) = (q.x.floor(), q.y.floor());
+        x >= 0.0
+            && y >= 0.0
+            && x < pw as f32
+            && y < ph as f32
+            && m[y as usize * pwu + x as usize] != 0
+    };
+    // Triangles the photo shows as something else than head (clothing, background) go:
+    // below the chin only skin stays (the neck); above it, a triangle facing the photo's
+    // camera stays when it lands on face or hair (a few px of slack for the fit).
+    let head_or_hair: Vec<u8> = face.iter().zip(&hair).map(|(&a, &b)| a | b).collect();
+    let head_or_hair = dilate(&head_or_hair, pwu, phu, 3);
+    let toward0 = cam0.r.row(2);
+    let mouth_y = match (head.landmark("mouth_left"), head.landmark("mouth_right")) {
+        (Some(a), Some(b)) => 0.5 * (a.y + b.y),
+        _ => chin.y,
+    };
+    let mut above = Vec::new();
+    let triangles: Vec<[u32; 3]> = th
+        .triangles
+        .iter()
+        .copied()
+        .filter(|t| {
+            let v = t.map(|i| Vec3::from(th.positions[i as usize]));
+            let q = cam0.project((v[0] + v[1] + v[2]) / 3.0);
+            let facing = (v[1] - v[0]).cross(v[2] - v[0]).dot(toward0) > 0.0;
+            if v.iter().all(|q| q.y <= chin.y) {
+                facing && at(&skin, q)
+            } else if facing {
+                let keep = at(&head_or_hair, q);
+                if keep {
+                    above.push(*t);
+                }
+                keep
+            } else {
+                // Turned away from the photo's camera: the photo says nothing about it. The
+                // back of the skull stays; below the mouth it is the jaw's back and the
+                // neck's far side, which a novel view would show as a pale slab of guessed
+                // skin beside the neck, so it goes (the inpainted background shows there).
+                v.iter().any(|q| q.y > mouth_y)
+            }
+        })
+        .collect();
+    // The photo's head leaves the background: the face pixels the kept head covers and the
+    // hair, grown by the hair margin and a few px for the fit. Clothing and the neck stay.
+    let proj: Vec<[f32; 3]> = th
+        .positions
+        .iter()
+        .map(|&v| cam0.project(Vec3::from(v)).to_array())
+        .collect();
+    let above_px = covered(&crate::model::volume::Mesh {
+        verts: proj,
+        tris: above,
+    })?;
+    let chin_px = cam0.project(chin);
+    let head_px: Vec<u8> = (0..pwu * phu)
+        .map(|i| (above_px[i] && face[i] != 0 && (i / pwu) as f32 + 0.5 <= chin_px.y) as u8)
+        .collect();
+    let head_px = dilate(&head_px, pwu, phu, p.hair_margin_px as usize + 3);
+    let hole: Vec<u8> = hair
+        .iter()
+        .zip(&head_px)
+        .map(|(&a, &b)| (a != 0 || b != 0) as u8)
+        .collect();
+    report.hole_pixels = hole.iter().filter(|&&v| v != 0).count();
+    // Behind the face below the mouth is the neck: that part of the hole takes the colour
+    // under the chin (neck or collar), not PatchMatch's, which fills it from the backdrop
+    // and leaves a pale strip beside the jaw where a turned head uncovers it.
+    let mut lin_pre = lin.to_vec();
+    let mut hole_pm = hole.clone();
+    if let (Some(neck), Some((_, mouth, _))) = (
+        colour_under_chin(lin, &hole, pw, ph, head, &cam0),
+        face_frame(head, &cam0),
+    ) {
+        for i in 0..pwu * phu {
+            if head_px[i] != 0 && hair[i] == 0 && (i / pwu) as f32 + 0.5 >= mouth.y {
+                lin_pre[i] = neck;
+                hole_pm[i] = 0;
+            }
+        }
+    }
+    // The hole depends on the photo's camera only, so every novel view gets the same fill.
+    let (filled, _) = inpaint(engine, pw, ph, &lin_pre, &hole_pm, &p.inpaint)?;
+    let background: Vec<[f32; 4]> = filled.iter().map(|c| [c[0], c[1], c[2], 1.0]).collect();
+
+    // The lowest photo row of skin below the chin, under the face.
+    let bottom = lowest_skin_row(&skin, pw, ph, chin_px.truncate()).unwrap_or(chin_px.y);
+    // The view's model-space turn undone, then redone by a share of the angles.
+    // Only vertices of the neck alone twist: one shared with a head triangle turns fully,
+    // or a triangle spanning the chin would stretch between a turned and an unturned corner.
+    let mut of_head = vec![false; th.positions.len()];
+    for t in &triangles {
+        if t.iter().any(|&i| th.positions[i as usize][1] > chin.y) {
+            for &i in t {
+                of_head[i as usize] = true;
+            }
+        }
+    }
+    let undo = rotation(p).transpose();
+    let positions: Vec<[f32; 3]> = th
+        .positions
+        .iter()
+        .zip(&of_head)
+        .map(|(&v, &of_head)| {
+            let v = Vec3::from_array(v);
+            let v = if of_head || bottom <= chin_px.y + 0.5 {
+                v
+            } else {
+                let q = cam0.project(v);
+                let w = ((bottom - q.y) / (bottom - chin_px.y)).clamp(0.0, 1.0);
+                undo * partial_rotation(p, w) * v
+            };
+            vc.project(v).unwrap_or([f32::NAN; 3])
+        })
+        .collect();
+    let (tw, tht, texels) = th.texture;
+    let mesh = ScreenMesh {
+        positions,
+        uvs: th.uvs,
+        triangles,
+        texture: Texture {
+            width: tw,
+            height: tht,
+            texels,
+        },
+    };
+    Ok(Layers {
+        background,
+        hole,
+        skin,
+        mesh: Some(mesh),
+    })
+}
+
+/// The view's turn scaled by `w` (0 = none, 1 = all of it).
+fn partial_rotation(p: &RenderParams, w: f32) -> Mat3 {
+    rotation(&RenderParams {
+        yaw_deg: w * p.yaw_deg,
+        pitch_deg: w * p.pitch_deg,
+        roll_deg: w * p.roll_deg,
+        ..RenderParams::default()
+    })
+}
+
+/// Landmarks as the photo sees them: eyes' midpoint, mouth's midpoint, eye distance (px).
+fn face_frame(head: &Head, cam: &WeakPerspective) -> Option<(Vec2, Vec2, f32)> {
+    let at = |n: &str| head.landmark(n).map(|q| cam.project(q).truncate());
+    let (le, re) = (at("left_eye")?, at("right_eye")?);
+    let (ml, mr) = (at("mouth_left")?, at("mouth_right")?);
+    let d = (re - le).length();
+    (d.is_finite() && d > 1.0).then_some((0.5 * (le + re), 0.5 * (ml + mr), d))
+}
+
+/// The median colour (per channel) of the photo under the chin, outside the hole: a box
+/// 0.8 eye distances wide from 0.15 to 0.6 eye distances under the chin. None when it holds
+/// fewer than 8 such pixels.
+fn colour_under_chin(
+    lin: &[[f32; 3]],
+    hole: &[u8],
+    w: u32,
+    h: u32,
+    head: &Head,
+    cam: &WeakPerspective,
+) -> Option<[f32; 3]> {
+    let (_, _, d) = face_frame(head, cam)?;
+    let chin = cam.project(head.landmark("chin")?).truncate();
+    let (x0, x1) = (
+        (chin.x - 0.4 * d).max(0.0),
+        (chin.x + 0.4 * d).min(w as f32),
+    );
+    let (y0, y1) = (
+        (chin.y + 0.15 * d).max(0.0),
+        (chin.y + 0.6 * d).min(h as f32),
+    );
+    let mut px: Vec<[f32; 3]> = Vec::new();
+    for y in (y0 as usize)..(y1.max(0.0) as usize) {
+        for x in (x0 as usize)..(x1.max(0.0) as usize) {
+            let i = y * w as usize + x;
+            if hole[i] == 0 {
+                px.push(lin[i]);
+            }
+        }
+    }
+    if px.len() < 8 {
+        return None;
+    }
+    let mut out = [0.0f32; 3];
+    for (k, o) in out.iter_mut().enumerate() {
+        let mut v: Vec<f32> = px.iter().map(|c| c[k]).collect();
+        v.sort_by(f32::total_cmp);
+        *o = v[v.len() / 2];
+    }
+    Some(out)
+}
+
+/// The inner face (brows, eyes, nose, mouth) in the photo: features whose colour is not
+/// skin but which belong on the face texture. A rounded box (a superellipse of degree 4)
+/// from above the brows (0.75 eye distances over the eyes) to below the lower lip (0.35
+/// under the mouth), 1.05 eye distances either side, inside the face's outline.
+fn inner_face(head: &Head, cam: &WeakPerspective, w: u32, h: u32) -> Vec<u8> {
+    let mut out = vec![0u8; (w * h) as usize];
+    let Some((eyes, mouth, d)) = face_frame(head, cam) else {
+        return out;
+    };
+    let (top, bottom) = (eyes.y - 0.75 * d, mouth.y + 0.35 * d);
+    let c = Vec2::new(0.5 * (eyes.x + mouth.x), 0.5 * (top + bottom));
+    let (ax, ay) = (1.05 * d, 0.5 * (bottom - top));
+    for y in 0..h {
+        for x in 0..w {
+            let q = Vec2::new(x as f32 + 0.5, y as f32 + 0.5) - c;
+            if (q.x / ax).powi(4) + (q.y / ay).powi(4) <= 1.0 {
+                out[(y * w + x) as usize] = 1;
+            }
+        }
+    }
+    out
+}
+
+/// The photo's skin around the fitted face (face and neck): pixels whose chromaticity
+/// (r, g = R/Σ, G/Σ of linear RGB) lies within 3 robust deviations (1.4826·MAD) + 0.015 of
+/// the cheeks' median and whose brightness Σ lies within 0.15..3 times theirs (shadow under
+/// the chin), connected to the cheeks (between the eyes and the mouth) inside a window one
+/// and a half eye distances either side of the face and below the chin, never hair.
+/// Clothing and background differ in colour or brightness and so stay out. All zero when the
+/// cheeks give too few samples.
+pub fn skin_mask(
+    lin: &[[f32; 3]],
+    w: u32,
+    h: u32,
+    head: &Head,
+    cam: &WeakPerspective,
+    hair: &[u8],
+) -> Vec<u8> {
+    let (wu, hu) = (w as usize, h as usize);
+    let mut out = vec![0u8; wu * hu];
+    let (Some((eyes, mouth, d)), Some(chin)) = (face_frame(head, cam), head.landmark("chin"))
+    else {
+        return out;
+    };
+    let chin = cam.project(chin).truncate();
+    let chroma = |c: [f32; 3]| {
+        let s = c[0] + c[1] + c[2];
+        (s > 1e-4).then(|| [c[0] / s, c[1] / s, s])
+    };
+    // Cheeks and nose: below the eyes, above the mouth, between the outer eye corners.
+    let (x0, x1) = (eyes.x - 0.6 * d, eyes.x + 0.6 * d);
+    let (y0, y1) = (eyes.y + 0.3 * d, mouth.y - 0.1 * d);
+    let mut samples: Vec<[f32; 3]> = Vec::new();
+    let mut seeds = Vec::new();
+    for y in (y0.max(0.0) as usize)..(y1.max(0.0) as usize).min(hu) {
+        for x in (x0.max(0.0) as usize)..(x1.max(0.0) as usize).min(wu) {
+            let i = y * wu + x;
+            if hair[i] != 0 {
+                continue;
+            }
+            if let Some(c) = chroma(lin[i]) {
+                samples.push(c);
+                seeds.push(i);
+            }
+        }
+    }
+    if samples.len() < 20 {
+        return out;
+    }
+    let median = |k: usize| {
+        let mut v: Vec<f32> = samples.iter().map(|s| s[k]).collect();
+        v.sort_by(f32::total_cmp);
+        v[v.len() / 2]
+    };
+    let mad = |k: usize, m: f32| {
+        let mut v: Vec<f32> = samples.iter().map(|s| (s[k] - m).abs()).collect();
+        v.sort_by(f32::total_cmp);
+        v[v.len() / 2]
+    };
+    let (mr, mg, ms) = (median(0), median(1), median(2));
+    let (tr, tg) = (
+        3.0 * 1.4826 * mad(0, mr) + 0.015,
+        3.0 * 1.4826 * mad(1, mg) + 0.015,
+    );
+    let (wx0, wx1) = (eyes.x - 1.5 * d, eyes.x + 1.5 * d);
+    let (wy0, wy1) = (eyes.y - 1.2 * d, chin.y + 1.5 * d);
+    let is_skin = |i: usize| {
+        let (x, y) = ((i % wu) as f32 + 0.5, (i / wu) as f32 + 0.5);
+        if hair[i] != 0 || x < wx0 || x > wx1 || y < wy0 || y > wy1 {
+            return false;
+        }
+        chroma(lin[i]).is_some_and(|c| {
+            (c[0] - mr).abs() <= tr
+                && (c[1] - mg).abs() <= tg
+                && c[2] >= 0.15 * ms
+                && c[2] <= 3.0 * ms
+        })
+    };
+    let mut stack: Vec<usize> = seeds.into_iter().filter(|&i| is_skin(i)).collect();
+    for &i in &stack {
+        out[i] = 1;
+    }
+    while let Some(i) = stack.pop() {
+        let (x, y) = (i % wu, i / wu);
+        let nb = [
+            (x > 0).then(|| i - 1),
+            (x + 1 < wu).then(|| i + 1),
+            (y > 0).then(|| i - wu),
+            (y + 1 < hu).then(|| i + wu),
+        ];
+        for j in nb.into_iter().flatten() {
+            if out[j] == 0 && is_skin(j) {
+                out[j] = 1;
+                stack.push(j);
+            }
+        }
+    }
+    // A closing fills pores and specular specks without growing the outline.
+    erode(&dilate(&out, wu, hu, 1), wu, hu, 1)
+}
+
+/// The bottom edge (photo px) of the lowest row holding skin below `chin` (the skin mask is
+/// already confined to the face's window); None when no skin lies below the chin.
+fn lowest_skin_row(skin: &[u8], w: u32, h: u32, chin: Vec2) -> Option<f32> {
+    let (wu, hu) = (w as usize, h as usize);
+    let y0 = (chin.y.max(0.0) as usize).min(hu);
+    (y0..hu)
+        .rev()
+        .find(|&y| skin[y * wu..(y + 1) * wu].iter().any(|&v| v != 0))
+        .map(|y| y as f32 + 1.0)
+}
