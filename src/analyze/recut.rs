@@ -12,6 +12,7 @@
 //! the curve is cut there, and the pieces are resolved again. Each round moves the evidence
 //! about one radius further along the part, so a few rounds are run.
 
+use crate::analyze::resolve::intrinsic;
 use crate::analyze::trace::{resample, Curve};
 
 /// Parameters of the re-cutting rounds.
@@ -43,23 +44,6 @@ impl Default for RecutParams {
     }
 }
 
-/// Unit tangents by central differences (one-sided at the ends).
-fn tangents(pts: &[[f32; 2]]) -> Vec<[f32; 2]> {
-    let n = pts.len();
-    (0..n)
-        .map(|j| {
-            let (a, b) = (pts[j.saturating_sub(1)], pts[(j + 1).min(n - 1)]);
-            let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-            let l = dx.hypot(dy);
-            if l > 0.0 {
-                [dx / l, dy / l]
-            } else {
-                [0.0, 0.0]
-            }
-        })
-        .collect()
-}
-
 /// Cuts the directed `curves` (root -> tip) where they point against their neighbours (other
 /// curves, and the `strokes` counted `stroke_weight` times per vertex) over a run of at least
 /// `min_run` vertices while agreeing with them elsewhere. Returns `None` when nothing is cut.
@@ -86,13 +70,13 @@ pub fn cut_disagreeing(
     };
     let mut pts: Vec<([f32; 2], [f32; 2], f32, usize)> = Vec::new();
     for (i, c) in curves.iter().enumerate() {
-        for (q, t) in c.points.iter().zip(tangents(&c.points)) {
+        for (q, t) in c.points.iter().zip(intrinsic(&c.points)) {
             pts.push((*q, t, 1.0, i));
         }
     }
     for s in strokes {
         let s = resample(s, spacing);
-        for (q, t) in s.iter().zip(tangents(&s)) {
+        for (q, t) in s.iter().zip(intrinsic(&s)) {
             pts.push((*q, t, stroke_weight, usize::MAX));
         }
     }
@@ -122,7 +106,7 @@ pub fn cut_disagreeing(
     let mut out = Vec::with_capacity(curves.len());
     let mut cut_any = false;
     for (i, c) in curves.iter().enumerate() {
-        let t = tangents(&c.points);
+        let t = intrinsic(&c.points);
         // Sign of the agreement per vertex; 0 where nothing is near.
         let mut sign: Vec<i8> = c
             .points

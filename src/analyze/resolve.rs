@@ -186,7 +186,7 @@ pub fn resolve_directions(
 
 /// Unit intrinsic directions t̃: γ(j-1) -> γ(j+1), one-sided at the ends; zero where the
 /// curve has no extent.
-fn intrinsic(pts: &[[f32; 2]]) -> Vec<[f32; 2]> {
+pub(crate) fn intrinsic(pts: &[[f32; 2]]) -> Vec<[f32; 2]> {
     let m = pts.len();
     (0..m)
         .map(|j| {
