@@ -148,7 +148,25 @@ pub(super) fn layers(
     };
     let skin = skin_mask(lin, pw, ph, head, &cam0, &hair);
     let inner = inner_face(head, &cam0, pw, ph);
-    let face: Vec<u8> = skin.iter().zip(&inner).map(|(&a, &b)| a | b).collect();
+    // The inner face's box reaches past a narrow face's outline at the jaw and the temples
+    // (backdrop, collar); there it put backdrop colour on the texture and into the hole,
+    // which a turned head showed as a pale bar beside the jaw. Features lie between skin on
+    // both sides, so per row only the span between the outermost skin pixels counts (the
+    // rows around lend none: wider cheek rows brought the backdrop back at the jaw).
+    let spans: Vec<Option<(usize, usize)>> = skin
+        .chunks(pwu)
+        .map(|row| {
+            let a = row.iter().position(|&v| v != 0)?;
+            Some((a, row.iter().rposition(|&v| v != 0)?))
+        })
+        .collect();
+    let face: Vec<u8> = (0..pwu * phu)
+        .map(|i| {
+            let (x, y) = (i % pwu, i / pwu);
+            let within = spans[y].is_some_and(|(a, b)| x >= a && x <= b);
+            skin[i] | (inner[i] & within as u8)
+        })
+        .collect();
     // The face texture from the photo where skin (or the inner face) shows, the rest filled.
     let usable: Vec<u8> = covered(&seen)?
         .iter()
@@ -438,16 +456,49 @@ pub fn skin_mask(
     );
     let (wx0, wx1) = (eyes.x - 1.5 * d, eyes.x + 1.5 * d);
     let (wy0, wy1) = (eyes.y - 1.2 * d, chin.y + 1.5 * d);
+    // The backdrop beside the face (a quarter eye distance just outside the window, from
+    // the eyes to the chin, not hair). A pale, warm backdrop can lie within the cheeks'
+    // tolerance (the astronaut's: r 0.36 against 0.48 ± 0.12), and the fill then ran along
+    // the jaw into it, so a pixel also has to be nearer the cheeks than the backdrop. Only
+    // when the cheeks lie outside the backdrop's own tolerance (a skin-coloured backdrop
+    // would otherwise cut the skin in half).
+    let mut side: Vec<[f32; 3]> = Vec::new();
+    for y in (eyes.y.max(0.0) as usize)..(chin.y.max(0.0) as usize).min(hu) {
+        for (a, b) in [(wx0 - 0.25 * d, wx0), (wx1, wx1 + 0.25 * d)] {
+            for x in (a.max(0.0) as usize)..(b.max(0.0) as usize).min(wu) {
+                let i = y * wu + x;
+                if hair[i] == 0 {
+                    side.extend(chroma(lin[i]));
+                }
+            }
+        }
+    }
+    let backdrop = (side.len() >= 20)
+        .then(|| {
+            let stat = |k: usize| {
+                let mut v: Vec<f32> = side.iter().map(|s| s[k]).collect();
+                v.sort_by(f32::total_cmp);
+                let m = v[v.len() / 2];
+                let mut dv: Vec<f32> = v.iter().map(|x| (x - m).abs()).collect();
+                dv.sort_by(f32::total_cmp);
+                (m, 3.0 * 1.4826 * dv[dv.len() / 2] + 0.015)
+            };
+            (stat(0), stat(1))
+        })
+        .filter(|&((br, sr), (bg, sg))| (br - mr).abs() > sr || (bg - mg).abs() > sg)
+        .map(|((br, _), (bg, _))| (br, bg));
     let is_skin = |i: usize| {
         let (x, y) = ((i % wu) as f32 + 0.5, (i / wu) as f32 + 0.5);
         if hair[i] != 0 || x < wx0 || x > wx1 || y < wy0 || y > wy1 {
             return false;
         }
         chroma(lin[i]).is_some_and(|c| {
+            let dist = |r: f32, g: f32| ((c[0] - r) / tr).powi(2) + ((c[1] - g) / tg).powi(2);
             (c[0] - mr).abs() <= tr
                 && (c[1] - mg).abs() <= tg
                 && c[2] >= 0.15 * ms
                 && c[2] <= 3.0 * ms
+                && backdrop.is_none_or(|(br, bg)| dist(mr, mg) < dist(br, bg))
         })
     };
     let mut stack: Vec<usize> = seeds.into_iter().filter(|&i| is_skin(i)).collect();
