@@ -167,7 +167,15 @@ fn main() {
         100.0 * drawn_share(&img)
     );
     save(&img, "raster_cpu.png");
+    if let Some(path) = std::env::var_os("RASTER_BENCH_RAW") {
+        // The cpu backend's image as raw f32 RGBA (for bit-exact before/after checks).
+        write_raw(Path::new(&path), &img);
+    }
     let mut lavapipe = None;
+    // RASTER_BENCH_CPU_ONLY=1: the cpu backend alone (for profiling it).
+    if std::env::var_os("RASTER_BENCH_CPU_ONLY").is_some() {
+        return;
+    }
     match Engine::new(BackendChoice::Gpu) {
         Ok(g) => {
             // lavapipe: one warm-up (shader compilation, allocation), one timed run.

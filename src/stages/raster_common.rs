@@ -261,12 +261,33 @@ impl<const N: usize> TileBuf<N> {
     #[inline]
     pub fn write(&mut self, lx: i32, ly: i32, mask: u32, c: [f32; 4], z: [f32; N]) {
         let i = (ly * self.w + lx) as usize;
-        let (depth, color) = (&mut self.depth[i], &mut self.color[i]);
+        let pass = self.passing(i, mask, z);
+        self.write_passed(i, pass, c, z);
+    }
+
+    /// The samples of `mask` at tile pixel index `i` that pass the depth test of
+    /// [`TileBuf::write`]. Testing before shading lets a fragment hidden in every sample
+    /// skip its colour (with heavy overdraw, most do).
+    #[inline]
+    pub fn passing(&self, i: usize, mask: u32, z: [f32; N]) -> u32 {
+        let depth = &self.depth[i];
+        let mut pass = 0;
         for s in 0..N {
             let zs = z[s];
-            let pass = ((mask >> s) & 1 == 1) & (0.0..=1.0).contains(&zs) & (zs < depth[s]);
-            depth[s] = if pass { zs } else { depth[s] };
-            let m = 0u32.wrapping_sub(pass as u32);
+            let p = ((mask >> s) & 1 == 1) & (0.0..=1.0).contains(&zs) & (zs < depth[s]);
+            pass |= (p as u32) << s;
+        }
+        pass
+    }
+
+    /// Writes colour `c` and depth `z` to the samples in `pass` (from [`TileBuf::passing`]).
+    #[inline]
+    pub fn write_passed(&mut self, i: usize, pass: u32, c: [f32; 4], z: [f32; N]) {
+        let (depth, color) = (&mut self.depth[i], &mut self.color[i]);
+        for s in 0..N {
+            let p = (pass >> s) & 1 == 1;
+            depth[s] = if p { z[s] } else { depth[s] };
+            let m = 0u32.wrapping_sub(p as u32);
             for k in 0..4 {
                 color[s][k] = f32::from_bits((c[k].to_bits() & m) | (color[s][k].to_bits() & !m));
             }

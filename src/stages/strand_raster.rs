@@ -50,6 +50,8 @@ pub fn seg_bounds(s: &SegRec, half: f32) -> [f32; 4] {
 
 /// Draws segment `s` into the tile: the corners `vs_main` builds, snapped as the rasteriser
 /// does, the quad's coverage, and every covered pixel shaded as `fs_main` ([`Shade`] below).
+/// (Inlined into the tile loop, which has an AVX2 build.)
+#[inline(always)]
 pub fn strand_quad<const N: usize>(
     buf: &mut TileBuf<N>,
     s: &SegRec,
@@ -67,17 +69,28 @@ pub fn strand_quad<const N: usize>(
     let nn = [-u[1] * h, u[0] * h];
     let start = [s.p0[0] - e[0], s.p0[1] - e[1]];
     let end = [s.p1[0] + e[0], s.p1[1] + e[1]];
-    let plus = |p: [f32; 2]| [p[0] + nn[0], p[1] + nn[1]];
-    let minus = |p: [f32; 2]| [p[0] - nn[0], p[1] - nn[1]];
     // A, B, C, D = start+, start-, end+, end-; the GPU draws triangles ABC and CBD.
-    let fx = [plus(start), minus(start), plus(end), minus(end)].map(|p| fb.map(p).map(snap));
-    let [qa, qb, qc, qd] = fx;
-    let bbox = fx
-        .iter()
-        .fold([i32::MAX, i32::MAX, i32::MIN, i32::MIN], |m, p| {
-            let (x, y) = (p[0].div_euclid(256) as i32, p[1].div_euclid(256) as i32);
-            [m[0].min(x), m[1].min(y), m[2].max(x), m[3].max(y)]
-        });
+    let corner = |p: [f32; 2], sign: f32| {
+        let q = fb.map([p[0] + sign * nn[0], p[1] + sign * nn[1]]);
+        [snap(q[0]), snap(q[1])]
+    };
+    let (qa, qb, qc, qd) = (
+        corner(start, 1.0),
+        corner(start, -1.0),
+        corner(end, 1.0),
+        corner(end, -1.0),
+    );
+    // Pixel of a snapped corner: floor(v / 256), an arithmetic shift.
+    let mut bbox = [i32::MAX, i32::MAX, i32::MIN, i32::MIN];
+    for p in [qa, qb, qc, qd] {
+        let (x, y) = ((p[0] >> 8) as i32, (p[1] >> 8) as i32);
+        bbox = [
+            bbox[0].min(x),
+            bbox[1].min(y),
+            bbox[2].max(x),
+            bbox[3].max(y),
+        ];
+    }
     let Some((lx_min, ly0, lx_max, ly1)) = buf.clip(bbox) else {
         return;
     };
@@ -95,35 +108,18 @@ pub fn strand_quad<const N: usize>(
     // every point of the quad lies between them, so a row's columns are bounded by the
     // sides' x at the row's top and bottom. Otherwise (sides near horizontal, where
     // snapping may tilt them apart) the bounding box is used.
-    let to_px = |q: [i64; 2]| q.map(|v| v as f64 / SUBPIXEL as f64);
+    // Tile-local px in f32: exact for the snapped corners, and the spans only need to
+    // contain the covered pixels (a margin absorbs rounding; coverage is decided exactly).
+    let (ox, oy) = (buf.x0 as i64 * 256, buf.y0 as i64 * 256);
+    let to_px = |q: [i64; 2]| [(q[0] - ox) as f32 / SUBPIXEL, (q[1] - oy) as f32 / SUBPIXEL];
     let (a, b, c, dd) = (to_px(qa), to_px(qb), to_px(qc), to_px(qd));
     let (dy_ac, dy_bd) = (qc[1] - qa[1], qd[1] - qb[1]);
     let by_sides = (dy_ac > 0 && dy_bd > 0) || (dy_ac < 0 && dy_bd < 0);
-    let (sl_ac, sl_bd) = (
-        (c[0] - a[0]) / (c[1] - a[1]),
-        (dd[0] - b[0]) / (dd[1] - b[1]),
-    );
-    let span = |py: i32| -> Option<(i32, i32)> {
-        if !by_sides {
-            return Some((bbox[0], bbox[2]));
-        }
-        let (y0, y1) = (py as f64, py as f64 + 1.0);
-        let xs = [
-            a[0] + sl_ac * (y0 - a[1]),
-            a[0] + sl_ac * (y1 - a[1]),
-            b[0] + sl_bd * (y0 - b[1]),
-            b[0] + sl_bd * (y1 - b[1]),
-        ];
-        let lo = xs
-            .iter()
-            .fold(f64::INFINITY, |m, &v| if v < m { v } else { m });
-        let hi = xs
-            .iter()
-            .fold(f64::NEG_INFINITY, |m, &v| if v > m { v } else { m });
-        Some((
-            floor_i32(lo.max(bbox[0] as f64) - 1e-6),
-            floor_i32(hi.min(bbox[2] as f64 + 1.0) + 1e-6),
-        ))
+    let mut spans = Spans {
+        by_sides,
+        ac: (a[0], a[1], (c[0] - a[0]) / (c[1] - a[1])),
+        bd: (b[0], b[1], (dd[0] - b[0]) / (dd[1] - b[1])),
+        next_top: None,
     };
     let shade = Shade {
         p0: s.p0,
@@ -170,14 +166,106 @@ pub fn strand_quad<const N: usize>(
     };
     if convex {
         if let Some(quad) = Poly::<4, N>::new([qa, qc, qd, qb], false, &offs.0) {
-            scan(buf, &[quad], bbox, rows, cols, &span, &shade);
+            if narrow(bbox) {
+                scan_quad(buf, &quad, rows, cols, &mut spans, &shade);
+            } else {
+                scan(buf, &[quad], bbox, rows, cols, &mut spans, &shade);
+            }
         }
     } else {
         let tris: Vec<Poly<3, N>> = [[qa, qb, qc], [qc, qb, qd]]
             .into_iter()
             .filter_map(|t| Poly::new(t, false, &offs.0))
             .collect();
-        scan(buf, &tris, bbox, rows, cols, &span, &shade);
+        scan(buf, &tris, bbox, rows, cols, &mut spans, &shade);
+    }
+}
+
+/// Row spans of a quad from its two long sides A->C and B->D (see `strand_quad`), in tile
+/// pixels; rows are asked for top to bottom, so each side's x at a row's bottom is kept as
+/// the next row's top.
+struct Spans {
+    by_sides: bool,
+    /// Per side: x and y of its first corner (tile px) and its slope dx/dy.
+    ac: (f32, f32, f32),
+    bd: (f32, f32, f32),
+    /// (row, x of A->C, x of B->D) at the top of the next row.
+    next_top: Option<(i32, f32, f32)>,
+}
+
+impl Spans {
+    /// Tile columns that may hold covered pixels of tile row `ly`, within `cols`.
+    #[inline]
+    fn row(&mut self, ly: i32, cols: (i32, i32)) -> (i32, i32) {
+        if !self.by_sides {
+            return cols;
+        }
+        let x = |side: (f32, f32, f32), y: f32| side.0 + side.2 * (y - side.1);
+        let (y0, y1) = (ly as f32, ly as f32 + 1.0);
+        let (t_ac, t_bd) = match self.next_top {
+            Some((row, a, b)) if row == ly => (a, b),
+            _ => (x(self.ac, y0), x(self.bd, y0)),
+        };
+        let (b_ac, b_bd) = (x(self.ac, y1), x(self.bd, y1));
+        self.next_top = Some((ly + 1, b_ac, b_bd));
+        // f32 error here is below 1e-3 px even 16k px from the tile; 0.02 px is ample.
+        let lo = (t_ac.min(b_ac).min(t_bd.min(b_bd)) - 0.02).max(cols.0 as f32 - 1.0);
+        let hi = (t_ac.max(b_ac).max(t_bd.max(b_bd)) + 0.02).min(cols.1 as f32 + 1.0);
+        // Floor without a libm call: anything left of -2 is outside the tile anyway, and
+        // truncating a value >= 0 is its floor.
+        let fl = |v: f32| (v.max(-2.0) + 2.0) as i32 - 2;
+        (cols.0.max(fl(lo)), cols.1.min(fl(hi)))
+    }
+}
+
+/// Polygons up to 64 px a side keep every edge value at their pixels within ±2^31
+/// (|a|, |b| <= 64·256 and offsets <= 66·256 from the edge), so they run in i32.
+#[inline]
+fn narrow(bbox: [i32; 4]) -> bool {
+    bbox[2] - bbox[0] <= 64 && bbox[3] - bbox[1] <= 64
+}
+
+/// [`scan`] for one narrow convex quad, the common case. Per sample the four edge values
+/// are stepped along the row; a sample is inside when none is negative, so the pixel's
+/// mask is the sign bits of their OR (the same test as `mask32`, without a branch).
+fn scan_quad<const N: usize>(
+    buf: &mut TileBuf<N>,
+    quad: &Poly<4, N>,
+    rows: (i32, i32),
+    cols: (i32, i32),
+    spans: &mut Spans,
+    shade: &Shade<N>,
+) {
+    let (so, st) = quad.narrow();
+    for ly in rows.0..=rows.1 {
+        let py = buf.y0 + ly;
+        let (lx0, lx1) = spans.row(ly, cols);
+        if lx0 > lx1 {
+            continue;
+        }
+        let e = quad.edges(buf.x0 + lx0, py);
+        let mut v = [[0i32; N]; 4];
+        for k in 0..4 {
+            for s in 0..N {
+                v[k][s] = (e[k] as i32).wrapping_add(so[k][s]);
+            }
+        }
+        for lx in lx0..=lx1 {
+            let mut or = [0i32; N];
+            for k in 0..4 {
+                for s in 0..N {
+                    or[s] |= v[k][s];
+                    v[k][s] = v[k][s].wrapping_add(st[k]);
+                }
+            }
+            let mut cov = 0u32;
+            for s in 0..N {
+                cov |= ((or[s] >= 0) as u32) << s;
+            }
+            if cov != 0 {
+                shade.pixel(buf, lx, ly, cov);
+            }
+        }
     }
 }
 
@@ -211,11 +299,30 @@ impl<const N: usize> Shade<'_, N> {
     fn pixel(&self, buf: &mut TileBuf<N>, lx: i32, ly: i32, cov: u32) {
         let n = N as u32;
         let (px, py) = (buf.x0 + lx, buf.y0 + ly);
-        // Colour at the pixel centre: position along the segment, clamped.
+        // Position along the segment at the pixel centre, clamped.
         let (cx, cy) = (px as f32 + 0.5, py as f32 + 0.5);
         let (rx, ry) = (cx - self.p0[0], cy - self.p0[1]);
         let t_raw = (rx * self.d[0] + ry * self.d[1]) * self.inv_len2;
         let t = t_raw.clamp(0.0, 1.0);
+        // Alpha-to-coverage (see the WGSL): keep floor(alpha·N + 0.5) samples. Alpha, the
+        // coverage and the depth test come before the colour, which most fragments (hidden
+        // under nearer strands) never need.
+        let alpha = self.c0[3] * (1.0 - t) + self.c1[3] * t;
+        let k = (alpha.clamp(0.0, 1.0) * n as f32 + 0.5) as u32;
+        let r = (px as u32)
+            .wrapping_add(2u32.wrapping_mul(py as u32))
+            .wrapping_add(self.strand)
+            & (n - 1);
+        let mask = cov & a2c_mask(n, r, k);
+        if mask == 0 {
+            return;
+        }
+        let z = self.zp.samples(px, py, &self.z_off);
+        let i = (ly * buf.w + lx) as usize;
+        let pass = buf.passing(i, mask, z);
+        if pass == 0 {
+            return;
+        }
         let mut col: [f32; 4] = std::array::from_fn(|k| self.c0[k] * (1.0 - t) + self.c1[k] * t);
         if let Some(ph) = &self.photo {
             let l = rx * ph.nl[0] + ry * ph.nl[1];
@@ -230,17 +337,7 @@ impl<const N: usize> Shade<'_, N> {
                 col[k] = (p[k] + col[k]).clamp(0.0, 1.0);
             }
         }
-        // Alpha-to-coverage (see the WGSL): keep floor(alpha·N + 0.5) samples.
-        let k = (col[3].clamp(0.0, 1.0) * n as f32 + 0.5) as u32;
-        let r = (px as u32)
-            .wrapping_add(2u32.wrapping_mul(py as u32))
-            .wrapping_add(self.strand)
-            & (n - 1);
-        let mask = cov & a2c_mask(n, r, k);
-        if mask != 0 {
-            let z = self.zp.samples(px, py, &self.z_off);
-            buf.write(lx, ly, mask, [col[0], col[1], col[2], 1.0], z);
-        }
+        buf.write_passed(i, pass, [col[0], col[1], col[2], 1.0], z);
     }
 }
 
@@ -253,23 +350,16 @@ fn scan<const E: usize, const N: usize>(
     bbox: [i32; 4],
     rows: (i32, i32),
     cols: (i32, i32),
-    span: &impl Fn(i32) -> Option<(i32, i32)>,
+    spans: &mut Spans,
     shade: &Shade<N>,
 ) {
-    // Polygons up to 64 px a side keep every edge value at their pixels within ±2^31
-    // (|a|, |b| <= 64·256 and offsets <= 66·256 from the edge), so the hot loop runs in
-    // i32, 4 samples per SIMD compare.
-    let narrow = bbox[2] - bbox[0] <= 64 && bbox[3] - bbox[1] <= 64;
+    let narrow = narrow(bbox);
     let np = pieces.len().min(2);
     let small: [([[i32; N]; E], [i32; E]); 2] =
         [0, 1].map(|i| pieces.get(i).map_or(([[0; N]; E], [0; E]), |p| p.narrow()));
     for ly in rows.0..=rows.1 {
         let py = buf.y0 + ly;
-        let Some((sx0, sx1)) = span(py) else {
-            continue;
-        };
-        let lx0 = cols.0.max(sx0 - buf.x0);
-        let lx1 = cols.1.min(sx1 - buf.x0);
+        let (lx0, lx1) = spans.row(ly, cols);
         if lx0 > lx1 {
             continue;
         }
@@ -318,11 +408,4 @@ fn scan<const E: usize, const N: usize>(
 fn a2c_mask(n: u32, r: u32, k: u32) -> u32 {
     let run = (1u32 << k) - 1;
     ((run << r) | (run >> (n - r))) & ((1u32 << n) - 1)
-}
-
-/// floor(v) as i32 without a libm call (x86-64's baseline has no rounding instruction).
-#[inline]
-fn floor_i32(v: f64) -> i32 {
-    let i = v as i32;
-    i - ((i as f64) > v) as i32
 }

@@ -1,7 +1,11 @@
-//! The CPU mirror's driver: bins the prepared triangles and segments into tiles, clears each
-//! tile to the background, draws the mesh then the strands through the per-primitive mirrors
-//! in [`crate::stages::mesh_raster`] and [`crate::stages::strand_raster`], and resolves the
-//! samples as the GPU's f16 target does.
+//! The CPU mirror's driver: bins the triangles and the strand segments into tiles, clears
+//! each tile to the background, draws the mesh then the strands through the per-primitive
+//! mirrors in [`crate::stages::mesh_raster`] and [`crate::stages::strand_raster`], and
+//! resolves the samples as the GPU's f16 target does.
+//!
+//! Segments are binned straight from the strands' points and prepared
+//! ([`super::SegSource::seg`]) in each tile that draws them: a segment rarely straddles two
+//! tiles, so this costs less than materialising every prepared segment first.
 
 #![allow(clippy::needless_range_loop)]
 
@@ -9,30 +13,44 @@ use super::Scene;
 use crate::base::colour::f16_store;
 use crate::stages::mesh_raster::{mesh_tri, tri_bounds};
 use crate::stages::raster_common::{sample_offsets, Fb, TileBuf};
-use crate::stages::strand_raster::{seg_bounds, strand_quad};
+use crate::stages::strand_raster::strand_quad;
 use rayon::prelude::*;
 
 /// CPU tile side in pixels: big enough that few segments straddle two tiles (each is set
-/// up once per tile), small enough for a tile's samples (128² x 4 x 20 B) to stay in L2.
-const TILE: u32 = 128;
+/// up once per tile), small enough for a tile's samples (64² x 4 x 20 B) to stay in L2.
+const TILE: u32 = 64;
 
-/// Per tile, the indices of the items whose bounds touch it, in input order (the draw
-/// order the depth tie rule needs).
-fn bin(bounds: &[[f32; 4]], tiles_x: u32, tiles_y: u32) -> Vec<Vec<u32>> {
-    let ranges: Vec<[u32; 4]> = bounds
+/// Strands per binning task: each task bins its strands into its own per-tile lists, so the
+/// tasks' lists concatenated in task order keep the input (draw) order.
+const BIN_STRANDS: usize = 2048;
+
+/// Inclusive tile range `[x0, y0, x1, y1]` of pixel bounds `b`; None when `b` misses the
+/// frame (then nothing it bounds can cover a pixel).
+#[inline]
+fn tile_range(b: [f32; 4], w: u32, h: u32, tiles_x: u32, tiles_y: u32) -> Option<[u32; 4]> {
+    if !(b[2] >= 0.0 && b[3] >= 0.0 && b[0] <= w as f32 && b[1] <= h as f32) {
+        return None;
+    }
+    let t = |v: f32, n: u32| ((v / TILE as f32).max(0.0) as u32).min(n - 1);
+    Some([
+        t(b[0], tiles_x),
+        t(b[1], tiles_y),
+        t(b[2], tiles_x),
+        t(b[3], tiles_y),
+    ])
+}
+
+/// Per tile, the indices of the triangles whose bounds touch it, in input order.
+fn bin_tris(s: &Scene, tiles_x: u32, tiles_y: u32) -> Vec<Vec<u32>> {
+    let (w, h) = (s.cfg.width, s.cfg.height);
+    let ranges: Vec<Option<[u32; 4]>> = s
+        .tris
         .par_iter()
-        .map(|b| {
-            let t = |v: f32, n: u32| ((v / TILE as f32).max(0.0) as u32).min(n - 1);
-            [
-                t(b[0], tiles_x),
-                t(b[1], tiles_y),
-                t(b[2], tiles_x),
-                t(b[3], tiles_y),
-            ]
-        })
+        .map(|t| tile_range(tri_bounds(t), w, h, tiles_x, tiles_y))
         .collect();
     let mut bins = vec![Vec::new(); (tiles_x * tiles_y) as usize];
     for (i, r) in ranges.iter().enumerate() {
+        let Some(r) = r else { continue };
         for ty in r[1]..=r[3] {
             for tx in r[0]..=r[2] {
                 bins[(ty * tiles_x + tx) as usize].push(i as u32);
@@ -40,6 +58,51 @@ fn bin(bounds: &[[f32; 4]], tiles_x: u32, tiles_y: u32) -> Vec<Vec<u32>> {
         }
     }
     bins
+}
+
+/// Per binning task, per tile: (first vertex, strand) of every segment whose quad may touch
+/// the tile, in input order. Bounds come from the raw end points (clipping only shrinks a
+/// segment) grown by the quad's reach, as `strand_raster::seg_bounds`.
+fn bin_segs(s: &Scene, tiles_x: u32, tiles_y: u32) -> Vec<Vec<Vec<[u32; 2]>>> {
+    let Some(src) = &s.src else {
+        return Vec::new();
+    };
+    let (w, h) = (s.cfg.width, s.cfg.height);
+    let m = s.cfg.half_width * 1.415 + 0.01;
+    let n_strands = src.s.counts.len();
+    (0..n_strands.div_ceil(BIN_STRANDS))
+        .into_par_iter()
+        .map(|task| {
+            let mut bins = vec![Vec::new(); (tiles_x * tiles_y) as usize];
+            let pts = &src.s.points;
+            for k in task * BIN_STRANDS..((task + 1) * BIN_STRANDS).min(n_strands) {
+                let (a, n) = (src.starts[k], src.s.counts[k] as usize);
+                for i in a..(a + n).saturating_sub(1) {
+                    let (p, q) = (pts[i], pts[i + 1]);
+                    // NaN bounds fail `tile_range`'s test; infinite ones are skipped by
+                    // preparation anyway.
+                    let b = [
+                        p[0].min(q[0]) - m,
+                        p[1].min(q[1]) - m,
+                        p[0].max(q[0]) + m,
+                        p[1].max(q[1]) + m,
+                    ];
+                    if !b.iter().all(|v| v.is_finite()) {
+                        continue;
+                    }
+                    let Some(r) = tile_range(b, w, h, tiles_x, tiles_y) else {
+                        continue;
+                    };
+                    for ty in r[1]..=r[3] {
+                        for tx in r[0]..=r[2] {
+                            bins[(ty * tiles_x + tx) as usize].push([i as u32, k as u32]);
+                        }
+                    }
+                }
+            }
+            bins
+        })
+        .collect()
 }
 
 /// The premultiplied MSAA resolve of the scene, row-major.
@@ -53,26 +116,34 @@ pub fn raster(s: &Scene) -> Vec<[f32; 4]> {
 fn raster_n<const N: usize>(s: &Scene) -> Vec<[f32; 4]> {
     let (w, h) = (s.cfg.width, s.cfg.height);
     let (tiles_x, tiles_y) = (w.div_ceil(TILE), h.div_ceil(TILE));
-    let half = s.cfg.half_width;
-    let seg_bins = bin(
-        &s.segs
-            .par_iter()
-            .map(|q| seg_bounds(q, half))
-            .collect::<Vec<_>>(),
-        tiles_x,
-        tiles_y,
-    );
-    let tri_bins = bin(
-        &s.tris.par_iter().map(tri_bounds).collect::<Vec<_>>(),
-        tiles_x,
-        tiles_y,
+    let (seg_bins, tri_bins) = rayon::join(
+        || bin_segs(s, tiles_x, tiles_y),
+        || bin_tris(s, tiles_x, tiles_y),
     );
     let tiles: Vec<Vec<[f32; 4]>> = (0..tiles_x * tiles_y)
         .into_par_iter()
-        .map(|t| {
-            let i = t as usize;
-            tile::<N>(s, t % tiles_x, t / tiles_x, &tri_bins[i], &seg_bins[i])
-        })
+        .map_init(
+            // Sample storage reused across a worker's tiles (no page faults per tile).
+            || TileBuf::<N> {
+                x0: 0,
+                y0: 0,
+                w: 0,
+                h: 0,
+                color: Vec::new(),
+                depth: Vec::new(),
+            },
+            |buf, t| {
+                let i = t as usize;
+                let segs = seg_bins.iter().map(|b| b[i].as_slice());
+                let (tx, ty, tris) = (t % tiles_x, t / tiles_x, &tri_bins[i]);
+                #[cfg(target_arch = "x86_64")]
+                if avx2() {
+                    // SAFETY: the CPU has the features `tile_avx2` is compiled for.
+                    return unsafe { tile_avx2::<N>(s, buf, tx, ty, tris, segs) };
+                }
+                tile::<N>(s, buf, tx, ty, tris, segs)
+            },
+        )
         .collect();
     let mut img = vec![[0.0f32; 4]; w as usize * h as usize];
     for (t, px) in tiles.iter().enumerate() {
@@ -87,20 +158,50 @@ fn raster_n<const N: usize>(s: &Scene) -> Vec<[f32; 4]> {
     img
 }
 
-fn tile<const N: usize>(s: &Scene, tx: u32, ty: u32, tris: &[u32], segs: &[u32]) -> Vec<[f32; 4]> {
+/// Whether the AVX2 build of the tile loop can run here (checked once).
+#[cfg(target_arch = "x86_64")]
+fn avx2() -> bool {
+    static HAS: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *HAS.get_or_init(|| {
+        std::arch::is_x86_feature_detected!("avx2")
+            && std::arch::is_x86_feature_detected!("bmi2")
+            && std::env::var_os("COIF_NO_AVX2").is_none()
+    })
+}
+
+/// [`tile`] compiled for AVX2: the same arithmetic (Rust never fuses a multiply and an
+/// add on its own, so the image is bit-identical), with wider vectors for the sample
+/// tests and native rounding instead of libm calls.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,bmi1,bmi2,popcnt,lzcnt")]
+unsafe fn tile_avx2<'b, const N: usize>(
+    s: &Scene,
+    buf: &mut TileBuf<N>,
+    tx: u32,
+    ty: u32,
+    tris: &[u32],
+    segs: impl Iterator<Item = &'b [[u32; 2]]>,
+) -> Vec<[f32; 4]> {
+    tile::<N>(s, buf, tx, ty, tris, segs)
+}
+
+#[inline(always)]
+fn tile<'b, const N: usize>(
+    s: &Scene,
+    buf: &mut TileBuf<N>,
+    tx: u32,
+    ty: u32,
+    tris: &[u32],
+    segs: impl Iterator<Item = &'b [[u32; 2]]>,
+) -> Vec<[f32; 4]> {
     let cfg = &s.cfg;
     let (x0, y0) = ((tx * TILE) as i32, (ty * TILE) as i32);
     let tw = (TILE as i32).min(cfg.width as i32 - x0);
     let th = (TILE as i32).min(cfg.height as i32 - y0);
     let npx = (tw * th) as usize;
-    let mut buf = TileBuf::<N> {
-        x0,
-        y0,
-        w: tw,
-        h: th,
-        color: Vec::with_capacity(npx),
-        depth: Vec::with_capacity(npx),
-    };
+    (buf.x0, buf.y0, buf.w, buf.h) = (x0, y0, tw, th);
+    buf.color.clear();
+    buf.depth.clear();
     match &s.background {
         Some(bg) => {
             for ly in 0..th {
@@ -116,18 +217,18 @@ fn tile<const N: usize>(s: &Scene, tx: u32, ty: u32, tris: &[u32], segs: &[u32])
     let fb = Fb::new(cfg);
     if let Some(tex) = &s.texture {
         for &i in tris {
-            mesh_tri(&mut buf, &s.tris[i as usize], tex, &fb, &offs);
+            mesh_tri(buf, &s.tris[i as usize], tex, &fb, &offs);
         }
     }
-    for &i in segs {
-        strand_quad(
-            &mut buf,
-            &s.segs[i as usize],
-            cfg,
-            s.photo.as_ref().filter(|_| cfg.photo != 0),
-            &fb,
-            &offs,
-        );
+    if let Some(src) = &s.src {
+        let photo = s.photo.as_ref().filter(|_| cfg.photo != 0);
+        for list in segs {
+            for &[i, k] in list {
+                if let Some(seg) = src.seg(i as usize, k) {
+                    strand_quad(buf, &seg, cfg, photo, &fb, &offs);
+                }
+            }
+        }
     }
     // Resolve: f16 samples (the target format), f32 mean, f16 result, as lavapipe.
     let inv = 1.0 / N as f32;

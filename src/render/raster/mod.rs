@@ -175,7 +175,7 @@ pub const MIN_SEGMENT_PX: f32 = 1e-4;
 // ---------------------------------------------------------------------------------------------
 
 /// Everything a render needs, validated and prepared on the host once for either path.
-struct Scene {
+struct Scene<'a> {
     cfg: Config,
     /// Premultiplied, sanitised.
     background: Option<Vec<[f32; 4]>>,
@@ -184,7 +184,37 @@ struct Scene {
     /// Sanitised photo of the strands' photo colour.
     photo: Option<Texture>,
     tris: Vec<TriRec>,
+    /// Every drawable segment, prepared (the GPU path uploads them; empty on the CPU path).
     segs: Vec<SegRec>,
+    /// The validated strands and how a segment is prepared. The CPU path prepares each
+    /// segment in the tile that draws it: materialising 80 B per segment first cost more
+    /// than drawing them (1.5M segments, 118 MB).
+    src: Option<SegSource<'a>>,
+}
+
+/// Validated strands and the preparation [`SegPrep::segment`] applies to each segment.
+struct SegSource<'a> {
+    s: &'a ScreenStrands,
+    prep: SegPrep,
+    /// Index of each strand's first vertex.
+    starts: Vec<usize>,
+}
+
+impl SegSource<'_> {
+    /// The segment from vertex `i` to `i + 1` of strand `k`, prepared; None when skipped.
+    #[inline(always)]
+    fn seg(&self, i: usize, k: u32) -> Option<SegRec> {
+        let s = self.s;
+        let o = |i: usize| s.photo.as_ref().map(|ph| ph.points[i]);
+        self.prep.segment(
+            s.points[i],
+            s.points[i + 1],
+            s.colors[i],
+            s.colors[i + 1],
+            (o(i), o(i + 1)),
+            k,
+        )
+    }
 }
 
 fn invalid<T>(msg: String) -> Result<T> {
@@ -312,14 +342,16 @@ fn clip_poly(poly: &[[f32; 5]], axis: usize, bound: f32, keep_below: bool) -> Ve
     out
 }
 
-impl Scene {
+impl<'a> Scene<'a> {
+    /// `materialise`: also prepare every segment into [`Scene::segs`] (the GPU path).
     fn new(
         frame: &Frame,
         mesh: Option<&ScreenMesh>,
-        strands: Option<&ScreenStrands>,
+        strands: Option<&'a ScreenStrands>,
         p: &RasterParams,
         max_dim: u32,
-    ) -> Result<Scene> {
+        materialise: bool,
+    ) -> Result<Scene<'a>> {
         let (w, h) = (frame.width, frame.height);
         check_dims("frame", w, h, max_dim)?;
         let (far, near) = frame.depth_range;
@@ -385,6 +417,7 @@ impl Scene {
             photo: None,
             tris: Vec::new(),
             segs: Vec::new(),
+            src: None,
         };
         if let Some(m) = mesh {
             let texture = checked_texture("mesh texture", &m.texture, max_dim)?;
@@ -456,38 +489,44 @@ impl Scene {
                 }
                 scene.photo = Some(texture);
             }
-            let opoint = |i: usize| s.photo.as_ref().map(|ph| ph.points[i]);
+            // Segments are addressed by (first vertex, strand) as u32 on both paths.
+            if s.points.len() > u32::MAX as usize || s.counts.len() > u32::MAX as usize {
+                return invalid(format!(
+                    "{} strands with {} points: at most {} of each can be drawn at once",
+                    s.counts.len(),
+                    s.points.len(),
+                    u32::MAX
+                ));
+            }
             let mut starts = Vec::with_capacity(s.counts.len());
             let mut acc = 0usize;
             for &c in &s.counts {
                 starts.push(acc);
                 acc += c as usize;
             }
-            let prep = SegPrep {
-                depth,
-                half: cfg.half_width,
-                w: w as f32,
-                h: h as f32,
-                lo,
-                hi,
+            let src = SegSource {
+                s,
+                prep: SegPrep {
+                    depth,
+                    half: cfg.half_width,
+                    w: w as f32,
+                    h: h as f32,
+                    lo,
+                    hi,
+                },
+                starts,
             };
-            scene.segs = (0..s.counts.len())
-                .into_par_iter()
-                .flat_map_iter(|k| {
-                    let (a, n) = (starts[k], s.counts[k] as usize);
-                    let prep = &prep;
-                    (a..(a + n).saturating_sub(1)).filter_map(move |i| {
-                        prep.segment(
-                            s.points[i],
-                            s.points[i + 1],
-                            s.colors[i],
-                            s.colors[i + 1],
-                            (opoint(i), opoint(i + 1)),
-                            k as u32,
-                        )
+            if materialise {
+                let src = &src;
+                scene.segs = (0..s.counts.len())
+                    .into_par_iter()
+                    .flat_map_iter(|k| {
+                        let (a, n) = (src.starts[k], s.counts[k] as usize);
+                        (a..(a + n).saturating_sub(1)).filter_map(move |i| src.seg(i, k as u32))
                     })
-                })
-                .collect();
+                    .collect();
+            }
+            scene.src = Some(src);
         }
         Ok(scene)
     }
@@ -673,14 +712,14 @@ pub fn render(
     }
 }
 
-/// The CPU mirror: same image as [`render_gpu`], in parallel over 64² tiles.
+/// The CPU mirror: same image as [`render_gpu`], in parallel over tiles.
 pub fn render_cpu(
     frame: &Frame,
     mesh: Option<&ScreenMesh>,
     strands: Option<&ScreenStrands>,
     p: &RasterParams,
 ) -> Result<Vec<[f32; 4]>> {
-    let scene = Scene::new(frame, mesh, strands, p, CPU_MAX_DIM)?;
+    let scene = Scene::new(frame, mesh, strands, p, CPU_MAX_DIM, false)?;
     let mut img = cpu::raster(&scene);
     unpremultiply(&mut img);
     Ok(img)
@@ -708,7 +747,14 @@ pub fn render_gpu_chunked(
     p: &RasterParams,
     max_chunk_bytes: u64,
 ) -> Result<Vec<[f32; 4]>> {
-    let scene = Scene::new(frame, mesh, strands, p, ctx.limits.max_texture_dimension_2d)?;
+    let scene = Scene::new(
+        frame,
+        mesh,
+        strands,
+        p,
+        ctx.limits.max_texture_dimension_2d,
+        true,
+    )?;
     let mut img = gpu::raster(ctx, &scene, max_chunk_bytes)?;
     unpremultiply(&mut img);
     Ok(img)
