@@ -245,6 +245,7 @@ pub fn bilinear_at(t: &Texture, s: f32, r: f32) -> [f32; 4] {
 }
 
 /// One tile's samples: colour (premultiplied, pixel-major) and depth.
+#[derive(Default)]
 pub struct TileBuf<const N: usize> {
     pub x0: i32,
     pub y0: i32,
@@ -252,9 +253,72 @@ pub struct TileBuf<const N: usize> {
     pub h: i32,
     pub color: Vec<[[f32; 4]; N]>,
     pub depth: Vec<[f32; N]>,
+    /// Per [`ZBLOCK`]² block of pixels, a bound on the farthest depth of its samples (it only
+    /// falls between refreshes, so a stale value is still a bound): a primitive no nearer
+    /// than every block it touches cannot pass a depth test there and is skipped whole.
+    pub zmax: Vec<f32>,
+    /// Blocks written since their `zmax` was last computed.
+    pub zdirty: Vec<bool>,
 }
 
+/// Side in pixels of the depth blocks of [`TileBuf::zmax`].
+pub const ZBLOCK: i32 = 4;
+
 impl<const N: usize> TileBuf<N> {
+    /// Sizes the tile at (x0, y0), w x h, and fills its samples with `clear` colours (one per
+    /// pixel, row-major; None = transparent black) and depth 1.
+    pub fn reset(&mut self, x0: i32, y0: i32, w: i32, h: i32) {
+        (self.x0, self.y0, self.w, self.h) = (x0, y0, w, h);
+        let npx = (w * h) as usize;
+        self.color.clear();
+        self.depth.clear();
+        self.depth.resize(npx, [1.0; N]);
+        self.zmax.clear();
+        let nb = ((w + ZBLOCK - 1) / ZBLOCK) * ((h + ZBLOCK - 1) / ZBLOCK);
+        self.zmax.resize(nb as usize, 1.0);
+        self.zdirty.clear();
+        self.zdirty.resize(nb as usize, false);
+    }
+
+    /// Recomputes the farthest depth of every block written since the last refresh.
+    #[inline(always)]
+    pub fn refresh_zmax(&mut self) {
+        let bw = (self.w + ZBLOCK - 1) / ZBLOCK;
+        for (b, zm) in self.zmax.iter_mut().enumerate() {
+            if !std::mem::take(&mut self.zdirty[b]) {
+                continue;
+            }
+            let (bx, by) = (b as i32 % bw * ZBLOCK, b as i32 / bw * ZBLOCK);
+            let mut m = f32::NEG_INFINITY;
+            for ly in by..(by + ZBLOCK).min(self.h) {
+                let row = (ly * self.w) as usize;
+                for px in &self.depth[row + bx as usize..row + (bx + ZBLOCK).min(self.w) as usize] {
+                    for &z in px {
+                        m = m.max(z);
+                    }
+                }
+            }
+            *zm = m;
+        }
+    }
+
+    /// True when depth `z_near` (the nearest a primitive gets, depth-buffer units) is no
+    /// nearer than any sample in tile pixels [lx0, lx1] x [ly0, ly1]: then no sample of it
+    /// passes `Less`. The margin covers the rounding of per-sample depths to f32.
+    #[inline]
+    pub fn hidden(&self, lx0: i32, ly0: i32, lx1: i32, ly1: i32, z_near: f32) -> bool {
+        let bw = (self.w + ZBLOCK - 1) / ZBLOCK;
+        let z = z_near - 1e-6;
+        for by in ly0 / ZBLOCK..=ly1 / ZBLOCK {
+            for bx in lx0 / ZBLOCK..=lx1 / ZBLOCK {
+                if !(self.zmax[(by * bw + bx) as usize] <= z) {
+                    return false;
+                }
+            }
+        }
+        true
+    }
+
     /// Depth-tests and writes the samples in `mask` of tile pixel (lx, ly): `Less`
     /// against the buffer, and outside [0, 1] nothing (the GPU clips the primitive).
     /// Branch-free selects, for the same reason as `Tri::mask`.
@@ -262,7 +326,7 @@ impl<const N: usize> TileBuf<N> {
     pub fn write(&mut self, lx: i32, ly: i32, mask: u32, c: [f32; 4], z: [f32; N]) {
         let i = (ly * self.w + lx) as usize;
         let pass = self.passing(i, mask, z);
-        self.write_passed(i, pass, c, z);
+        self.write_passed(lx, ly, pass, c, z);
     }
 
     /// The samples of `mask` at tile pixel index `i` that pass the depth test of
@@ -280,9 +344,13 @@ impl<const N: usize> TileBuf<N> {
         pass
     }
 
-    /// Writes colour `c` and depth `z` to the samples in `pass` (from [`TileBuf::passing`]).
+    /// Writes colour `c` and depth `z` to the samples in `pass` (from [`TileBuf::passing`]) of
+    /// tile pixel (lx, ly).
     #[inline]
-    pub fn write_passed(&mut self, i: usize, pass: u32, c: [f32; 4], z: [f32; N]) {
+    pub fn write_passed(&mut self, lx: i32, ly: i32, pass: u32, c: [f32; 4], z: [f32; N]) {
+        let i = (ly * self.w + lx) as usize;
+        let bw = (self.w + ZBLOCK - 1) / ZBLOCK;
+        self.zdirty[(ly / ZBLOCK * bw + lx / ZBLOCK) as usize] = true;
         let (depth, color) = (&mut self.depth[i], &mut self.color[i]);
         for s in 0..N {
             let p = (pass >> s) & 1 == 1;

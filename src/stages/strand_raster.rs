@@ -97,6 +97,13 @@ pub fn strand_quad<const N: usize>(
     // Depth: one plane over the quad, z0 along the start cap's edge to z1 along the end
     // cap's edge (what the GPU interpolates from the corners), in screen px.
     let (gz, zl) = ((s.z1 - s.z0) as f64, (len + 2.0 * h) as f64);
+    // So the quad's depth lies between z0 and z1, give or take its slope times the 1/256 px
+    // the corners were snapped by: a segment behind everything already drawn where it lands
+    // is skipped before the rest of the set-up.
+    let z_near = s.z0.min(s.z1) - (gz.abs() / zl) as f32 * 0.01;
+    if buf.hidden(lx_min, ly0, lx_max, ly1, z_near) {
+        return;
+    }
     let (ux, uy) = (u[0] as f64 * gz / zl, u[1] as f64 * gz / zl);
     let zp = Plane {
         c: s.z0 as f64 - ux * start[0] as f64 - uy * start[1] as f64,
@@ -228,6 +235,7 @@ fn narrow(bbox: [i32; 4]) -> bool {
 /// [`scan`] for one narrow convex quad, the common case. Per sample the four edge values
 /// are stepped along the row; a sample is inside when none is negative, so the pixel's
 /// mask is the sign bits of their OR (the same test as `mask32`, without a branch).
+#[inline(always)]
 fn scan_quad<const N: usize>(
     buf: &mut TileBuf<N>,
     quad: &Poly<4, N>,
@@ -337,7 +345,7 @@ impl<const N: usize> Shade<'_, N> {
                 col[k] = (p[k] + col[k]).clamp(0.0, 1.0);
             }
         }
-        buf.write_passed(i, pass, [col[0], col[1], col[2], 1.0], z);
+        buf.write_passed(lx, ly, pass, [col[0], col[1], col[2], 1.0], z);
     }
 }
 

@@ -20,6 +20,11 @@ use rayon::prelude::*;
 /// up once per tile), small enough for a tile's samples (64² x 4 x 20 B) to stay in L2.
 const TILE: u32 = 64;
 
+/// Segments drawn between refreshes of a tile's depth bounds ([`TileBuf::zmax`]): often
+/// enough that hidden segments are skipped soon after what hides them is drawn, rarely
+/// enough that the refresh (every sample of the tile) costs little.
+const ZMAX_EVERY: u32 = 64;
+
 /// Strands per binning task: each task bins its strands into its own per-tile lists, so the
 /// tasks' lists concatenated in task order keep the input (draw) order.
 const BIN_STRANDS: usize = 2048;
@@ -124,14 +129,7 @@ fn raster_n<const N: usize>(s: &Scene) -> Vec<[f32; 4]> {
         .into_par_iter()
         .map_init(
             // Sample storage reused across a worker's tiles (no page faults per tile).
-            || TileBuf::<N> {
-                x0: 0,
-                y0: 0,
-                w: 0,
-                h: 0,
-                color: Vec::new(),
-                depth: Vec::new(),
-            },
+            TileBuf::<N>::default,
             |buf, t| {
                 let i = t as usize;
                 let segs = seg_bins.iter().map(|b| b[i].as_slice());
@@ -199,9 +197,7 @@ fn tile<'b, const N: usize>(
     let tw = (TILE as i32).min(cfg.width as i32 - x0);
     let th = (TILE as i32).min(cfg.height as i32 - y0);
     let npx = (tw * th) as usize;
-    (buf.x0, buf.y0, buf.w, buf.h) = (x0, y0, tw, th);
-    buf.color.clear();
-    buf.depth.clear();
+    buf.reset(x0, y0, tw, th);
     match &s.background {
         Some(bg) => {
             for ly in 0..th {
@@ -212,7 +208,6 @@ fn tile<'b, const N: usize>(
         }
         None => buf.color.resize(npx, [[0.0; 4]; N]),
     }
-    buf.depth.resize(npx, [1.0; N]);
     let offs = sample_offsets::<N>();
     let fb = Fb::new(cfg);
     if let Some(tex) = &s.texture {
@@ -222,11 +217,15 @@ fn tile<'b, const N: usize>(
     }
     if let Some(src) = &s.src {
         let photo = s.photo.as_ref().filter(|_| cfg.photo != 0);
-        for list in segs {
-            for &[i, k] in list {
-                if let Some(seg) = src.seg(i as usize, k) {
-                    strand_quad(buf, &seg, cfg, photo, &fb, &offs);
-                }
+        let mut since = ZMAX_EVERY;
+        for &[i, k] in segs.flatten() {
+            if since == ZMAX_EVERY {
+                buf.refresh_zmax();
+                since = 0;
+            }
+            since += 1;
+            if let Some(seg) = src.seg(i as usize, k) {
+                strand_quad(buf, &seg, cfg, photo, &fb, &offs);
             }
         }
     }
