@@ -4,10 +4,14 @@
 //! per strand; `benches/peers/raster_skia.py`) drawing the same strands in the same run.
 //! Prints times and ratios.
 //!
-//! Run: `CARGO_TARGET_DIR=/work/target-h cargo bench --bench raster`
+//! Then growth rows: the cpu backend at 2048² and with 2x the strands, with peak memory.
+//!
+//! Run: `CARGO_TARGET_DIR=/work/target cargo bench --bench raster`
 //! (COIF_BENCH_REPS sets CPU repetitions, default 3; lavapipe gets one warm-up and one timed
 //! run; needs `pip install skia-python numpy` for the peer; RASTER_BENCH_PNG=dir writes our
-//! two images there.)
+//! two images there; RASTER_BENCH_RAW=file writes the cpu image as raw f32 RGBA, for
+//! bit-exact before/after checks; RASTER_BENCH_CPU_ONLY=1 stops after the cpu backend, for
+//! profiling it; COIF_NO_AVX2=1 runs the baseline x86-64 build of the tile loop.)
 
 use coif::base::colour::to_rgba8;
 use coif::base::rng::Rng;
@@ -31,13 +35,13 @@ fn median(mut t: Vec<f64>) -> f64 {
 /// growing out along the normal, then bending under "gravity" with a little curl, kept
 /// outside the skull; brown with per-strand variation, lighter and more transparent at the
 /// tips. Screen px, depth px (larger = nearer).
-fn hair(seed: u64) -> ScreenStrands {
+fn hair(seed: u64, size: u32, strands: usize) -> ScreenStrands {
     let mut rng = Rng::new(seed);
-    let c = [SIZE as f32 * 0.5, SIZE as f32 * 0.4, 0.0];
-    let r = SIZE as f32 * 0.2;
-    let step = 7.5f32;
+    let c = [size as f32 * 0.5, size as f32 * 0.4, 0.0];
+    let r = size as f32 * 0.2;
+    let step = 7.5f32 * size as f32 / SIZE as f32;
     let mut s = ScreenStrands::default();
-    for _ in 0..STRANDS {
+    for _ in 0..strands {
         // Uniform direction on the sphere, kept on the upper part (y up = -screen y).
         let (mut u, mut len2) = ([0.0f32; 3], 0.0f32);
         while !(0.01..=1.0).contains(&len2) || u[1] > 0.3 * len2.sqrt() {
@@ -100,6 +104,49 @@ fn cpu_seconds() -> f64 {
     f.iter().sum::<f64>() / 100.0
 }
 
+/// The process's resident-set high-water mark and current size, in MiB (VmHWM, VmRSS).
+fn rss_mib() -> (f64, f64) {
+    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    let field = |name: &str| {
+        status
+            .lines()
+            .find(|l| l.starts_with(name))
+            .and_then(|l| l.split_whitespace().nth(1))
+            .and_then(|v| v.parse::<f64>().ok())
+            .map_or(f64::NAN, |kib| kib / 1024.0)
+    };
+    (field("VmHWM:"), field("VmRSS:"))
+}
+
+/// Resets the high-water mark to the current RSS (Linux: "5" to /proc/self/clear_refs).
+fn reset_peak() {
+    let _ = std::fs::write("/proc/self/clear_refs", "5");
+}
+
+/// One cpu-backend render of `strands` at `size`²: (median seconds of `reps`, peak RSS MiB
+/// during the renders, RSS before them MiB).
+fn cpu_row(strands: &ScreenStrands, size: u32, p: &RasterParams, reps: usize) -> (f64, f64, f64) {
+    let frame = Frame {
+        width: size,
+        height: size,
+        depth_range: (-2.0 * size as f32, 2.0 * size as f32),
+        background: None,
+    };
+    let cpu = Engine::cpu();
+    let before = rss_mib().1;
+    reset_peak();
+    let times = (0..reps)
+        .map(|_| {
+            let t = Instant::now();
+            let img = render(&cpu, &frame, None, Some(strands), p).unwrap();
+            let s = t.elapsed().as_secs_f64();
+            drop(img);
+            s
+        })
+        .collect();
+    (median(times), rss_mib().0, before)
+}
+
 fn write_raw<T: bytemuck::Pod>(path: &Path, data: &[T]) {
     std::fs::File::create(path)
         .unwrap()
@@ -134,7 +181,7 @@ fn main() {
         .ok()
         .and_then(|s| s.parse().ok())
         .unwrap_or(3);
-    let strands = hair(2013);
+    let strands = hair(2013, SIZE, STRANDS);
     let frame = Frame {
         width: SIZE,
         height: SIZE,
@@ -149,6 +196,8 @@ fn main() {
     let cpu = Engine::cpu();
     let mut img = Vec::new();
     let mut cpu_s = 0.0;
+    let rss_before = rss_mib().1;
+    reset_peak();
     let times: Vec<f64> = (0..reps + 1)
         .map(|i| {
             let (t, c) = (Instant::now(), cpu_seconds());
@@ -166,6 +215,10 @@ fn main() {
         cpu.describe(),
         100.0 * drawn_share(&img)
     );
+    println!(
+        "  peak RSS during the cpu renders: {:.0} MiB ({rss_before:.0} MiB before them)",
+        rss_mib().0
+    );
     save(&img, "raster_cpu.png");
     if let Some(path) = std::env::var_os("RASTER_BENCH_RAW") {
         // The cpu backend's image as raw f32 RGBA (for bit-exact before/after checks).
@@ -179,15 +232,19 @@ fn main() {
     match Engine::new(BackendChoice::Gpu) {
         Ok(g) => {
             // lavapipe: one warm-up (shader compilation, allocation), one timed run.
+            let rss_before = rss_mib().1;
+            reset_peak();
             let _ = render(&g, &frame, None, Some(&strands), &p).unwrap();
             let t = Instant::now();
             let gimg = render(&g, &frame, None, Some(&strands), &p).unwrap();
             let tg = t.elapsed().as_secs_f64();
             lavapipe = Some(tg);
             println!(
-                "  {}: {tg:.3} s; lavapipe / cpu backend: {:.2}x",
+                "  {}: {tg:.3} s; lavapipe / cpu backend: {:.2}x; peak RSS {:.0} MiB \
+                 ({rss_before:.0} MiB before; lavapipe's own memory is the process's)",
                 g.describe(),
-                tg / ours
+                tg / ours,
+                rss_mib().0
             );
             let (a, b) = (to_rgba8(&gimg), to_rgba8(&img));
             let agree = a
@@ -256,5 +313,45 @@ fn main() {
             String::from_utf8_lossy(&o.stderr)
         ),
         Err(e) => println!("  cannot run python3: {e}"),
+    }
+    growth(&strands, &p, reps);
+}
+
+/// Time and peak memory of the cpu backend as pixels and strands grow (lavapipe and skia
+/// are left out here: the ratios above are the comparison, these rows show the scaling).
+fn growth(base: &ScreenStrands, p: &RasterParams, reps: usize) {
+    println!(
+        "growth, cpu backend (median of {reps}; peak = process RSS high-water mark during the \
+         renders, reset first; input = RSS before them, strands included):"
+    );
+    println!(
+        "  {:<34} {:>8} {:>9} {:>10} {:>10} {:>12}",
+        "row", "s", "x base", "peak MiB", "input MiB", "render MiB"
+    );
+    let rows = [
+        (format!("{STRANDS} strands, {SIZE}² (base)"), None, SIZE),
+        (
+            format!("{STRANDS} strands, {}² (4x pixels)", 2 * SIZE),
+            Some(hair(2013, 2 * SIZE, STRANDS)),
+            2 * SIZE,
+        ),
+        (
+            format!("{} strands, {SIZE}² (2x strands)", 2 * STRANDS),
+            Some(hair(2013, SIZE, 2 * STRANDS)),
+            SIZE,
+        ),
+    ];
+    let mut base_s = f64::NAN;
+    for (name, strands, size) in &rows {
+        let s = strands.as_ref().unwrap_or(base);
+        let (t, peak, before) = cpu_row(s, *size, p, reps);
+        if base_s.is_nan() {
+            base_s = t;
+        }
+        println!(
+            "  {name:<34} {t:>8.3} {:>8.2}x {peak:>10.0} {before:>10.0} {:>12.0}",
+            t / base_s,
+            peak - before
+        );
     }
 }
