@@ -265,8 +265,8 @@ pub struct TileBuf<const N: usize> {
 pub const ZBLOCK: i32 = 4;
 
 impl<const N: usize> TileBuf<N> {
-    /// Sizes the tile at (x0, y0), w x h, and fills its samples with `clear` colours (one per
-    /// pixel, row-major; None = transparent black) and depth 1.
+    /// Sizes the tile at (x0, y0), w x h, with every depth 1, every depth bound fresh, and no
+    /// colour yet (the caller fills `color` with the background, w·h pixels).
     pub fn reset(&mut self, x0: i32, y0: i32, w: i32, h: i32) {
         (self.x0, self.y0, self.w, self.h) = (x0, y0, w, h);
         let npx = (w * h) as usize;
@@ -369,5 +369,47 @@ impl<const N: usize> TileBuf<N> {
         let x1 = (bbox[2] - self.x0).min(self.w - 1);
         let y1 = (bbox[3] - self.y0).min(self.h - 1);
         (x0 <= x1 && y0 <= y1).then_some((x0, y0, x1, y1))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The depth bounds only skip what the per-sample test would reject: a primitive
+    /// nearer than one sample of a block is never hidden, and a block stays conservative
+    /// (never below its farthest sample) between refreshes.
+    #[test]
+    fn hidden_only_when_every_sample_is_nearer() {
+        let mut b = TileBuf::<4>::default();
+        b.reset(0, 0, 10, 9);
+        b.color.resize(90, [[0.0; 4]; 4]);
+        assert!(
+            !b.hidden(0, 0, 9, 8, 0.99),
+            "cleared tile (depth 1) hides nothing"
+        );
+        // Fill the 4x4 block at the origin with depth 0.5 except one sample at 0.7.
+        for ly in 0..4 {
+            for lx in 0..4 {
+                b.write(lx, ly, 0b1111, [1.0; 4], [0.5; 4]);
+            }
+        }
+        b.write(3, 3, 0b0100, [1.0; 4], [0.5, 0.5, 0.5, 0.5]);
+        b.depth[(3 * 10 + 3) as usize][2] = 0.7;
+        b.zdirty[0] = true;
+        // Before a refresh the stale bound (1.0) hides nothing.
+        assert!(!b.hidden(0, 0, 3, 3, 0.8));
+        b.refresh_zmax();
+        assert_eq!(b.zmax[0], 0.7);
+        assert!(b.hidden(0, 0, 3, 3, 0.8));
+        assert!(!b.hidden(0, 0, 3, 3, 0.6), "nearer than the 0.7 sample");
+        assert!(
+            !b.hidden(0, 0, 3, 3, 0.7),
+            "ties pass nothing, but the margin keeps them"
+        );
+        // A range reaching an unwritten block is not hidden.
+        assert!(!b.hidden(0, 0, 4, 3, 0.8));
+        // Partial blocks at the tile's edge are sized to the tile.
+        assert_eq!(b.zmax.len(), 3 * 3);
     }
 }
