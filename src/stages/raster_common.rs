@@ -311,7 +311,7 @@ impl<const N: usize> TileBuf<N> {
         let z = z_near - 1e-6;
         for by in ly0 / ZBLOCK..=ly1 / ZBLOCK {
             for bx in lx0 / ZBLOCK..=lx1 / ZBLOCK {
-                if !(self.zmax[(by * bw + bx) as usize] <= z) {
+                if self.zmax[(by * bw + bx) as usize] > z {
                     return false;
                 }
             }
