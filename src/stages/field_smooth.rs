@@ -1,7 +1,7 @@
 //! One red-black half-sweep of collective Gauss-Seidel on the mixed form of C13 Eq. (3)
 //! (see `wgsl/field_smooth.wgsl`).
 
-use super::field_cfg::{groups3, Config};
+use super::field_cfg::{groups3, Config, MIN_TASK_CELLS, SERIAL_CELLS};
 use crate::gpu::engine::{Bind, CpuBinding, StageDef};
 use rayon::prelude::*;
 
@@ -80,11 +80,17 @@ fn field_smooth_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
                 held[z] = s;
             }
         }
-        work.into_par_iter().for_each(|(z, out)| {
+        let relax = |(z, out): (u32, &mut [f32])| {
             let below = if z > 0 { held[z as usize - 1] } else { &[] };
             let above = held.get(z as usize + 1).copied().unwrap_or(&[]);
             relax_slab(&cfg, (cellw, f, links), z, out, (below, above));
-        });
+        };
+        if cells < SERIAL_CELLS {
+            work.into_iter().for_each(relax);
+        } else {
+            let min = MIN_TASK_CELLS.div_ceil(slab / 6).max(1);
+            work.into_par_iter().with_min_len(min).for_each(relax);
+        }
     }
 }
 
