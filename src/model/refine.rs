@@ -343,10 +343,20 @@ impl VertexIndex {
         }
         // Cheapest density first within a bucket, so the E_c bound of the search can end a
         // bucket at its first vertex that cannot win (ties: lower id first, deterministic).
+        // Buckets are disjoint: sorted in parallel.
+        let mut buckets: Vec<&mut [u32]> = Vec::with_capacity(grid.len());
+        let mut rest = ids.as_mut_slice();
         for c in 0..grid.len() {
-            let b = &mut ids[counts[c] as usize..counts[c + 1] as usize];
-            b.sort_unstable_by_key(|&g| (rho_prefix[g as usize], g));
+            let (b, r) = rest.split_at_mut((counts[c + 1] - counts[c]) as usize);
+            if b.len() > 1 {
+                buckets.push(b);
+            }
+            rest = r;
         }
+        buckets
+            .par_iter_mut()
+            .with_min_len(256)
+            .for_each(|b| b.sort_unstable_by_key(|&g| (rho_prefix[g as usize], g)));
         Ok(VertexIndex {
             cell_start: counts,
             ids,

@@ -479,6 +479,11 @@ impl Head {
                 let (mut lo, mut hi) = (t0, t1);
                 for _ in 0..60 {
                     let m = 0.5 * (lo + hi);
+                    // lo and hi are adjacent doubles: m is one of them, whose side is known,
+                    // so the remaining steps change nothing (~45 steps are needed of 60).
+                    if m == lo || m == hi {
+                        break;
+                    }
                     if (self.sdf64(o + dir * m) > 0.0) == outside {
                         lo = m;
                     } else {
