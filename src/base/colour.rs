@@ -6,8 +6,16 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-/// 8-bit sRGB code to linear light, with the exact sRGB transfer function.
+/// 8-bit sRGB code to linear light, with the exact sRGB transfer function (a table of
+/// [`srgb_to_linear_exact`]: the same values without a `powf` per call, which was most of
+/// the per-vertex colour sampling of `coif model`).
 pub fn srgb_to_linear(v: u8) -> f32 {
+    static TABLE: std::sync::OnceLock<[f32; 256]> = std::sync::OnceLock::new();
+    TABLE.get_or_init(|| std::array::from_fn(|v| srgb_to_linear_exact(v as u8)))[v as usize]
+}
+
+/// 8-bit sRGB code to linear light, computed.
+fn srgb_to_linear_exact(v: u8) -> f32 {
     let c = v as f64 / 255.0;
     let l = if c <= 0.04045 {
         c / 12.92

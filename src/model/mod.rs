@@ -417,28 +417,39 @@ fn to_model_space(
     image: &image::RgbImage,
     mask: &[u8],
 ) -> (StrandSet, StrandSet) {
+    use rayon::prelude::*;
     let (w, h) = image.dimensions();
-    let mut points = Vec::with_capacity(strands.points.len());
-    let mut colors = Vec::with_capacity(strands.points.len());
-    let mut transparency = Vec::with_capacity(strands.points.len());
-    let mut counts = Vec::with_capacity(strands.len());
-    let mut image_points = Vec::with_capacity(strands.points.len());
-    for s in strands.strands() {
-        counts.push(s.len() as u32);
-        for &g in s {
-            let q = grid.to_volume(g);
-            image_points.push(q);
-            points.push(camera.unproject(Vec3::from_array(q)).to_array());
-            colors.push(sample_rgb(image, q[0], q[1]));
+    // Per vertex and independent: in parallel, one output at a time.
+    let image_points: Vec<[f32; 3]> = strands
+        .points
+        .par_iter()
+        .map(|&g| grid.to_volume(g))
+        .collect();
+    let points: Vec<[f32; 3]> = image_points
+        .par_iter()
+        .map(|&q| camera.unproject(Vec3::from_array(q)).to_array())
+        .collect();
+    let colors: Vec<[f32; 3]> = image_points
+        .par_iter()
+        .map(|q| sample_rgb(image, q[0], q[1]))
+        .collect();
+    let transparency: Vec<f32> = image_points
+        .par_iter()
+        .map(|q| {
             let (x, y) = (q[0].floor(), q[1].floor());
             let on = x >= 0.0
                 && y >= 0.0
                 && x < w as f32
                 && y < h as f32
                 && mask[y as usize * w as usize + x as usize] != 0;
-            transparency.push(if on { 0.0 } else { 1.0 });
-        }
-    }
+            if on {
+                0.0
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    let counts = strands.counts.clone();
     let image_view = StrandSet::new(image_points, counts.clone());
     let mut set = StrandSet::new(points, counts);
     set.colors = Some(colors);

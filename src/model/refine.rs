@@ -91,42 +91,46 @@ fn mark_hits(grid: &Grid, s: &[V3], cov: &Coverage, hit: &mut [bool]) {
     }
 }
 
-/// Seeds (grid coordinates, with their pixel) for the hair pixels the strands miss: per front
-/// cell of H (the nearest H cell in front of the head) under such pixels, one seed per
-/// `COVER_PX_PER_SEED` of them (at least one) at missed pixels chosen at random, at a random
-/// depth inside the cell. Also returns the hit map.
-fn coverage_seeds(
-    grid: &Grid,
-    h: &[u32],
-    strands: &StrandSet,
-    cov: &Coverage,
-    rng: &mut Rng,
-) -> (Vec<(V3, usize)>, Vec<bool>) {
+/// The pixels the projected strands cover in front of the head (see [`mark_hits`]).
+fn hit_map(grid: &Grid, strands: &StrandSet, cov: &Coverage) -> Vec<bool> {
     let (w, ht) = (cov.width as usize, cov.height as usize);
     let off = strands.offsets();
     // One map per chunk of strands, OR-ed: the walk is most of the cost.
     let ids: Vec<usize> = (0..strands.len()).collect();
-    let hit = ids
-        .par_chunks(
-            strands
-                .len()
-                .div_ceil(4 * rayon::current_num_threads())
-                .max(1),
-        )
-        .map(|chunk| {
-            let mut hit = vec![false; w * ht];
-            for &s in chunk {
-                mark_hits(grid, &strands.points[off[s]..off[s + 1]], cov, &mut hit);
-            }
-            hit
-        })
-        .reduce(
-            || vec![false; w * ht],
-            |mut a, b| {
-                a.iter_mut().zip(&b).for_each(|(x, &y)| *x |= y);
-                a
-            },
-        );
+    ids.par_chunks(
+        strands
+            .len()
+            .div_ceil(4 * rayon::current_num_threads())
+            .max(1),
+    )
+    .map(|chunk| {
+        let mut hit = vec![false; w * ht];
+        for &s in chunk {
+            mark_hits(grid, &strands.points[off[s]..off[s + 1]], cov, &mut hit);
+        }
+        hit
+    })
+    .reduce(
+        || vec![false; w * ht],
+        |mut a, b| {
+            a.iter_mut().zip(&b).for_each(|(x, &y)| *x |= y);
+            a
+        },
+    )
+}
+
+/// Seeds (grid coordinates, with their pixel) for the hair pixels the strands miss: per front
+/// cell of H (the nearest H cell in front of the head) under such pixels, one seed per
+/// `COVER_PX_PER_SEED` of them (at least one) at missed pixels chosen at random, at a random
+/// depth inside the cell. `hit` is the strands' [`hit_map`]; it is handed back.
+fn coverage_seeds(
+    grid: &Grid,
+    h: &[u32],
+    hit: Vec<bool>,
+    cov: &Coverage,
+    rng: &mut Rng,
+) -> (Vec<(V3, usize)>, Vec<bool>) {
+    let w = cov.width as usize;
     // Missed pixels by front cell, in pixel order (deterministic).
     let mut by_cell: std::collections::BTreeMap<usize, Vec<([f32; 2], usize)>> = Default::default();
     for (i, (&m, &seen)) in cov.mask.iter().zip(&hit).enumerate() {
@@ -339,10 +343,20 @@ impl VertexIndex {
         }
         // Cheapest density first within a bucket, so the E_c bound of the search can end a
         // bucket at its first vertex that cannot win (ties: lower id first, deterministic).
+        // Buckets are disjoint: sorted in parallel.
+        let mut buckets: Vec<&mut [u32]> = Vec::with_capacity(grid.len());
+        let mut rest = ids.as_mut_slice();
         for c in 0..grid.len() {
-            let b = &mut ids[counts[c] as usize..counts[c + 1] as usize];
-            b.sort_unstable_by_key(|&g| (rho_prefix[g as usize], g));
+            let (b, r) = rest.split_at_mut((counts[c + 1] - counts[c]) as usize);
+            if b.len() > 1 {
+                buckets.push(b);
+            }
+            rest = r;
         }
+        buckets
+            .par_iter_mut()
+            .with_min_len(256)
+            .for_each(|b| b.sort_unstable_by_key(|&g| (rho_prefix[g as usize], g)));
         Ok(VertexIndex {
             cell_start: counts,
             ids,
@@ -431,9 +445,25 @@ impl Scorer<'_> {
             let hi: [u32; 3] = std::array::from_fn(|a| {
                 ((q[a] + self.radius).floor().max(0.0) as u32).min(dims[a] - 1)
             });
+            // Cells whose box lies farther than the radius (with a margin far above f32
+            // rounding) hold no vertex that passes the distance test below: skipped, the
+            // corners of the search cube (~1/3 of its cells at radius 3).
+            let gap = |c: u32, a: usize| {
+                let d = (c as f32 - q[a]).max(q[a] - (c + 1) as f32).max(0.0);
+                d * d
+            };
+            let reach = r2 * 1.001 + 1e-3;
             for z in lo[2]..=hi[2] {
+                let gz = gap(z, 2);
                 for y in lo[1]..=hi[1] {
+                    let gzy = gz + gap(y, 1);
+                    if gzy > reach {
+                        continue;
+                    }
                     for x in lo[0]..=hi[0] {
+                        if gzy + gap(x, 0) > reach {
+                            continue;
+                        }
                         for &g in self.index.bucket(self.grid.index(x, y, z)) {
                             let g = g as usize;
                             let bound = self.index.rho_prefix[g] + suffix[j + 1];
@@ -651,6 +681,8 @@ pub fn refine(
     };
     let mut strands = strands;
     let mut density = splat_density(engine, grid, &strands)?;
+    // With a coverage target: the pixels the current strands cover (see `hit_map`).
+    let mut hit: Vec<bool> = Vec::new();
     for it in 0..p.max_iterations {
         let mut it_rng = rng.fork(it as u64);
         let mut ir = IterationReport {
@@ -660,9 +692,17 @@ pub fn refine(
         let mut seeds = pick_seeds(grid, h, &density, p, &mut it_rng);
         let n_empty = seeds.len();
         // For coverage seeds: their pixel, and the pixels covered so far this iteration.
-        let (mut seed_px, mut hit) = (Vec::new(), Vec::new());
+        let mut seed_px = Vec::new();
         if let Some(cov) = coverage {
-            let (extra, hits) = coverage_seeds(grid, h, &strands, cov, &mut it_rng);
+            // Strands are only ever added and the merge below marks each one it adds, so
+            // the map carried from the last iteration is the map of the current set; only
+            // the first iteration walks every strand.
+            let carried = if it == 0 {
+                hit_map(grid, &strands, cov)
+            } else {
+                std::mem::take(&mut hit)
+            };
+            let (extra, hits) = coverage_seeds(grid, h, carried, cov, &mut it_rng);
             ir.coverage_seeds = extra.len();
             seeds.extend(extra.iter().map(|e| e.0));
             seed_px = extra.iter().map(|e| e.1).collect();

@@ -3,7 +3,6 @@
 
 use super::field_cfg::{for_links, Config};
 use crate::gpu::engine::{Bind, CpuBinding, StageDef};
-use rayon::prelude::*;
 
 pub const STAGE: StageDef = StageDef {
     name: "field_coarse_rhs",
@@ -28,8 +27,9 @@ fn field_coarse_rhs_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
     let (g_cells, g_f, g_links) = (b[1].get::<u32>(), b[2].get::<f32>(), b[4].get::<f32>());
     let (cells, f, links): (&[u32], &[f32], &[f32]) = (&g_cells, &g_f, &g_links);
     let mut g = b[3].get_mut::<f32>();
+    // At most a few thousand cells (the coarsest level): on the calling thread.
     g[..3 * cfg.count as usize]
-        .par_chunks_mut(3)
+        .chunks_mut(3)
         .enumerate()
         .for_each(|(k, out)| {
             let i = cells[k];

@@ -28,19 +28,22 @@ fn field_dense_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
     let (g_cells, g_inv, g_g) = (b[1].get::<u32>(), b[2].get::<f32>(), b[3].get::<f32>());
     let (cells, inv, g): (&[u32], &[f32], &[f32]) = (&g_cells, &g_inv, &g_g);
     let n = cfg.count as usize;
-    let rows: Vec<[f32; 3]> = (0..n)
-        .into_par_iter()
-        .map(|r| {
-            let mut s = [0.0f32; 3];
-            for k in 0..n {
-                let a = inv[r * n + k];
-                for c in 0..3 {
-                    s[c] += a * g[3 * k + c];
-                }
+    let row = |r: usize| {
+        let mut s = [0.0f32; 3];
+        for k in 0..n {
+            let a = inv[r * n + k];
+            for c in 0..3 {
+                s[c] += a * g[3 * k + c];
             }
-            s
-        })
-        .collect();
+        }
+        s
+    };
+    // The default coarsest level (≤ 512 cells) is done faster on the calling thread.
+    let rows: Vec<[f32; 3]> = if n * n < 1 << 20 {
+        (0..n).map(row).collect()
+    } else {
+        (0..n).into_par_iter().map(row).collect()
+    };
     let mut uv = b[4].get_mut::<f32>();
     for (r, s) in rows.iter().enumerate() {
         let base = 6 * cells[r] as usize;

@@ -479,6 +479,11 @@ impl Head {
                 let (mut lo, mut hi) = (t0, t1);
                 for _ in 0..60 {
                     let m = 0.5 * (lo + hi);
+                    // lo and hi are adjacent doubles: m is one of them, whose side is known,
+                    // so the remaining steps change nothing (~45 steps are needed of 60).
+                    if m == lo || m == hi {
+                        break;
+                    }
                     if (self.sdf64(o + dir * m) > 0.0) == outside {
                         lo = m;
                     } else {
@@ -736,19 +741,27 @@ impl Head {
 
     /// `n` hair roots uniform in scalp (u, v), deterministic for a seed.
     pub fn sample_roots(&self, n: usize, seed: u64) -> Vec<ScalpPoint> {
+        use rayon::prelude::*;
         let mut rng = Rng::new(seed);
         let mut out = Vec::with_capacity(n);
         // Every uv in [0,1]² maps to the scalp; the attempt cap only guards against a
         // broken custom parameter set looping forever.
+        let cap = 4 * n + 64;
         let mut attempts = 0usize;
-        while out.len() < n && attempts < 4 * n + 64 {
-            attempts += 1;
-            let uv = [rng.next_f32(), rng.next_f32()];
-            if let Some(sp) = self.scalp(uv) {
-                if !self.in_face(sp.pos) {
-                    out.push(sp);
-                }
-            }
+        // The uvs are drawn in sequence and the first n that land on the scalp off the face
+        // kept, as one draw at a time would; each batch (as many draws as roots are missing)
+        // casts its rays in parallel (the casts were most of the growth stage).
+        while out.len() < n && attempts < cap {
+            let batch = (n - out.len()).min(cap - attempts);
+            attempts += batch;
+            let uvs: Vec<[f32; 2]> = (0..batch)
+                .map(|_| [rng.next_f32(), rng.next_f32()])
+                .collect();
+            let hits: Vec<Option<ScalpPoint>> = uvs
+                .par_iter()
+                .map(|&uv| self.scalp(uv).filter(|sp| !self.in_face(sp.pos)))
+                .collect();
+            out.extend(hits.into_iter().flatten());
         }
         out
     }
