@@ -181,6 +181,12 @@ fn main() {
         .ok()
         .and_then(|s| s.parse().ok())
         .unwrap_or(3);
+    if let Some(row) = std::env::var("RASTER_BENCH_ROW")
+        .ok()
+        .and_then(|r| r.parse().ok())
+    {
+        return growth_child(row, &RasterParams::default(), reps);
+    }
     let strands = hair(2013, SIZE, STRANDS);
     let frame = Frame {
         width: SIZE,
@@ -314,37 +320,72 @@ fn main() {
         ),
         Err(e) => println!("  cannot run python3: {e}"),
     }
-    growth(&strands, &p, reps);
+    growth(reps);
 }
 
-/// Time and peak memory of the cpu backend as pixels and strands grow (lavapipe and skia
-/// are left out here: the ratios above are the comparison, these rows show the scaling).
-fn growth(base: &ScreenStrands, p: &RasterParams, reps: usize) {
+/// The growth rows: (name, strands, size).
+fn growth_rows() -> [(String, usize, u32); 3] {
+    [
+        (format!("{STRANDS} strands, {SIZE}² (base)"), STRANDS, SIZE),
+        (
+            format!("{STRANDS} strands, {}² (4x pixels)", 2 * SIZE),
+            STRANDS,
+            2 * SIZE,
+        ),
+        (
+            format!("{} strands, {SIZE}² (2x strands)", 2 * STRANDS),
+            2 * STRANDS,
+            SIZE,
+        ),
+    ]
+}
+
+/// Child process of [`growth`]: renders row `row` and prints "seconds peak_mib before_mib".
+fn growth_child(row: usize, p: &RasterParams, reps: usize) {
+    let (_, strands, size) = &growth_rows()[row];
+    let s = hair(2013, *size, *strands);
+    let (t, peak, before) = cpu_row(&s, *size, p, reps);
+    println!("{t} {peak} {before}");
+}
+
+/// Time and peak memory of the cpu backend as pixels and strands grow, each row in a fresh
+/// process (memory freed by earlier renders stays resident, which would hide a row's peak).
+/// Lavapipe and skia are left out here: the ratios above are the comparison, these rows
+/// show the scaling.
+fn growth(reps: usize) {
     println!(
-        "growth, cpu backend (median of {reps}; peak = process RSS high-water mark during the \
-         renders, reset first; input = RSS before them, strands included):"
+        "growth, cpu backend (median of {reps}; each row in its own process; peak = its RSS \
+         high-water mark; input = RSS before the renders, the strands included):"
     );
     println!(
         "  {:<34} {:>8} {:>9} {:>10} {:>10} {:>12}",
         "row", "s", "x base", "peak MiB", "input MiB", "render MiB"
     );
-    let rows = [
-        (format!("{STRANDS} strands, {SIZE}² (base)"), None, SIZE),
-        (
-            format!("{STRANDS} strands, {}² (4x pixels)", 2 * SIZE),
-            Some(hair(2013, 2 * SIZE, STRANDS)),
-            2 * SIZE,
-        ),
-        (
-            format!("{} strands, {SIZE}² (2x strands)", 2 * STRANDS),
-            Some(hair(2013, SIZE, 2 * STRANDS)),
-            SIZE,
-        ),
-    ];
     let mut base_s = f64::NAN;
-    for (name, strands, size) in &rows {
-        let s = strands.as_ref().unwrap_or(base);
-        let (t, peak, before) = cpu_row(s, *size, p, reps);
+    for (row, (name, _, _)) in growth_rows().iter().enumerate() {
+        let out = std::env::current_exe()
+            .and_then(|exe| {
+                Command::new(exe)
+                    .env("RASTER_BENCH_ROW", row.to_string())
+                    .env("COIF_BENCH_REPS", reps.to_string())
+                    .output()
+            })
+            .expect("re-running the bench for a growth row");
+        let text = String::from_utf8_lossy(&out.stdout);
+        let v: Vec<f64> = text
+            .lines()
+            .last()
+            .unwrap_or("")
+            .split_whitespace()
+            .filter_map(|x| x.parse().ok())
+            .collect();
+        let [t, peak, before] = v[..] else {
+            println!(
+                "  {name:<34} failed: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+            continue;
+        };
         if base_s.is_nan() {
             base_s = t;
         }
