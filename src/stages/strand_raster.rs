@@ -36,15 +36,17 @@ pub struct SegRec {
     pub o: [f32; 4],
 }
 
-/// Conservative pixel bounding box of a strand quad (for binning only): its corners lie
-/// within half·√2 of the end points, plus rounding and snapping.
-pub fn seg_bounds(s: &SegRec, half: f32) -> [f32; 4] {
+/// Conservative pixel bounding box of the quad of the segment p0 p1 (for binning only): its
+/// corners lie within half·√2 of the end points, plus rounding and snapping. Clipping only
+/// shrinks a segment, so the raw end points bound the prepared segment too.
+#[inline]
+pub fn seg_bounds(p0: [f32; 2], p1: [f32; 2], half: f32) -> [f32; 4] {
     let m = half * 1.415 + 0.01;
     [
-        s.p0[0].min(s.p1[0]) - m,
-        s.p0[1].min(s.p1[1]) - m,
-        s.p0[0].max(s.p1[0]) + m,
-        s.p0[1].max(s.p1[1]) + m,
+        p0[0].min(p1[0]) - m,
+        p0[1].min(p1[1]) - m,
+        p0[0].max(p1[0]) + m,
+        p0[1].max(p1[1]) + m,
     ]
 }
 

@@ -13,7 +13,7 @@ use super::Scene;
 use crate::base::colour::f16_store;
 use crate::stages::mesh_raster::{mesh_tri, tri_bounds};
 use crate::stages::raster_common::{sample_offsets, Fb, TileBuf};
-use crate::stages::strand_raster::strand_quad;
+use crate::stages::strand_raster::{seg_bounds, strand_quad};
 use rayon::prelude::*;
 
 /// CPU tile side in pixels: big enough that few segments straddle two tiles (each is set
@@ -67,14 +67,13 @@ fn bin_tris(s: &Scene, tiles_x: u32, tiles_y: u32) -> Vec<Vec<u32>> {
 }
 
 /// Per binning task, per tile: (first vertex, strand) of every segment whose quad may touch
-/// the tile, in input order. Bounds come from the raw end points (clipping only shrinks a
-/// segment) grown by the quad's reach, as `strand_raster::seg_bounds`.
+/// the tile, in input order, by [`seg_bounds`] of the raw end points.
 fn bin_segs(s: &Scene, tiles_x: u32, tiles_y: u32) -> Vec<Vec<Vec<[u32; 2]>>> {
     let Some(src) = &s.src else {
         return Vec::new();
     };
     let (w, h) = (s.cfg.width, s.cfg.height);
-    let m = s.cfg.half_width * 1.415 + 0.01;
+    let half = s.cfg.half_width;
     let n_strands = src.s.counts.len();
     (0..n_strands.div_ceil(BIN_STRANDS))
         .into_par_iter()
@@ -85,14 +84,7 @@ fn bin_segs(s: &Scene, tiles_x: u32, tiles_y: u32) -> Vec<Vec<Vec<[u32; 2]>>> {
                 let (a, n) = (src.starts[k], src.s.counts[k] as usize);
                 for i in a..(a + n).saturating_sub(1) {
                     let (p, q) = (pts[i], pts[i + 1]);
-                    // NaN bounds fail `tile_range`'s test; infinite ones are skipped by
-                    // preparation anyway.
-                    let b = [
-                        p[0].min(q[0]) - m,
-                        p[1].min(q[1]) - m,
-                        p[0].max(q[0]) + m,
-                        p[1].max(q[1]) + m,
-                    ];
+                    let b = seg_bounds([p[0], p[1]], [q[0], q[1]], half);
                     if !b.iter().all(|v| v.is_finite()) {
                         continue;
                     }
