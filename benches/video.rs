@@ -7,6 +7,7 @@
 //!
 //! Run: `cargo bench --bench video`. COIF_BENCH_SIZE (256), COIF_BENCH_FRAMES (61),
 //! COIF_BENCH_STYLES ("long,whorl,sidepart"), COIF_BENCH_STRANDS (6000),
+//! COIF_BENCH_LOCK_TURN (degrees of the lock-scale hair turn; 0 for head-sized waves only),
 //! COIF_BENCH_FLICKER=0 skips the re-render, COIF_BENCH_KEEP=DIR keeps the clips,
 //! COIF_BENCH_RESIDUAL=1 spreads the features' departure from the head's motion
 //! (`TrackParams::spread_residual`).
@@ -51,6 +52,7 @@ fn main() {
     let size: u32 = env("COIF_BENCH_SIZE", 256);
     let frames: usize = env("COIF_BENCH_FRAMES", 61);
     let strands: usize = env("COIF_BENCH_STRANDS", 6000);
+    let lock_turn: f32 = env("COIF_BENCH_LOCK_TURN", coif::synth::video::LOCK_TURN_DEG);
     let flicker = env("COIF_BENCH_FLICKER", 1) != 0;
     let gpu = env("COIF_BENCH_GPU", 0) != 0;
     let styles: String = env("COIF_BENCH_STYLES", "long,whorl,sidepart".to_string());
@@ -62,7 +64,9 @@ fn main() {
             Err(e) => eprintln!("no GPU engine: {e}"),
         }
     }
-    println!("video bench: {size}², {frames} frames, {strands} strands, reference frame 0");
+    println!(
+        "video bench: {size}², {frames} frames, {strands} strands, lock turn {lock_turn}°, reference frame 0"
+    );
     for style in styles.split(',') {
         let style: Style = match style.trim().parse() {
             Ok(s) => s,
@@ -79,6 +83,7 @@ fn main() {
             };
             let mut vp = VideoParams::new(style, 1, size, frames);
             vp.strands = strands;
+            vp.lock_turn_deg = lock_turn;
             let track = coif::video::track::TrackParams {
                 spread_residual: env("COIF_BENCH_RESIDUAL", 0) != 0,
                 ..Default::default()
@@ -117,8 +122,14 @@ fn main() {
             }
             for d in &f.drift {
                 println!(
-                    "  drift at frame {:>2}, alpha {:.1}: mean {:.3} px, median {:.3} px",
-                    d.frame, d.alpha, d.mean_px, d.median_px
+                    "  drift at frame {:>2}, alpha {:.1}: mean {:.3} px, median {:.3} px; visible ({:.0}%): mean {:.3} px, median {:.3} px",
+                    d.frame,
+                    d.alpha,
+                    d.mean_px,
+                    d.median_px,
+                    100.0 * d.visible_share,
+                    d.visible_mean_px,
+                    d.visible_median_px
                 );
             }
             let mut v = f.vertex_median_mm.clone();

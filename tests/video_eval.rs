@@ -23,8 +23,14 @@ fn a_synthetic_clip_is_tracked() {
     );
     for d in &f.drift {
         println!(
-            "drift at frame {} with alpha {:.1}: mean {:.3} px, median {:.3} px",
-            d.frame, d.alpha, d.mean_px, d.median_px
+            "drift at frame {} with alpha {:.1}: mean {:.3} px, median {:.3} px; visible ({:.0}%): mean {:.3} px, median {:.3} px",
+            d.frame,
+            d.alpha,
+            d.mean_px,
+            d.median_px,
+            100.0 * d.visible_share,
+            d.visible_mean_px,
+            d.visible_median_px
         );
     }
     println!(

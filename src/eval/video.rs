@@ -13,7 +13,7 @@ use crate::gpu::engine::Engine;
 use crate::hair::head::WeakPerspective;
 use crate::hair::scene::Scene;
 use crate::hair::strands::StrandSet;
-use crate::synth::video::{true_flow, write_field, SynthVideo, VideoParams};
+use crate::synth::video::{true_flow, visible_in, write_field, SynthVideo, VideoParams};
 use crate::video::diffuse::Guide;
 use crate::video::features::UserPoints;
 use crate::video::head::{pose_of, FramePose, PoseSource};
@@ -64,6 +64,12 @@ pub struct Drift {
     pub frame: usize,
     pub mean_px: f32,
     pub median_px: f32,
+    /// The same over the pixels whose material point is still in front at frame `frame`
+    /// (no 2D tracker can see where a hidden point went).
+    pub visible_mean_px: f32,
+    pub visible_median_px: f32,
+    /// Share of the reference's hair pixels that are visible at `frame`.
+    pub visible_share: f32,
 }
 
 /// The figures of one clip.
@@ -168,12 +174,14 @@ pub fn evaluate(engine: &Engine, vp: &VideoParams, o: &EvalOptions) -> Result<Cl
     let mut masks = vec![f0.render.mask.as_raw().clone()];
     let mut true_flows: Vec<Vec<[f32; 2]>> = vec![Vec::new()];
     let mut tracks_gt: BTreeMap<usize, Vec<[f32; 2]>> = BTreeMap::new();
+    let mut visible_gt: BTreeMap<usize, Vec<bool>> = BTreeMap::new();
     let mut prev = f0.clone();
     for i in 1..n {
         let f = sv.frame(i);
         true_flows.push(true_flow(&prev, &f));
         if o.drift_frames.contains(&i) || o.oracle_warp {
             tracks_gt.insert(i, true_flow(&f0, &f));
+            visible_gt.insert(i, visible_in(&f0, &f));
         }
         rgb.push(f.render.image.clone());
         masks.push(f.render.mask.as_raw().clone());
@@ -266,20 +274,28 @@ pub fn evaluate(engine: &Engine, vp: &VideoParams, o: &EvalOptions) -> Result<Cl
             let next = compose(engine, &wdag, &warps[k], &v, w, h, a)?;
             warps[k] = next;
             if let Some(gt) = tracks_gt.get(&i) {
-                let mut errs: Vec<f32> = warps[k]
-                    .iter()
-                    .zip(gt)
-                    .filter(|(_, t)| t[0].is_finite() && t[1].is_finite())
-                    .map(|(p, t)| ((p[0] - t[0]).powi(2) + (p[1] - t[1]).powi(2)).sqrt())
-                    .collect();
-                let mean = errs.iter().sum::<f32>() / errs.len().max(1) as f32;
-                let median = crate::base::stats::percentile(&errs, 0.5);
-                errs.clear();
+                let vis = &visible_gt[&i];
+                let mut all = Vec::new();
+                let mut seen = Vec::new();
+                for ((p, t), &v) in warps[k].iter().zip(gt).zip(vis) {
+                    if t[0].is_finite() && t[1].is_finite() {
+                        let e = ((p[0] - t[0]).powi(2) + (p[1] - t[1]).powi(2)).sqrt();
+                        all.push(e);
+                        if v {
+                            seen.push(e);
+                        }
+                    }
+                }
+                let mean = |e: &[f32]| e.iter().sum::<f32>() / e.len().max(1) as f32;
+                let median = |e: &[f32]| crate::base::stats::percentile(e, 0.5);
                 drift.push(Drift {
                     alpha: a,
                     frame: i,
-                    mean_px: mean,
-                    median_px: median,
+                    mean_px: mean(&all),
+                    median_px: median(&all),
+                    visible_mean_px: mean(&seen),
+                    visible_median_px: median(&seen),
+                    visible_share: seen.len() as f32 / all.len().max(1) as f32,
                 });
             }
         }

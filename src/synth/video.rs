@@ -16,7 +16,9 @@
 //! cumulative angle `φ_k = λ · Φ(t, root) · g(s_k)`: `g` a smoothstep of the arc length
 //! `s_k` from 0 at [`RAMP_M`]`.0` to 1 at [`RAMP_M`]`.1` (roots and the first millimetres do
 //! not move), `Φ` two sinusoids in time whose mix varies slowly with the root position
-//! (smooth, non-rigid flow), zero at t = 0. Turning about a fixed axis keeps roots,
+//! (smooth, non-rigid flow) plus a lock-scale term of three plane waves over the roots a few
+//! centimetres long, each with its own period (neighbouring locks swing out of step, as real
+//! hair does; [`VideoParams::lock_turn_deg`], 0 turns it off), zero at t = 0. Turning about a fixed axis keeps roots,
 //! segment lengths and depth along `a` exactly. `λ ∈ [0, 1]` is per strand and frame: 1
 //! unless the turn would push a vertex deeper into the head and shoulders than it was at
 //! rest (or closer than [`CLEARANCE_M`] when it was farther), else the largest such scale
@@ -56,6 +58,13 @@ pub const PITCH_SWING_DEG: f32 = 6.0;
 pub const SHIFT_FRAC: [f32; 2] = [0.016, 0.01];
 /// Scale of the hair turn Φ, degrees (|Φ| ≤ 1.4 × this).
 pub const HAIR_TURN_DEG: f32 = 4.0;
+/// Default scale of the lock-scale part of the turn, degrees (|Φ_lock| ≤ the scale): off,
+/// so that the figures of the issue-15 clips stay comparable; 3° is what the README's
+/// lock-scale rows use.
+pub const LOCK_TURN_DEG: f32 = 0.0;
+/// Wavelength range (metres, over root positions) of the lock-scale turn: locks a few
+/// centimetres wide, as real hair moves, not the head-sized waves of the main turn.
+pub const LOCK_WAVELENGTH_M: (f32, f32) = (0.035, 0.05);
 /// Arc lengths (metres) over which the hair turn grows from 0 to its full value.
 pub const RAMP_M: (f32, f32) = (0.004, 0.10);
 /// Clearance (metres) a moved vertex keeps from the body, unless it was closer at rest.
@@ -71,6 +80,9 @@ pub struct VideoParams {
     pub strands: usize,
     /// Frames per second (sets the time of each frame, so the speed of the motion).
     pub fps: f32,
+    /// Scale of the lock-scale part of the hair turn, degrees (0: the head-sized waves
+    /// alone, as clips made before it had).
+    pub lock_turn_deg: f32,
 }
 
 impl VideoParams {
@@ -91,6 +103,7 @@ impl VideoParams {
             frames,
             strands: Synth3dOptions::default().strands,
             fps: Self::DEFAULT_FPS,
+            lock_turn_deg: LOCK_TURN_DEG,
         }
     }
 
@@ -123,6 +136,12 @@ impl VideoParams {
                 "--strands {} is outside 1..={}",
                 self.strands,
                 Self::MAX_STRANDS
+            )));
+        }
+        if !(self.lock_turn_deg.is_finite() && (0.0..=45.0).contains(&self.lock_turn_deg)) {
+            return Err(Error::Invalid(format!(
+                "--lock-turn {} must be between 0 and 45 degrees",
+                self.lock_turn_deg
             )));
         }
         if !(self.fps.is_finite() && self.fps > 0.0) {
@@ -168,6 +187,15 @@ pub struct Motion {
     /// g(s) = smoothstep(ramp₀, ramp₁, s) of the arc length s (metres) from the root.
     pub hair_ramp_m: [f32; 2],
     pub clearance_m: f32,
+    /// Lock-scale turn added to Φ: amp · Σ_j sin(2π k_j·root / L + ψ_j) sin(2π t / T_j) / √3
+    /// over three plane waves with unit directions k_j (model space), one wavelength L and
+    /// their own periods: neighbouring locks swing out of step, which features a few
+    /// centimetres apart spread by a smooth filter do not see and dense flow does.
+    pub lock_amp_deg: f32,
+    pub lock_wavelength_m: f32,
+    pub lock_dirs: [[f32; 3]; 3],
+    pub lock_phase: [f32; 3],
+    pub lock_period_s: [f32; 3],
 }
 
 impl Motion {
@@ -191,6 +219,17 @@ impl Motion {
             hair_phase0: g.range_f32(0.0, TAU),
             hair_ramp_m: [RAMP_M.0, RAMP_M.1],
             clearance_m: CLEARANCE_M,
+            // Drawn after the rest, so the other terms stay those of clips made before.
+            lock_amp_deg: sign(&mut g) * p.lock_turn_deg,
+            lock_wavelength_m: g.range_f32(LOCK_WAVELENGTH_M.0, LOCK_WAVELENGTH_M.1),
+            lock_dirs: [0; 3].map(|_| {
+                let z = g.range_f32(-1.0, 1.0);
+                let a = g.range_f32(0.0, TAU);
+                let r = (1.0 - z * z).max(0.0).sqrt();
+                [r * a.cos(), r * a.sin(), z]
+            }),
+            lock_phase: [0; 3].map(|_| g.range_f32(0.0, TAU)),
+            lock_period_s: [0; 3].map(|_| g.range_f32(0.7, 1.3)),
         }
     }
 
@@ -210,9 +249,20 @@ impl Motion {
         let psi = TAU * (root.x / self.hair_wavelength_m[0] + root.z / self.hair_wavelength_m[1])
             + self.hair_phase0;
         let [t0, t1] = self.hair_period_s;
-        self.hair_amp_deg.to_radians()
+        let main = self.hair_amp_deg.to_radians()
             * ((0.7 + 0.3 * psi.cos()) * (TAU * t / t0).sin()
-                + 0.4 * psi.sin() * (TAU * t / t1).sin())
+                + 0.4 * psi.sin() * (TAU * t / t1).sin());
+        if self.lock_amp_deg == 0.0 {
+            return main;
+        }
+        let lock: f32 = (0..3)
+            .map(|j| {
+                let k = Vec3::from_array(self.lock_dirs[j]);
+                (TAU * k.dot(root) / self.lock_wavelength_m + self.lock_phase[j]).sin()
+                    * (TAU * t / self.lock_period_s[j]).sin()
+            })
+            .sum();
+        main + self.lock_amp_deg.to_radians() * lock / 3f32.sqrt()
     }
 }
 
@@ -596,6 +646,31 @@ pub fn true_flow(from: &VideoFrame, to: &VideoFrame) -> Vec<[f32; 2]> {
                 [q[0] - p[0], q[1] - p[1]]
             }
             None => [f32::NAN; 2],
+        })
+        .collect()
+}
+
+/// Per pixel of `from`: whether the material point [`true_flow`] follows is still the
+/// front-most strand (the same strand, within one segment) at its pixel in `to`, so that an
+/// image-based tracker can see where it went. False where no strand covers the pixel.
+pub fn visible_in(from: &VideoFrame, to: &VideoFrame) -> Vec<bool> {
+    let (w, h) = to.render.image.dimensions();
+    from.render
+        .hits
+        .par_iter()
+        .map(|h0| {
+            let Some(hit) = h0 else { return false };
+            let st = &to.strands[hit.strand as usize];
+            let (a, b) = (st[hit.segment as usize], st[hit.segment as usize + 1]);
+            let q = to.pose.camera.project(a + (b - a) * hit.t);
+            let (x, y) = (q.x.floor(), q.y.floor());
+            if !(x >= 0.0 && y >= 0.0 && x < w as f32 && y < h as f32) {
+                return false;
+            }
+            match &to.render.hits[y as usize * w as usize + x as usize] {
+                Some(t) => t.strand == hit.strand && t.segment.abs_diff(hit.segment) <= 1,
+                None => false,
+            }
         })
         .collect()
 }

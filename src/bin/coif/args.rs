@@ -605,6 +605,10 @@ pub struct SynthVideoArgs {
     /// Frames per second (the motion's periods are in seconds).
     #[arg(long, default_value_t = synth::video::VideoParams::DEFAULT_FPS)]
     fps: f32,
+    /// Scale of the lock-scale hair turn, degrees (neighbouring locks swinging out of step);
+    /// 0 leaves the head-sized waves alone.
+    #[arg(long, default_value_t = synth::video::LOCK_TURN_DEG)]
+    lock_turn: f32,
 }
 
 #[derive(Args, Clone)]
@@ -748,6 +752,7 @@ impl Command {
                 let mut params = synth::video::VideoParams::new(a.style, a.seed, a.size, a.frames);
                 params.strands = a.strands;
                 params.fps = a.fps;
+                params.lock_turn_deg = a.lock_turn;
                 Request::one(Job::SynthVideo(SynthVideoJob { out: a.out, params }), cpu)
             }
             Command::Sketch(a) => {
