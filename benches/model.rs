@@ -10,9 +10,9 @@
 //! run, including what it held before the run (printed as "RSS before"; the inputs, the
 //! GPU context). Where the reset is refused, the figure is the process's peak so far (said).
 //!
-//! Run: `CARGO_TARGET_DIR=/work/target cargo bench --bench model`
+//! Run: `cargo bench --bench model`
 //! (COIF_BENCH_REPS sets CPU repetitions, default 2; lavapipe runs once: it is slow
-//! software. COIF_BENCH_GROWTH=0 skips the growth rows.)
+//! software. COIF_BENCH_GROWTH=0 skips the growth rows, COIF_BENCH_GPU=0 lavapipe.)
 
 use coif::analyze::analyze;
 use coif::io::annot::{Landmarks, Strokes};
@@ -156,7 +156,12 @@ fn main() {
             ("512², 2x roots", run(&Engine::cpu(), &cases[0], reps, &p2)),
         ]
     });
-    let gpu = Engine::new(BackendChoice::Gpu);
+    // COIF_BENCH_GPU=0: the cpu backend alone (profiling).
+    let gpu = if std::env::var("COIF_BENCH_GPU").is_ok_and(|v| v == "0") {
+        Err(coif::Error::Invalid("COIF_BENCH_GPU=0".into()))
+    } else {
+        Engine::new(BackendChoice::Gpu)
+    };
     if let Err(e) = &gpu {
         println!("no GPU backend ({e}); CPU only");
     }

@@ -178,9 +178,11 @@ pub struct SolveReport {
 /// GCR directions kept for orthogonalisation (older ones are dropped: truncated GCR).
 const GCR_KEEP: usize = 12;
 /// GCR has stalled when the residual fell by less than `STALL_GAIN` over the last
-/// `STALL_WINDOW` cycles; f64 CG then finishes from its iterate.
+/// `STALL_WINDOW` steps, or by less than `STEP_STALL_GAIN` over the last step; f64 CG then
+/// finishes from its iterate.
 const STALL_WINDOW: usize = 6;
 const STALL_GAIN: f64 = 0.5;
+const STEP_STALL_GAIN: f64 = 0.9;
 
 /// Inputs checked and reduced to per-cell arrays.
 struct Prepared {
@@ -582,6 +584,9 @@ pub fn solve(
         // Stalled: the residual left lives where the coarse levels cannot see it.
         let h = &report.history;
         if h.len() > STALL_WINDOW && rel > STALL_GAIN * h[h.len() - 1 - STALL_WINDOW].1 {
+            break;
+        }
+        if rel > STEP_STALL_GAIN * h[h.len() - 2].1 {
             break;
         }
     }
