@@ -236,9 +236,9 @@ fn synthesis_follows_the_sketch_and_round_trips() {
     // Targets of the issue: orientation ≤ 5°, contrast within 10%, along/across ≤ 0.2, and
     // the second sketch's curves within 3 px of the first's on ≥ 90% of their length. The
     // last is measured short on short hair (66%) and reported, not asserted at the target.
-    // Measured cause: the first sketch is 3 curves of 3 primitives (at 256² each gains
-    // barely more than λ_NC: 102, 47, 41), so one added curve is a fifth of the second's
-    // length; the second adds an occluding line where a synthesised streak ends in a dark
+    // Measured cause: the first sketch is 3 curves of 3 primitives (at 256² each barely
+    // pays its λ_NC of 40: E falls by 62, 7 and 1), so one added curve is a fifth of the
+    // second's length; the second adds an occluding line where a synthesised streak ends in a dark
     // patch (11 of 50 px) and lengthens two curves by a primitive (6 px). The synthesis is an
     // order of magnitude more coherent along Θ than the photo (a/x columns: 0.008 against
     // 0.105), so the second E1 weighs every orientation cue more. At 512² short hair round-
