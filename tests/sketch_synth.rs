@@ -7,7 +7,7 @@ mod common;
 use coif::analyze::orient::{orient, GrayImage, OrientParams};
 use coif::eval::metrics::{erode, mean_orient_error_deg, ssim_region};
 use coif::gpu::engine::{BackendChoice, Engine};
-use coif::sketch::run::{analyse, SketchInputs, SketchParams};
+use coif::sketch::run::{analyse, SketchInputs, SketchParams, SketchResult};
 use coif::sketch::samples::{self, Sample};
 use coif::sketch::synth::{synthesise, SynthParams, Synthesis};
 use coif::sketch::{format, region, texture, Curve, Sketch};
@@ -27,15 +27,32 @@ fn case(style: Style, seed: u64, size: u32) -> (RgbImage, Vec<bool>) {
     (c.image, hair)
 }
 
-fn sketch_of(image: &RgbImage, hair: &[bool]) -> Sketch {
+fn analysis_of(image: &RgbImage, hair: &[bool]) -> SketchResult {
     let inp = SketchInputs {
         image,
         hair,
         strokes: None,
     };
-    analyse(&Engine::cpu(), &inp, &SketchParams::default())
-        .unwrap()
-        .sketch
+    analyse(&Engine::cpu(), &inp, &SketchParams::default()).unwrap()
+}
+
+fn sketch_of(image: &RgbImage, hair: &[bool]) -> Sketch {
+    analysis_of(image, hair).sketch
+}
+
+/// Σ(∇_θ I_H)² / Σ(∇⊥ I_H)² of an analysed image under its own Step-1 Θ: how coherent its
+/// texture is along the flow, the scale against which the pursuit's E1 weighs orientation
+/// evidence (σθ², Eq. 20).
+fn along_across_analysed(r: &SketchResult) -> f64 {
+    let (w, h) = (r.bands.width, r.bands.height);
+    let field = coif::sketch::VectorField {
+        width: w,
+        height: h,
+        theta: r.theta.clone(),
+        rho: r.field.rho.clone(),
+        dir: r.field.dir.clone(),
+    };
+    texture::texture_stats(&r.bands.high, &field, &r.hair).along_across
 }
 
 /// The sketch as the file stores it (what `synth-hair` reads).
@@ -156,7 +173,7 @@ fn synthesis_follows_the_sketch_and_round_trips() {
     let chelsea = samples::load(Sample::Chelsea).unwrap();
     inputs.push(("chelsea", chelsea.image, chelsea.hair));
     println!(
-        "{:<8} {:>6} {:>8} {:>8} {:>8} {:>7} {:>7} {:>7} {:>7} {:>6}",
+        "{:<8} {:>6} {:>8} {:>8} {:>8} {:>7} {:>7} {:>7} {:>7} {:>6} {:>7} {:>7} {:>7}",
         "input",
         "curves",
         "orient°",
@@ -166,13 +183,17 @@ fn synthesis_follows_the_sketch_and_round_trips() {
         "SSIM",
         "2nd→1st",
         "1st→2nd",
-        "s"
+        "s",
+        "curves2",
+        "a/x in",
+        "a/x syn"
     );
     let engine = Engine::cpu();
     let mut rows = Vec::new();
     for (name, img, hair) in &inputs {
         let (w, h) = img.dimensions();
-        let s = through_czs(&sketch_of(img, hair));
+        let first = analysis_of(img, hair);
+        let s = through_czs(&first.sketch);
         let t = std::time::Instant::now();
         let r = synthesise(&engine, &s, None, &SynthParams::default()).unwrap();
         let secs = t.elapsed().as_secs_f64();
@@ -191,24 +212,39 @@ fn synthesis_follows_the_sketch_and_round_trips() {
         // The round trip: the synthesised image analysed again, inside the sketch's region.
         // The issue's figure: the second sketch's curves within 3 px of the first's on ≥ 90%
         // of their length; and the other way round (how much of the first is found again).
-        let again = sketch_of(&r.image, &r.hair);
+        let second = analysis_of(&r.image, &r.hair);
+        let again = &second.sketch;
         let within = length_within(&again.curves, &s.curves, 3.0);
         let recall = length_within(&s.curves, &again.curves, 3.0);
+        // Why the round trip can add curves: the texture along the flow, photo against
+        // synthesis, each under the Θ its own analysis found (README, "coif synth-hair").
+        let (ax_in, ax_syn) = (
+            along_across_analysed(&first),
+            along_across_analysed(&second),
+        );
         println!(
-            "{name:<8} {:>6} {err:>8.2} {:>8.3} {:>8.3} {psnr:>7.2} {ssim:>7.3} {:>6.1}% {:>6.1}% {secs:>6.2}",
+            "{name:<8} {:>6} {err:>8.2} {:>8.3} {:>8.3} {psnr:>7.2} {ssim:>7.3} {:>6.1}% {:>6.1}% {secs:>6.2} {:>7} {ax_in:>7.3} {ax_syn:>7.3}",
             s.curves.len(),
             st.contrast_ratio,
             st.along_across,
             100.0 * within,
-            100.0 * recall
+            100.0 * recall,
+            again.curves.len()
         );
         rows.push((*name, err, st.contrast_ratio, st.along_across, within));
     }
     // Targets of the issue: orientation ≤ 5°, contrast within 10%, along/across ≤ 0.2, and
     // the second sketch's curves within 3 px of the first's on ≥ 90% of their length. The
-    // last is measured short on short hair and reported, not asserted at the target: its
-    // first sketch has 3 curves, and the second finds those plus a few more (66%); it gets a
-    // sanity bound that a broken synthesis misses.
+    // last is measured short on short hair (66%) and reported, not asserted at the target.
+    // Measured cause: the first sketch is 3 curves of 3 primitives (at 256² each barely
+    // pays its λ_NC of 40: E falls by 62, 7 and 1), so one added curve is a fifth of the
+    // second's length; the second adds an occluding line where a synthesised streak ends in a dark
+    // patch (11 of 50 px) and lengthens two curves by a primitive (6 px). The synthesis is an
+    // order of magnitude more coherent along Θ than the photo (a/x columns: 0.008 against
+    // 0.105), so the second E1 weighs every orientation cue more. At 512² short hair round-
+    // trips at 91% / 94% (seeds 1, 2); shorter streaks (LIC 4 px), λ_NC 20 or 10, or noise
+    // added to match the photo's a/x did not hold ≥ 90% on both seeds and long hair (README,
+    // "coif synth-hair"). It gets a sanity bound that a broken synthesis misses.
     for (name, err, ratio, along, within) in rows {
         assert!(
             err <= 5.0,
