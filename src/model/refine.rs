@@ -286,38 +286,19 @@ struct Joint {
     j: u32,
 }
 
-/// One vertex of S as the joint search reads it: everything the search needs, stored in
-/// bucket order so that scanning a cell reads memory in sequence (the search is bound by
-/// memory: indexing the strand arrays by vertex id costs a cache miss per read).
-#[derive(Clone, Copy)]
-struct IndexedVertex {
-    p: V3,
-    /// ξ(i−1) and ξ(i−2) (the latter meaningless when i < 2): the Laplacian term at i − 1.
-    prev: [V3; 2],
-    /// Σ ρ over the vertices before this one in its strand.
-    rho_prefix: u64,
-    strand: u32,
-    /// Index within the strand.
-    i: u32,
-    /// The Laplacian terms of Eq. (5) with d ≤ −2 (ξ's own vertices only), summed from 0 in
-    /// the order the full sum takes them, so E_s comes out bit for bit the same.
-    left: f32,
-}
-
-/// Vertices of S bucketed by grid cell (CSR), each bucket by increasing `rho_prefix`.
+/// Vertices of S bucketed by grid cell (CSR), with per-vertex strand, index within the strand
+/// and density prefix sums along the strand.
 struct VertexIndex {
     cell_start: Vec<u32>,
-    entries: Vec<IndexedVertex>,
+    /// Global vertex ids, bucket after bucket, by increasing `rho_prefix` within a bucket.
+    ids: Vec<u32>,
+    strand_of: Vec<u32>,
+    /// Σ ρ over the vertices before this one in its strand.
+    rho_prefix: Vec<u64>,
 }
 
 impl VertexIndex {
-    fn new(
-        grid: &Grid,
-        strands: &StrandSet,
-        off: &[usize],
-        density: &[u32],
-        weights: &[f32],
-    ) -> Result<Self> {
+    fn new(grid: &Grid, strands: &StrandSet, off: &[usize], density: &[u32]) -> Result<Self> {
         let nv = strands.points.len();
         if nv >= u32::MAX as usize || strands.len() >= u32::MAX as usize {
             return Err(Error::Invalid(format!(
@@ -376,56 +357,17 @@ impl VertexIndex {
             .par_iter_mut()
             .with_min_len(256)
             .for_each(|b| b.sort_unstable_by_key(|&g| (rho_prefix[g as usize], g)));
-        let win = weights.len() as isize - 1;
-        let entries = ids
-            .par_iter()
-            .with_min_len(4096)
-            .map(|&g| {
-                let g = g as usize;
-                let s = strand_of[g] as usize;
-                let start = off[s];
-                let xi = &strands.points[start..off[s + 1]];
-                let i = g - start;
-                // Terms d = −win..=−2 of the E_s sum of `Scorer::best_joint` (k = i + d ≥ 1:
-                // vertices k − 1, k, k + 1 all lie before i).
-                let mut left = 0.0f32;
-                for d in -win..=-2 {
-                    let k = i as isize + d;
-                    if k < 1 {
-                        continue;
-                    }
-                    let k = k as usize;
-                    left += weights[d.unsigned_abs()] * lap_len(xi[k - 1], xi[k], xi[k + 1]);
-                }
-                IndexedVertex {
-                    p: xi[i],
-                    prev: [xi[i - 1], xi[i.saturating_sub(2)]],
-                    rho_prefix: rho_prefix[g],
-                    strand: s as u32,
-                    i: i as u32,
-                    left,
-                }
-            })
-            .collect();
         Ok(VertexIndex {
             cell_start: counts,
-            entries,
+            ids,
+            strand_of,
+            rho_prefix,
         })
     }
 
-    fn bucket(&self, c: usize) -> &[IndexedVertex] {
-        &self.entries[self.cell_start[c] as usize..self.cell_start[c + 1] as usize]
+    fn bucket(&self, c: usize) -> &[u32] {
+        &self.ids[self.cell_start[c] as usize..self.cell_start[c + 1] as usize]
     }
-}
-
-/// |a − 2b + c|: the length of the discrete Laplacian at b.
-#[inline]
-fn lap_len(a: V3, b: V3, c: V3) -> f32 {
-    len3([
-        a[0] - 2.0 * b[0] + c[0],
-        a[1] - 2.0 * b[1] + c[1],
-        a[2] - 2.0 * b[2] + c[2],
-    ])
 }
 
 fn sub(a: V3, b: V3) -> V3 {
@@ -444,10 +386,26 @@ fn mid(a: V3, b: V3) -> V3 {
     ]
 }
 
+/// Vertex `k` of the joint strand ξ' of Eq. (4) (0-based: ξ(0..i), the average at i, then
+/// ξ*(j+1..)).
+#[inline]
+fn joint_vertex(xi: &[V3], i: usize, avg: V3, cand: &[V3], j: usize, k: usize) -> V3 {
+    if k < i {
+        xi[k]
+    } else if k == i {
+        avg
+    } else {
+        cand[k - i + j]
+    }
+}
+
 /// Everything the candidate search reads.
 struct Scorer<'a> {
     grid: &'a Grid,
     density: &'a [u32],
+    strands: &'a StrandSet,
+    /// Where each strand of `strands` starts ([`StrandSet::offsets`]).
+    offsets: &'a [usize],
     index: &'a VertexIndex,
     radius: f32,
     w_rho: f32,
@@ -462,11 +420,6 @@ impl Scorer<'_> {
 
     /// The lowest-E_c joint of candidate `cand` with j ≤ `seed_at` (the candidate's seed
     /// vertex), if any vertex of S lies within the radius.
-    ///
-    /// E_s sums the weighted Laplacian lengths of the joint strand over k = i + d,
-    /// d = −win..=win, in that order. Terms with d ≤ −2 read ξ alone (precomputed per vertex,
-    /// [`IndexedVertex::left`]), terms with d ≥ 2 the candidate alone (per j, below); only
-    /// d = −1, 0, 1 depend on the pair. The sum is taken in the same order as term by term.
     fn best_joint(&self, cand: &[V3], seed_at: usize) -> Option<(Joint, f32)> {
         let n = cand.len();
         // suffix[m] = Σ ρ over cand[m..].
@@ -478,7 +431,6 @@ impl Scorer<'_> {
         let win = self.weights.len() as isize - 1;
         let dims = self.grid.dims;
         let mut best: Option<(Joint, f32)> = None;
-        let mut right: Vec<f32> = Vec::with_capacity(win.max(0) as usize);
         // j + 1 must exist: a joint strand has to take something from the candidate; j ≤ the
         // seed, so that the joint strand passes where the seed was drawn (see the module doc).
         // Latest j first: suffix[j + 1] grows as j falls and bounds E_c from below, so once it
@@ -488,19 +440,6 @@ impl Scorer<'_> {
                 break;
             }
             let q = cand[j];
-            // Terms d ≥ 2: k = i + d, vertices k − 1.. k + 1 are cand[j + d − 1..=j + d + 1];
-            // the term exists while k + 1 < len = i + n − j.
-            right.clear();
-            for d in 2..=win {
-                let d = d as usize;
-                if j + d + 1 >= n {
-                    break;
-                }
-                right
-                    .push(self.weights[d] * lap_len(cand[j + d - 1], cand[j + d], cand[j + d + 1]));
-            }
-            // The d = 1 term exists when i + 2 < len, i.e. j + 2 < n.
-            let has_next2 = j + 2 < n;
             let lo: [u32; 3] =
                 std::array::from_fn(|a| (q[a] - self.radius).floor().max(0.0) as u32);
             let hi: [u32; 3] = std::array::from_fn(|a| {
@@ -525,43 +464,54 @@ impl Scorer<'_> {
                         if gzy + gap(x, 0) > reach {
                             continue;
                         }
-                        for v in self.index.bucket(self.grid.index(x, y, z)) {
-                            let bound = v.rho_prefix + suffix[j + 1];
+                        for &g in self.index.bucket(self.grid.index(x, y, z)) {
+                            let g = g as usize;
+                            let bound = self.index.rho_prefix[g] + suffix[j + 1];
                             if best.is_some_and(|(_, e)| self.w_rho * bound as f32 >= e) {
                                 break;
                             }
-                            let p = v.p;
+                            let p = self.strands.points[g];
                             let dv = sub(p, q);
                             if dv[0] * dv[0] + dv[1] * dv[1] + dv[2] * dv[2] > r2 {
                                 continue;
                             }
+                            let s = self.index.strand_of[g] as usize;
+                            let start = self.offsets[s];
+                            let i = g - start;
                             let avg = mid(p, q);
                             // Density term first: it is O(1) with the prefix sums and bounds E_c
                             // from below, so most pairs are rejected before the Laplacian.
-                            let dens = v.rho_prefix + self.rho(avg) + suffix[j + 1];
+                            let dens = self.index.rho_prefix[g] + self.rho(avg) + suffix[j + 1];
                             let e_rho = self.w_rho * dens as f32;
                             if best.is_some_and(|(_, e)| e_rho >= e) {
                                 continue;
                             }
-                            let i = v.i as usize;
-                            let mut e_s = v.left;
-                            if i >= 2 && win >= 1 {
-                                e_s += self.weights[1] * lap_len(v.prev[1], v.prev[0], avg);
-                            }
-                            e_s += self.weights[0] * lap_len(v.prev[0], avg, cand[j + 1]);
-                            if has_next2 && win >= 1 {
-                                e_s += self.weights[1] * lap_len(avg, cand[j + 1], cand[j + 2]);
-                            }
-                            for t in &right {
-                                e_s += t;
+                            let xi = &self.strands.points[start..self.offsets[s + 1]];
+                            let len = i + (n - j);
+                            let mut e_s = 0.0f32;
+                            for d in -win..=win {
+                                let k = i as isize + d;
+                                if k < 1 || k as usize + 1 >= len {
+                                    continue;
+                                }
+                                let k = k as usize;
+                                let a = joint_vertex(xi, i, avg, cand, j, k - 1);
+                                let b = joint_vertex(xi, i, avg, cand, j, k);
+                                let c = joint_vertex(xi, i, avg, cand, j, k + 1);
+                                let lap = [
+                                    a[0] - 2.0 * b[0] + c[0],
+                                    a[1] - 2.0 * b[1] + c[1],
+                                    a[2] - 2.0 * b[2] + c[2],
+                                ];
+                                e_s += self.weights[d.unsigned_abs()] * len3(lap);
                             }
                             let e = e_s + e_rho;
                             // Strictly lower: ties keep the first found (a fixed order).
                             if best.is_none_or(|(_, b)| e < b) {
                                 best = Some((
                                     Joint {
-                                        s: v.strand,
-                                        i: v.i,
+                                        s: s as u32,
+                                        i: i as u32,
                                         j: j as u32,
                                     },
                                     e,
@@ -787,10 +737,12 @@ pub fn refine(
             .collect();
         ir.candidates = candidates.len();
         let off = strands.offsets();
-        let index = VertexIndex::new(grid, &strands, &off, &density, &weights)?;
+        let index = VertexIndex::new(grid, &strands, &off, &density)?;
         let scorer = Scorer {
             grid,
             density: &density,
+            strands: &strands,
+            offsets: &off,
             index: &index,
             radius: p.radius,
             w_rho: p.w_rho,
@@ -879,11 +831,12 @@ mod tests {
             density[grid.cell_of(*v).unwrap()] += 1;
         }
         let off = strands.offsets();
-        let index =
-            VertexIndex::new(&grid, &strands, &off, &density, &laplacian_weights(1.0)).unwrap();
+        let index = VertexIndex::new(&grid, &strands, &off, &density).unwrap();
         let scorer = Scorer {
             grid: &grid,
             density: &density,
+            strands: &strands,
+            offsets: &off,
             index: &index,
             radius: 3.0,
             w_rho: 0.01,
@@ -910,16 +863,13 @@ mod tests {
         );
     }
 
-    /// Vertex `k` of the joint strand ξ' of Eq. (4) (0-based: ξ(0..i), the average at i,
-    /// then ξ*(j+1..)).
-    fn joint_vertex(xi: &[V3], i: usize, avg: V3, cand: &[V3], j: usize, k: usize) -> V3 {
-        if k < i {
-            xi[k]
-        } else if k == i {
-            avg
-        } else {
-            cand[k - i + j]
-        }
+    /// |a − 2b + c|.
+    fn lap_len(a: V3, b: V3, c: V3) -> f32 {
+        len3([
+            a[0] - 2.0 * b[0] + c[0],
+            a[1] - 2.0 * b[1] + c[1],
+            a[2] - 2.0 * b[2] + c[2],
+        ])
     }
 
     /// E_c of one joint straight from Eq. (4)-(5): the joint strand built vertex by vertex,
@@ -946,7 +896,7 @@ mod tests {
         e_s + sc.w_rho * dens as f32
     }
 
-    /// The search (bounds, precomputed partial sums, bucket order) finds the joint that
+    /// The search (its density bounds, bucket order and early exits) finds the joint that
     /// exhaustive evaluation of E_c finds, with the same energy to the bit, on random curly
     /// strands and candidates.
     #[test]
@@ -988,15 +938,16 @@ mod tests {
             density[grid.cell_of(*v).unwrap()] += 1;
         }
         let off = strands.offsets();
-        let weights = laplacian_weights(1.0);
-        let index = VertexIndex::new(&grid, &strands, &off, &density, &weights).unwrap();
+        let index = VertexIndex::new(&grid, &strands, &off, &density).unwrap();
         let sc = Scorer {
             grid: &grid,
             density: &density,
+            strands: &strands,
+            offsets: &off,
             index: &index,
             radius: 3.0,
             w_rho: 0.01,
-            weights: weights.clone(),
+            weights: laplacian_weights(1.0),
         };
         let mut found = 0;
         for _ in 0..60 {
