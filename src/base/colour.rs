@@ -157,8 +157,9 @@ pub fn f32_to_f16_bits_rtz(x: f32) -> u16 {
 /// The value a render-target write keeps: f16, truncated (see [`f32_to_f16_bits_rtz`]).
 /// Equal to `f16_bits_to_f32(f32_to_f16_bits_rtz(x))`, computed in the f32 domain (the
 /// resolve calls it for every sample channel): in the f16 normal range truncation keeps the
-/// top 10 mantissa bits, below it the f16 quantum is 2^-24.
-#[inline]
+/// top 10 mantissa bits, below it the f16 quantum is 2^-24. (Always inlined, so the AVX2
+/// resolve rounds natively instead of calling libm's `truncf`.)
+#[inline(always)]
 pub fn f16_store(x: f32) -> f32 {
     let a = x.abs();
     if a >= 6.103_515_6e-5 {

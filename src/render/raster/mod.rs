@@ -554,6 +554,8 @@ struct SegPrep {
 }
 
 impl SegPrep {
+    /// (Always inlined: once per segment per tile in the AVX2 tile loop.)
+    #[inline(always)]
     fn segment(
         &self,
         a: [f32; 3],
