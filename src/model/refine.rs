@@ -917,8 +917,8 @@ mod tests {
             (0..n)
                 .map(|_| {
                     let v = p;
-                    for a in 0..3 {
-                        dir[a] += rng.range_f32(-0.2, 0.2);
+                    for c in &mut dir {
+                        *c += rng.range_f32(-0.2, 0.2);
                     }
                     let l = len3(dir).max(1e-3);
                     for a in 0..3 {
