@@ -121,16 +121,7 @@ fn main() {
                 }
             }
             for d in &f.drift {
-                println!(
-                    "  drift at frame {:>2}, alpha {:.1}: mean {:.3} px, median {:.3} px; visible ({:.0}%): mean {:.3} px, median {:.3} px",
-                    d.frame,
-                    d.alpha,
-                    d.mean_px,
-                    d.median_px,
-                    100.0 * d.visible_share,
-                    d.visible_mean_px,
-                    d.visible_median_px
-                );
+                println!("  {d}");
             }
             let mut v = f.vertex_median_mm.clone();
             v.sort_by(f32::total_cmp);

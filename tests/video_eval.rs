@@ -22,16 +22,7 @@ fn a_synthetic_clip_is_tracked() {
         "flow EPE on hair {epe:.3} px; true motion {motion:.3} px per frame (the EPE of no flow)"
     );
     for d in &f.drift {
-        println!(
-            "drift at frame {} with alpha {:.1}: mean {:.3} px, median {:.3} px; visible ({:.0}%): mean {:.3} px, median {:.3} px",
-            d.frame,
-            d.alpha,
-            d.mean_px,
-            d.median_px,
-            100.0 * d.visible_share,
-            d.visible_mean_px,
-            d.visible_median_px
-        );
+        println!("{d}");
     }
     println!(
         "3D: median vertex error per frame (mm) {:?}, visible vertices {:?}; roots {:.1e} m; stretch p99 {:.2} %, largest {:.1} %",

@@ -72,6 +72,23 @@ pub struct Drift {
     pub visible_share: f32,
 }
 
+impl std::fmt::Display for Drift {
+    /// One line: frame, weight, mean and median over all hair pixels and over the visible.
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        write!(
+            f,
+            "drift at frame {:>2}, alpha {:.1}: mean {:.3} px, median {:.3} px; visible ({:.0}%): mean {:.3} px, median {:.3} px",
+            self.frame,
+            self.alpha,
+            self.mean_px,
+            self.median_px,
+            100.0 * self.visible_share,
+            self.visible_mean_px,
+            self.visible_median_px
+        )
+    }
+}
+
 /// The figures of one clip.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct ClipFigures {

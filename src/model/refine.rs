@@ -805,6 +805,35 @@ pub fn refine(
 mod tests {
     use super::*;
 
+    /// The search's inputs for `strands` on `grid`: cell densities, offsets and the index.
+    fn search_inputs(grid: &Grid, strands: &StrandSet) -> (Vec<u32>, Vec<usize>, VertexIndex) {
+        let mut density = vec![0u32; grid.len()];
+        for v in &strands.points {
+            density[grid.cell_of(*v).unwrap()] += 1;
+        }
+        let off = strands.offsets();
+        let index = VertexIndex::new(grid, strands, &off, &density).unwrap();
+        (density, off, index)
+    }
+
+    /// A scorer at the default radius, density weight and σ_c.
+    fn scorer<'a>(
+        grid: &'a Grid,
+        strands: &'a StrandSet,
+        (density, off, index): &'a (Vec<u32>, Vec<usize>, VertexIndex),
+    ) -> Scorer<'a> {
+        Scorer {
+            grid,
+            density,
+            strands,
+            offsets: off,
+            index,
+            radius: 3.0,
+            w_rho: 0.01,
+            weights: laplacian_weights(1.0),
+        }
+    }
+
     /// A candidate whose seed lies in an empty region and whose later part runs through
     /// dense cells: the density term of E_c alone would join it past the dense stretch (the
     /// shortest tail), leaving the seed's region empty; the bound keeps j at or before the
@@ -826,22 +855,8 @@ mod tests {
         for _ in 0..10 {
             strands.push(&line(8.5, 0.5, 14.5));
         }
-        let mut density = vec![0u32; grid.len()];
-        for v in &strands.points {
-            density[grid.cell_of(*v).unwrap()] += 1;
-        }
-        let off = strands.offsets();
-        let index = VertexIndex::new(&grid, &strands, &off, &density).unwrap();
-        let scorer = Scorer {
-            grid: &grid,
-            density: &density,
-            strands: &strands,
-            offsets: &off,
-            index: &index,
-            radius: 3.0,
-            w_rho: 0.01,
-            weights: laplacian_weights(1.0),
-        };
+        let inputs = search_inputs(&grid, &strands);
+        let scorer = scorer(&grid, &strands, &inputs);
         // The candidate runs along y = 8 (through the dense stretch, then beyond it); its
         // seed is vertex 4.
         let cand = line(8.5, 2.0, 24.0);
@@ -933,22 +948,8 @@ mod tests {
             let n = 3 + (rng.next_f32() * 20.0) as usize;
             strands.push(&walk(&mut rng, n));
         }
-        let mut density = vec![0u32; grid.len()];
-        for v in &strands.points {
-            density[grid.cell_of(*v).unwrap()] += 1;
-        }
-        let off = strands.offsets();
-        let index = VertexIndex::new(&grid, &strands, &off, &density).unwrap();
-        let sc = Scorer {
-            grid: &grid,
-            density: &density,
-            strands: &strands,
-            offsets: &off,
-            index: &index,
-            radius: 3.0,
-            w_rho: 0.01,
-            weights: laplacian_weights(1.0),
-        };
+        let inputs = search_inputs(&grid, &strands);
+        let sc = scorer(&grid, &strands, &inputs);
         let mut found = 0;
         for _ in 0..60 {
             let n = 2 + (rng.next_f32() * 16.0) as usize;
