@@ -1,7 +1,7 @@
 //! Texture synthesis of the high band from the vector field (CZ06 §3.2;
 //! `coif::sketch::texture`).
 //!
-//! - Parity of the passes `cz_noise`, `cz_lic`, `cz_contrast` (both modes) and `cz_hipass` on
+//! - Parity of the passes `cz_noise`, `cz_lic`, `cz_contrast` (all three modes) and `cz_hipass` on
 //!   lavapipe against their CPU mirrors (the shared sampling in `shared/cz_tex.wgsl`) at 1×1, 63×65 and 200×120, and of the whole
 //!   `synthesise` at 63×65. Tolerances: the noise bit-identical; each other pass's output
 //!   within 1e-5 of the mirror's relative to the input's largest magnitude (a few f32 ulps
@@ -305,7 +305,11 @@ fn cz_contrast_parity() {
             })
             .collect();
         let (rs, cs) = (words(&inp.rho), words(&cur));
-        for mode in [cz_contrast::MEASURE, cz_contrast::GAIN] {
+        for mode in [
+            cz_contrast::MEASURE,
+            cz_contrast::GAIN,
+            cz_contrast::MEASURE_GRADIENT,
+        ] {
             let cfg = cz_contrast::Config {
                 width: w,
                 height: h,

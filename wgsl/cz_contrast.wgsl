@@ -10,6 +10,11 @@
 //    that varied pixel to pixel with the iid draws of ρ off the sketch would add I·∇g to the
 //    gradient (mean |∇⊥I| 1.16-1.19 ρ on the synthetic cases against 1.02-1.05 smoothed).
 //    Where ρ_cur is 0 the gain is gain_max.
+//  2 (measure, the analysis's derivative): out = |∇⊥Θ src| with the gradient that ρ is
+//    defined by (`sketch::theta::gradients`): central differences at ±1 px smoothed across
+//    by (3, 10, 3)/16, taps off the image or the domain replaced by the pixel's own value,
+//    projected on n. Matching with the derivative ρ was measured with keeps the band's
+//    contrast at ρ under that derivative, not under another one.
 // Off the domain the output is 0. CPU mirror: `src/stages/cz_contrast.rs`.
 
 struct Config {
@@ -50,6 +55,32 @@ fn across(i: u32, p: vec2<f32>, n: vec2<f32>) -> f32 {
     return 0.0;
 }
 
+// The pixel's value, or `own` where (x, y) is off the image or the domain.
+fn tap(x: i32, y: i32, own: f32) -> f32 {
+    if x < 0 || y < 0 || x >= i32(cfg.width) || y >= i32(cfg.height) {
+        return own;
+    }
+    let j = u32(y) * cfg.width + u32(x);
+    if flags[j] == 0u {
+        return own;
+    }
+    return src[j];
+}
+
+// |∇⊥Θ src| by the analysis's derivative (mode 2, see the header).
+fn across_gradient(i: u32, x: i32, y: i32, n: vec2<f32>) -> f32 {
+    let own = src[i];
+    var sx = 0.0;
+    var sy = 0.0;
+    for (var k = 0; k < 3; k++) {
+        let o = k - 1;
+        let c = select(3.0 / 16.0, 10.0 / 16.0, k == 1);
+        sx += c * 0.5 * (tap(x + 1, y + o, own) - tap(x - 1, y + o, own));
+        sy += c * 0.5 * (tap(x + o, y + 1, own) - tap(x + o, y - 1, own));
+    }
+    return abs(sx * n.x + sy * n.y);
+}
+
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if gid.x >= cfg.width || gid.y >= cfg.height {
@@ -65,6 +96,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let n = vec2<f32>(-t.y, t.x);
         let p = vec2<f32>(f32(gid.x) + 0.5, f32(gid.y) + 0.5);
         out[i] = across(i, p, n);
+        return;
+    }
+    if cfg.mode == 2u {
+        let t = tang[i];
+        out[i] = across_gradient(i, i32(gid.x), i32(gid.y), vec2<f32>(-t.y, t.x));
         return;
     }
     var g = cfg.gain_max;

@@ -1,6 +1,7 @@
 //! Contrast matching across Θ, step 2 of CZ06's texture synthesis (§3.2): mode 0 measures
-//! |∇⊥Θ I| (central differences of bilinear samples at ±1 px), mode 1 scales the band by
-//! ρ_s/ρ_cur clamped (both blurred alike). See `wgsl/cz_contrast.wgsl`; the host is `crate::sketch::texture`.
+//! |∇⊥Θ I| (central differences of bilinear samples at ±1 px), mode 2 measures it with the
+//! analysis's derivative (the Scharr-smoothed gradient of `sketch::theta::gradients`, the one
+//! ρ is defined by), mode 1 scales the band by ρ_s/ρ_cur clamped (both blurred alike). See `wgsl/cz_contrast.wgsl`; the host is `crate::sketch::texture`.
 
 use super::cz_tex::Domain;
 use crate::gpu::engine::{Bind, CpuBinding, StageDef};
@@ -23,12 +24,13 @@ pub const STAGE: StageDef = StageDef {
 
 pub const MEASURE: u32 = 0;
 pub const GAIN: u32 = 1;
+pub const MEASURE_GRADIENT: u32 = 2;
 
 #[derive(Clone, Copy, Debug, Default, encase::ShaderType)]
 pub struct Config {
     pub width: u32,
     pub height: u32,
-    /// [`MEASURE`] or [`GAIN`].
+    /// [`MEASURE`], [`GAIN`] or [`MEASURE_GRADIENT`].
     pub mode: u32,
     pub gain_min: f32,
     pub gain_max: f32,
@@ -57,6 +59,35 @@ pub fn across(d: &Domain, i: usize, p: [f32; 2], n: [f32; 2]) -> f32 {
         return (d.src[i] - b[0] / b[1]).abs();
     }
     0.0
+}
+
+/// |∇⊥Θ src| at pixel (x, y) by the analysis's derivative (`sketch::theta::gradients`):
+/// central differences smoothed across by (3, 10, 3)/16, taps off the image or the domain
+/// replaced by the pixel's own value; projected on n = (−sin Θ, cos Θ).
+pub fn across_gradient(d: &Domain, x: usize, y: usize) -> f32 {
+    const ACROSS: [f32; 3] = [3.0 / 16.0, 10.0 / 16.0, 3.0 / 16.0];
+    let (w, h) = (d.width as i64, d.height as i64);
+    let i = y * w as usize + x;
+    let at = |xx: i64, yy: i64| {
+        if xx < 0 || yy < 0 || xx >= w || yy >= h {
+            return d.src[i];
+        }
+        let j = (yy * w + xx) as usize;
+        if d.flags[j] != 0 {
+            d.src[j]
+        } else {
+            d.src[i]
+        }
+    };
+    let (xi, yi) = (x as i64, y as i64);
+    let (mut sx, mut sy) = (0.0f32, 0.0f32);
+    for (k, &c) in ACROSS.iter().enumerate() {
+        let o = k as i64 - 1;
+        sx += c * 0.5 * (at(xi + 1, yi + o) - at(xi - 1, yi + o));
+        sy += c * 0.5 * (at(xi + o, yi + 1) - at(xi + o, yi - 1));
+    }
+    let t = d.tang[i];
+    (-sx * t[1] + sy * t[0]).abs()
 }
 
 fn cz_contrast_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
@@ -88,6 +119,10 @@ fn cz_contrast_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
                     let n = [-t[1], t[0]];
                     let p = [x as f32 + 0.5, y as f32 + 0.5];
                     *o = across(&d, i, p, n);
+                    continue;
+                }
+                if cfg.mode == MEASURE_GRADIENT {
+                    *o = across_gradient(&d, x, y);
                     continue;
                 }
                 let mut g = cfg.gain_max;
