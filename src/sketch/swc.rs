@@ -99,7 +99,8 @@ impl FromStr for Method {
 
 /// p_dir of Eq. 5-6 without hand sketches to learn it from: a von Mises density of the
 /// growth direction around μ(p) = norm((p − c)/|p − c| + gravity·ŷ), outward from a crown c
-/// = (mask centroid x, mask top + crown_depth · mask height) and bent down.
+/// = (the parting's x, or the mask centroid's, mask top + crown_depth · mask height) and
+/// bent down.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DirPrior {
     /// Concentration κ; −log p_dir = κ(1 − cos(τ − μ)) per sketch pixel, up to a constant.
@@ -121,8 +122,10 @@ impl Default for DirPrior {
 }
 
 impl DirPrior {
-    /// The crown c of the mask, None when the mask is empty.
-    pub fn crown(&self, hair: &[bool], w: u32, h: u32) -> Option<[f32; 2]> {
+    /// The crown c of the mask, None when the mask is empty: at `crown_depth` of the mask's
+    /// height below its top, and across at the parting that Θ shows there (see
+    /// [`parting_x`](Self::parting_x)), or at the mask's centroid where Θ shows none.
+    pub fn crown(&self, hair: &[bool], theta: &[f32], w: u32, h: u32) -> Option<[f32; 2]> {
         let (mut sx, mut n) = (0f64, 0usize);
         let (mut top, mut bottom) = (u32::MAX, 0u32);
         for y in 0..h {
@@ -137,11 +140,79 @@ impl DirPrior {
         }
         (n > 0).then(|| {
             let height = (bottom - top + 1) as f32;
-            [
-                (sx / n as f64) as f32,
-                top as f32 + self.crown_depth * height,
-            ]
+            let depth = self.crown_depth * height;
+            let band = top..(top + depth.ceil().max(1.0) as u32).min(h);
+            let x = Self::parting_x(hair, theta, w, band).unwrap_or((sx / n as f64) as f32);
+            [x, top as f32 + depth]
         })
+    }
+
+    /// Where, across the rows `band` (the top of the hair), the hair's slope changes from
+    /// falling to the left to falling to the right: the split x maximising
+    /// −Σ_{x′<x} sin 2Θ + Σ_{x′≥x} sin 2Θ over the band's hair (y down, so hair falling to
+    /// the left has sin 2Θ < 0). A side parting puts the crown over the parting rather than
+    /// over the mask's centroid, so the prior does not send the hair between them the wrong
+    /// way. Searched over the middle 80% of the band's hair span; the middle of the splits
+    /// within 2% of Σ|sin 2Θ| of the best; None when the band has no orientation, or the
+    /// best split explains under a quarter of Σ|sin 2Θ| (no parting).
+    pub fn parting_x(
+        hair: &[bool],
+        theta: &[f32],
+        w: u32,
+        band: std::ops::Range<u32>,
+    ) -> Option<f32> {
+        let wu = w as usize;
+        let mut col = vec![0f64; wu];
+        let (mut lo, mut hi, mut total) = (usize::MAX, 0usize, 0f64);
+        for y in band {
+            for (x, c) in col.iter_mut().enumerate() {
+                let k = y as usize * wu + x;
+                if hair[k] && theta[k].is_finite() {
+                    let s = (2.0 * theta[k] as f64).sin();
+                    *c += s;
+                    total += s.abs();
+                    lo = lo.min(x);
+                    hi = hi.max(x);
+                }
+            }
+        }
+        if lo > hi || total <= 0.0 {
+            return None;
+        }
+        let span = (hi - lo + 1) as f64;
+        let (a, b) = (
+            lo + (0.1 * span).round() as usize,
+            hi + 1 - (0.1 * span).round() as usize,
+        );
+        // S(x) = −Σ_{x′<x} s + Σ_{x′≥x} s = Σ s − 2 Σ_{x′<x} s.
+        let sum: f64 = col.iter().sum();
+        let mut below: f64 = col[..a].iter().sum();
+        let mut score = Vec::with_capacity(b.saturating_sub(a));
+        for &c in col.iter().take(b.max(a + 1)).skip(a) {
+            score.push(sum - 2.0 * below);
+            below += c;
+        }
+        let (best, at) =
+            score.iter().enumerate().fold(
+                (f64::NEG_INFINITY, 0),
+                |m, (i, &v)| if v > m.0 { (v, i) } else { m },
+            );
+        if best < 0.25 * total {
+            return None;
+        }
+        // The parting strip (scalp, hair across it) scores nearly flat: take the middle of
+        // the run of splits within 2% of the best, not its first column, so that the crown
+        // does not sit at one edge of the strip and turn that edge's hair the wrong way.
+        let near = |i: usize| score[i] >= best - 0.02 * total;
+        let mut first = at;
+        while first > 0 && near(first - 1) {
+            first -= 1;
+        }
+        let mut last = at;
+        while last + 1 < score.len() && near(last + 1) {
+            last += 1;
+        }
+        Some(a as f32 + 0.5 * (first + last) as f32)
     }
 
     /// The prior's mean growth direction μ at (x, y), a unit vector.
@@ -467,7 +538,7 @@ pub fn build_graph(
 
     // −log p_dir on the sketch pixels: κ(1 − d·cos(φ − μ)).
     let mut prior = vec![0f64; nodes.len()];
-    if let Some(crown) = p.prior.crown(hair, w, h) {
+    if let Some(crown) = p.prior.crown(hair, theta, w, h) {
         let kappa = p.prior.kappa as f64;
         for k in 0..n {
             if own.unit[k] == u32::MAX {
@@ -744,4 +815,46 @@ pub fn stroke_clamps(
             label: sgn(sum),
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::DirPrior;
+
+    /// Θ on a 100 x 10 band: falling to the left (135°) left of `split`, to the right (45°)
+    /// from it on.
+    fn band(split: usize) -> (Vec<bool>, Vec<f32>) {
+        let theta = (0..1000)
+            .map(|k| {
+                let deg: f32 = if k % 100 < split { 135.0 } else { 45.0 };
+                deg.to_radians()
+            })
+            .collect();
+        (vec![true; 1000], theta)
+    }
+
+    #[test]
+    fn the_parting_is_where_the_slope_turns() {
+        for split in [30, 50, 71] {
+            let (hair, theta) = band(split);
+            assert_eq!(
+                DirPrior::parting_x(&hair, &theta, 100, 0..10),
+                Some(split as f32)
+            );
+        }
+        // Flat hair shows no parting; nor does hair with no orientation.
+        let hair = vec![true; 1000];
+        assert_eq!(
+            DirPrior::parting_x(&hair, &vec![0.0; 1000], 100, 0..10),
+            None
+        );
+        assert_eq!(
+            DirPrior::parting_x(&hair, &vec![f32::NAN; 1000], 100, 0..10),
+            None
+        );
+        // A crown from it: the parting's x, not the centroid's.
+        let (hair, theta) = band(30);
+        let c = DirPrior::default().crown(&hair, &theta, 100, 10).unwrap();
+        assert_eq!(c[0], 30.0);
+    }
 }
