@@ -61,32 +61,13 @@ pub fn across(d: &Domain, i: usize, p: [f32; 2], n: [f32; 2]) -> f32 {
     0.0
 }
 
-/// |∇⊥Θ src| at pixel (x, y) by the analysis's derivative (`sketch::theta::gradients`):
-/// central differences smoothed across by (3, 10, 3)/16, taps off the image or the domain
-/// replaced by the pixel's own value; projected on n = (−sin Θ, cos Θ).
+/// |∇⊥Θ src| at pixel (x, y) by the analysis's derivative
+/// ([`crate::sketch::theta::gradient_at`], taps off the domain replaced by the pixel's own
+/// value), projected on n = (−sin Θ, cos Θ).
 pub fn across_gradient(d: &Domain, x: usize, y: usize) -> f32 {
-    const ACROSS: [f32; 3] = [3.0 / 16.0, 10.0 / 16.0, 3.0 / 16.0];
-    let (w, h) = (d.width as i64, d.height as i64);
-    let i = y * w as usize + x;
-    let at = |xx: i64, yy: i64| {
-        if xx < 0 || yy < 0 || xx >= w || yy >= h {
-            return d.src[i];
-        }
-        let j = (yy * w + xx) as usize;
-        if d.flags[j] != 0 {
-            d.src[j]
-        } else {
-            d.src[i]
-        }
-    };
-    let (xi, yi) = (x as i64, y as i64);
-    let (mut sx, mut sy) = (0.0f32, 0.0f32);
-    for (k, &c) in ACROSS.iter().enumerate() {
-        let o = k as i64 - 1;
-        sx += c * 0.5 * (at(xi + 1, yi + o) - at(xi - 1, yi + o));
-        sy += c * 0.5 * (at(xi + o, yi + 1) - at(xi + o, yi - 1));
-    }
-    let t = d.tang[i];
+    let [sx, sy] =
+        crate::sketch::theta::gradient_at(d.src, d.width, d.height, x, y, |j| d.flags[j] != 0);
+    let t = d.tang[y * d.width as usize + x];
     (-sx * t[1] + sy * t[0]).abs()
 }
 

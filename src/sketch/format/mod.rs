@@ -33,6 +33,7 @@ use std::f64::consts::PI;
 use std::path::Path;
 
 mod czs;
+mod czs_rc;
 mod json;
 mod rc;
 mod svg;

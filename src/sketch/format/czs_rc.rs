@@ -1,0 +1,330 @@
+//! The curve section of `.czs` version 3: the fields of version 2's curves, range coded
+//! ([`rc`]) with adaptive contexts. Sequential (each symbol's context is the one before):
+//! CPU.
+
+use super::czs::{bits_for, unzigzag, zigzag};
+use super::rc;
+use super::*;
+
+/// The adaptive contexts of the version-3 curve section: each field's probabilities are
+/// conditioned on what precedes it on the curve (the previous primitive's turn, side codes
+/// and contrast; on a two-sided kind the first side's codes for the second side's).
+struct CurveModel {
+    count_exp: [[rc::Prob; 48]; 2],
+    count_mant: Vec<rc::Prob>,
+    kind: [rc::Prob; 8],
+    label: [[rc::Prob; 4]; 16],
+    start: [[rc::Prob; 32]; 2],
+    axis: [rc::Prob; 32],
+    turn: [[rc::Prob; 4]; 4],
+    /// Side codes, by context q (see [`SideCtx`]): the dictionary index equals the
+    /// prediction's; the index; the refinement's step from the prediction (zigzag); the
+    /// refinement itself where there is no prediction to step from.
+    same_dict: [rc::Prob; 5],
+    dict: [[rc::Prob; 4]; 5],
+    step: [[rc::Prob; 32]; 5],
+    refine: [[rc::Prob; 16]; 5],
+    rho: [[rc::Prob; 16]; 17],
+}
+
+impl CurveModel {
+    fn new() -> Box<Self> {
+        let h = rc::HALF;
+        Box::new(CurveModel {
+            count_exp: [[h; 48]; 2],
+            count_mant: vec![h; 2 * 48 * 48],
+            kind: [h; 8],
+            label: [[h; 4]; 16],
+            start: [[h; 32]; 2],
+            axis: [h; 32],
+            turn: [[h; 4]; 4],
+            same_dict: [h; 5],
+            dict: [[h; 4]; 5],
+            step: [[h; 32]; 5],
+            refine: [[h; 16]; 5],
+            rho: [[h; 16]; 17],
+        })
+    }
+}
+
+/// What side `s`'s codes on a primitive are predicted from, and the context they are coded
+/// in. Side 1 of a two-sided kind mirrors this primitive's side 0 (refinement 16 − r₀: the
+/// flow runs on through the line); otherwise a side follows itself on the previous
+/// primitive, its refinement moved by 4 steps (15°) with the axis's turn (the flow keeps its
+/// heading while the axis turns); a curve's first side has no prediction.
+struct SideCtx {
+    q: usize,
+    pred: Option<(u8, i32)>,
+}
+
+fn side_ctx(
+    kind: Kind,
+    s: usize,
+    turn: i8,
+    this: &[(u8, u8); 2],
+    prev: Option<&[(u8, u8); 2]>,
+    hair: [bool; 2],
+) -> SideCtx {
+    let stream = (kind == Kind::Stream) as usize;
+    if s == 1 && hair[0] {
+        return SideCtx {
+            q: stream,
+            pred: Some((this[0].0, 16 - this[0].1 as i32)),
+        };
+    }
+    match prev {
+        Some(p) => SideCtx {
+            q: 2 + stream,
+            pred: Some((p[s].0, p[s].1 as i32 + 4 * turn as i32)),
+        },
+        None => SideCtx { q: 4, pred: None },
+    }
+}
+
+fn rc_side(e: &mut rc::Encoder, m: &mut CurveModel, c: &SideCtx, v: (u8, u8), refine: bool) {
+    let same = c.pred.is_some_and(|(d, _)| d == v.0);
+    if c.pred.is_some() {
+        e.bit(&mut m.same_dict[c.q], same);
+    }
+    if !same {
+        e.tree(&mut m.dict[c.q], 2, v.0 as u32);
+    }
+    if refine {
+        match c.pred {
+            Some((_, r)) if same => {
+                let step = v.1 as i64 - r.clamp(0, 15) as i64;
+                e.tree(&mut m.step[c.q], 5, zigzag(step) as u32);
+            }
+            _ => e.tree(&mut m.refine[c.q], 4, v.1 as u32),
+        }
+    }
+}
+
+fn un_rc_side(
+    d: &mut rc::Decoder,
+    m: &mut CurveModel,
+    c: &SideCtx,
+    refine: bool,
+    at: &str,
+) -> std::result::Result<(u8, u8), String> {
+    let same = c.pred.is_some() && d.bit(&mut m.same_dict[c.q]);
+    let dict = match c.pred {
+        Some((p, _)) if same => p,
+        _ => d.tree(&mut m.dict[c.q], 2) as u8,
+    };
+    if !refine {
+        return Ok((dict, 8));
+    }
+    let r = match c.pred {
+        Some((_, r)) if same => {
+            let v = r.clamp(0, 15) as i64 + unzigzag(d.tree(&mut m.step[c.q], 5) as u64);
+            if !(0..16).contains(&v) {
+                return Err(format!("corrupted: {at} has a side refinement of {v}"));
+            }
+            v as u8
+        }
+        _ => d.tree(&mut m.refine[c.q], 4) as u8,
+    };
+    Ok((dict, r))
+}
+
+fn rc_count(e: &mut rc::Encoder, m: &mut CurveModel, which: usize, v: u64) {
+    let n = 64 - v.leading_zeros() as usize;
+    for i in 0..n - 1 {
+        e.bit(&mut m.count_exp[which][i.min(47)], false);
+    }
+    e.bit(&mut m.count_exp[which][(n - 1).min(47)], true);
+    for i in (0..n - 1).rev() {
+        let k = (which * 48 + n.min(47)) * 48 + i.min(47);
+        e.bit(&mut m.count_mant[k], (v >> i) & 1 == 1);
+    }
+}
+
+fn un_rc_count(
+    d: &mut rc::Decoder,
+    m: &mut CurveModel,
+    which: usize,
+    what: &str,
+) -> std::result::Result<u64, String> {
+    let mut n = 1usize;
+    while !d.bit(&mut m.count_exp[which][(n - 1).min(47)]) {
+        n += 1;
+        if n > 40 {
+            return Err(format!("corrupted: {what} is out of range"));
+        }
+    }
+    let mut v = 1u64;
+    for i in (0..n - 1).rev() {
+        let k = (which * 48 + n.min(47)) * 48 + i.min(47);
+        v = (v << 1) | d.bit(&mut m.count_mant[k]) as u64;
+    }
+    Ok(v)
+}
+
+fn label_code(d: i8) -> u32 {
+    match d {
+        0 => 0,
+        1 => 1,
+        _ => 2,
+    }
+}
+
+/// The version-3 curve section: the fields of version 2, range coded with [`CurveModel`].
+pub(super) fn rc_curves(c: &Codes, refine: bool, undecided: bool) -> Vec<u8> {
+    let (xb, yb) = (bits_for(c.width), bits_for(c.height));
+    let mut m = CurveModel::new();
+    let mut e = rc::Encoder::default();
+    rc_count(&mut e, &mut m, 0, c.curves.len() as u64 + 1);
+    for cv in &c.curves {
+        let kc = cv.kind.code() as usize;
+        e.tree(&mut m.kind, 3, kc as u32);
+        for &i in free_labels(cv.kind) {
+            let ctx = &mut m.label[kc * 2 + i];
+            if undecided {
+                e.tree(ctx, 2, label_code(cv.dirs[i]));
+            } else {
+                e.bit(&mut ctx[1], cv.dirs[i] > 0);
+            }
+        }
+        rc_count(&mut e, &mut m, 1, cv.prims.len() as u64);
+        for (k, (v, n)) in [(cv.start[0], xb), (cv.start[1], yb)]
+            .into_iter()
+            .enumerate()
+        {
+            for i in (0..n).rev() {
+                e.bit(&mut m.start[k][i as usize], (v >> i) & 1 == 1);
+            }
+        }
+        e.tree(&mut m.axis, 5, cv.axis as u32);
+        let hair = cv.kind.hair_sides();
+        let mut prev_turn = 3usize;
+        for (k, p) in cv.prims.iter().enumerate() {
+            if k > 0 {
+                let t = label_code(p.turn);
+                e.tree(&mut m.turn[prev_turn], 2, t);
+                prev_turn = t as usize;
+            }
+            let prev = (k > 0).then(|| &cv.prims[k - 1].side);
+            for s in (0..2).filter(|&s| hair[s]) {
+                let c = side_ctx(cv.kind, s, p.turn, &p.side, prev, hair);
+                rc_side(&mut e, &mut m, &c, p.side[s], refine);
+            }
+            let rc_ctx = if k > 0 {
+                cv.prims[k - 1].rho as usize
+            } else {
+                16
+            };
+            e.tree(&mut m.rho[rc_ctx.min(16)], 4, p.rho as u32);
+        }
+    }
+    e.finish()
+}
+
+/// Reads [`rc_curves`]' section, with the checks of version 2's reader.
+pub(super) fn un_rc_curves(
+    data: &[u8],
+    width: u32,
+    height: u32,
+    refine: bool,
+    undecided: bool,
+) -> std::result::Result<Vec<CurveCodes>, String> {
+    // Bounds on counts a damaged file could claim (the coder can code many symbols in few
+    // bytes, so the data's length bounds nothing).
+    const MAX_CURVES: u64 = 1 << 16;
+    const MAX_PRIMS: usize = 1 << 20;
+    let (xb, yb) = (bits_for(width), bits_for(height));
+    let mut m = CurveModel::new();
+    let mut d = rc::Decoder::new(data);
+    let n_curves = un_rc_count(&mut d, &mut m, 0, "the curve count")? - 1;
+    if n_curves > MAX_CURVES {
+        return Err(format!("corrupted: {n_curves} curves"));
+    }
+    let mut curves = Vec::new();
+    let mut total = 0usize;
+    for ci in 0..n_curves {
+        let at = format!("curve {ci}");
+        let code = d.tree(&mut m.kind, 3) as u8;
+        let kind =
+            Kind::from_code(code).ok_or_else(|| format!("corrupted: {at} has kind code {code}"))?;
+        let kc = code as usize;
+        let mut dirs = [0i8; 2];
+        for &i in free_labels(kind) {
+            let ctx = &mut m.label[kc * 2 + i];
+            dirs[i] = if undecided {
+                match d.tree(ctx, 2) {
+                    0 => 0,
+                    1 => 1,
+                    2 => -1,
+                    _ => return Err(format!("corrupted: {at} has label code 3")),
+                }
+            } else if d.bit(&mut ctx[1]) {
+                1
+            } else {
+                -1
+            };
+        }
+        let dirs = match kind {
+            Kind::Dividing => [1, 1],
+            Kind::Stream => [dirs[0], dirs[0]],
+            _ => dirs,
+        };
+        let n = un_rc_count(&mut d, &mut m, 1, &at)? as usize;
+        total += n;
+        if total > MAX_PRIMS {
+            return Err(format!("corrupted: over {MAX_PRIMS} primitives"));
+        }
+        let mut start = [0u32; 2];
+        for (k, nb) in [xb, yb].into_iter().enumerate() {
+            for i in (0..nb).rev() {
+                start[k] |= (d.bit(&mut m.start[k][i as usize]) as u32) << i;
+            }
+        }
+        if start[0] > width || start[1] > height {
+            return Err(format!(
+                "corrupted: {at} starts at ({}, {}), outside the {width}x{height} image",
+                start[0], start[1]
+            ));
+        }
+        let axis = d.tree(&mut m.axis, 5) as u8;
+        if axis as u32 >= AXIS_STEPS {
+            return Err(format!("corrupted: {at} has axis code {axis}"));
+        }
+        let hair = kind.hair_sides();
+        let mut prims: Vec<PrimCodes> = Vec::with_capacity(n.min(4096));
+        let mut prev_turn = 3usize;
+        for k in 0..n {
+            let turn = if k == 0 {
+                0
+            } else {
+                let t = d.tree(&mut m.turn[prev_turn], 2);
+                prev_turn = t as usize;
+                match t {
+                    0 => 0,
+                    1 => 1,
+                    2 => -1,
+                    _ => return Err(format!("corrupted: {at}, primitive {k} has turn code 3")),
+                }
+            };
+            let mut side = [(0u8, 8u8); 2];
+            for s in (0..2).filter(|&s| hair[s]) {
+                let prev = prims.last().map(|p| &p.side);
+                let c = side_ctx(kind, s, turn, &side, prev, hair);
+                side[s] = un_rc_side(&mut d, &mut m, &c, refine, &at)?;
+            }
+            let rc_ctx = prims.last().map_or(16, |p| p.rho as usize);
+            let rho = d.tree(&mut m.rho[rc_ctx.min(16)], 4) as u8;
+            prims.push(PrimCodes { turn, side, rho });
+        }
+        curves.push(CurveCodes {
+            kind,
+            dirs,
+            start,
+            axis,
+            prims,
+        });
+    }
+    if d.overrun() > 8 {
+        return Err("corrupted: the curves run past the end of the data".into());
+    }
+    Ok(curves)
+}
