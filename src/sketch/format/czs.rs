@@ -210,14 +210,7 @@ fn put_curves_v2(w: &mut BitWriter, c: &Codes, refine: bool, undecided: bool) {
         for &i in free_labels(cv.kind) {
             let d = cv.dirs[i];
             if undecided {
-                w.put(
-                    match d {
-                        0 => 0,
-                        1 => 1,
-                        _ => 2,
-                    },
-                    2,
-                );
+                w.put(signed_code(d) as u64, 2);
             } else {
                 w.put((d > 0) as u64, 1);
             }
@@ -229,14 +222,7 @@ fn put_curves_v2(w: &mut BitWriter, c: &Codes, refine: bool, undecided: bool) {
         let hair = cv.kind.hair_sides();
         for (k, p) in cv.prims.iter().enumerate() {
             if k > 0 {
-                w.put(
-                    match p.turn {
-                        0 => 0,
-                        1 => 1,
-                        _ => 2,
-                    },
-                    2,
-                );
+                w.put(signed_code(p.turn) as u64, 2);
             }
             for (side, _) in p.side.iter().zip(hair).filter(|(_, h)| *h) {
                 w.put(side.0 as u64, 2);
@@ -407,6 +393,61 @@ fn unpack(data: &[u8], version: u8) -> std::result::Result<Codes, String> {
     })
 }
 
+/// The code of a label or turn (0, +1, −1 → 0, 1, 2) in every version.
+pub(super) fn signed_code(d: i8) -> u32 {
+    match d {
+        0 => 0,
+        1 => 1,
+        _ => 2,
+    }
+}
+
+/// [`signed_code`] read back; code 3 is damage, described by `what`.
+pub(super) fn signed_of(
+    code: u32,
+    what: impl FnOnce() -> String,
+) -> std::result::Result<i8, String> {
+    match code {
+        0 => Ok(0),
+        1 => Ok(1),
+        2 => Ok(-1),
+        _ => Err(format!("corrupted: {}", what())),
+    }
+}
+
+pub(super) fn kind_of(code: u8, at: &str) -> std::result::Result<Kind, String> {
+    Kind::from_code(code).ok_or_else(|| format!("corrupted: {at} has kind code {code}"))
+}
+
+/// The labels a kind fixes (d outward, e shared) over those read.
+pub(super) fn fixed_dirs(kind: Kind, dirs: [i8; 2]) -> [i8; 2] {
+    match kind {
+        Kind::Dividing => [1, 1],
+        Kind::Stream => [dirs[0], dirs[0]],
+        _ => dirs,
+    }
+}
+
+/// A curve's start inside the image and its axis code on the lattice.
+pub(super) fn check_placement(
+    start: [u32; 2],
+    axis: u8,
+    width: u32,
+    height: u32,
+    at: &str,
+) -> std::result::Result<(), String> {
+    if start[0] > width || start[1] > height {
+        return Err(format!(
+            "corrupted: {at} starts at ({}, {}), outside the {width}x{height} image",
+            start[0], start[1]
+        ));
+    }
+    if axis as u32 >= AXIS_STEPS {
+        return Err(format!("corrupted: {at} has axis code {axis}"));
+    }
+    Ok(())
+}
+
 /// The curve section of versions 1 and 2.
 fn get_curves_v2(
     r: &mut BitReader,
@@ -420,54 +461,31 @@ fn get_curves_v2(
     let mut curves = Vec::new();
     for ci in 0..n_curves {
         let at = format!("curve {ci}");
-        let code = r.get(3, &at)? as u8;
-        let kind =
-            Kind::from_code(code).ok_or_else(|| format!("corrupted: {at} has kind code {code}"))?;
+        let kind = kind_of(r.get(3, &at)? as u8, &at)?;
         let mut dirs = [0i8; 2];
         for &i in free_labels(kind) {
             dirs[i] = if undecided {
-                match r.get(2, &at)? {
-                    0 => 0,
-                    1 => 1,
-                    2 => -1,
-                    _ => return Err(format!("corrupted: {at} has label code 3")),
-                }
+                signed_of(r.get(2, &at)? as u32, || format!("{at} has label code 3"))?
             } else if r.get(1, &at)? == 1 {
                 1
             } else {
                 -1
             };
         }
-        // The labels a kind fixes (d outward, e shared).
-        let dirs = match kind {
-            Kind::Dividing => [1, 1],
-            Kind::Stream => [dirs[0], dirs[0]],
-            _ => dirs,
-        };
+        let dirs = fixed_dirs(kind, dirs);
         let n = r.gamma(&at)?;
         let start = [r.get(xb, &at)? as u32, r.get(yb, &at)? as u32];
-        if start[0] > width || start[1] > height {
-            return Err(format!(
-                "corrupted: {at} starts at ({}, {}), outside the {width}x{height} image",
-                start[0], start[1]
-            ));
-        }
         let axis = r.get(5, &at)? as u8;
-        if axis as u32 >= AXIS_STEPS {
-            return Err(format!("corrupted: {at} has axis code {axis}"));
-        }
+        check_placement(start, axis, width, height, &at)?;
         let hair = kind.hair_sides();
         let mut prims = Vec::new();
         for k in 0..n {
             let turn = if k == 0 {
                 0
             } else {
-                match r.get(2, &at)? {
-                    0 => 0,
-                    1 => 1,
-                    2 => -1,
-                    _ => return Err(format!("corrupted: {at}, primitive {k} has turn code 3")),
-                }
+                signed_of(r.get(2, &at)? as u32, || {
+                    format!("{at}, primitive {k} has turn code 3")
+                })?
             };
             let mut side = [(0u8, 8u8); 2];
             for s in 0..2 {
@@ -654,6 +672,7 @@ mod tests {
         let m = from_czs(&v4, Path::new("new.czs")).unwrap_err().to_string();
         assert!(m.contains("version 4"), "{m}");
     }
+
     /// A sketch with every kind, turns, refined and plain sides, undecided labels: version 3
     /// reads back what version 2 does, in fewer bytes, and damage past the curves' start is
     /// caught.

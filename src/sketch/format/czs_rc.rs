@@ -2,7 +2,9 @@
 //! ([`rc`]) with adaptive contexts. Sequential (each symbol's context is the one before):
 //! CPU.
 
-use super::czs::{bits_for, unzigzag, zigzag};
+use super::czs::{
+    bits_for, check_placement, fixed_dirs, kind_of, signed_code, signed_of, unzigzag, zigzag,
+};
 use super::rc;
 use super::*;
 
@@ -161,14 +163,6 @@ fn un_rc_count(
     Ok(v)
 }
 
-fn label_code(d: i8) -> u32 {
-    match d {
-        0 => 0,
-        1 => 1,
-        _ => 2,
-    }
-}
-
 /// The version-3 curve section: the fields of version 2, range coded with [`CurveModel`].
 pub(super) fn rc_curves(c: &Codes, refine: bool, undecided: bool) -> Vec<u8> {
     let (xb, yb) = (bits_for(c.width), bits_for(c.height));
@@ -181,7 +175,7 @@ pub(super) fn rc_curves(c: &Codes, refine: bool, undecided: bool) -> Vec<u8> {
         for &i in free_labels(cv.kind) {
             let ctx = &mut m.label[kc * 2 + i];
             if undecided {
-                e.tree(ctx, 2, label_code(cv.dirs[i]));
+                e.tree(ctx, 2, signed_code(cv.dirs[i]));
             } else {
                 e.bit(&mut ctx[1], cv.dirs[i] > 0);
             }
@@ -200,7 +194,7 @@ pub(super) fn rc_curves(c: &Codes, refine: bool, undecided: bool) -> Vec<u8> {
         let mut prev_turn = 3usize;
         for (k, p) in cv.prims.iter().enumerate() {
             if k > 0 {
-                let t = label_code(p.turn);
+                let t = signed_code(p.turn);
                 e.tree(&mut m.turn[prev_turn], 2, t);
                 prev_turn = t as usize;
             }
@@ -244,30 +238,20 @@ pub(super) fn un_rc_curves(
     for ci in 0..n_curves {
         let at = format!("curve {ci}");
         let code = d.tree(&mut m.kind, 3) as u8;
-        let kind =
-            Kind::from_code(code).ok_or_else(|| format!("corrupted: {at} has kind code {code}"))?;
+        let kind = kind_of(code, &at)?;
         let kc = code as usize;
         let mut dirs = [0i8; 2];
         for &i in free_labels(kind) {
             let ctx = &mut m.label[kc * 2 + i];
             dirs[i] = if undecided {
-                match d.tree(ctx, 2) {
-                    0 => 0,
-                    1 => 1,
-                    2 => -1,
-                    _ => return Err(format!("corrupted: {at} has label code 3")),
-                }
+                signed_of(d.tree(ctx, 2), || format!("{at} has label code 3"))?
             } else if d.bit(&mut ctx[1]) {
                 1
             } else {
                 -1
             };
         }
-        let dirs = match kind {
-            Kind::Dividing => [1, 1],
-            Kind::Stream => [dirs[0], dirs[0]],
-            _ => dirs,
-        };
+        let dirs = fixed_dirs(kind, dirs);
         let n = un_rc_count(&mut d, &mut m, 1, &at)? as usize;
         total += n;
         if total > MAX_PRIMS {
@@ -279,16 +263,8 @@ pub(super) fn un_rc_curves(
                 start[k] |= (d.bit(&mut m.start[k][i as usize]) as u32) << i;
             }
         }
-        if start[0] > width || start[1] > height {
-            return Err(format!(
-                "corrupted: {at} starts at ({}, {}), outside the {width}x{height} image",
-                start[0], start[1]
-            ));
-        }
         let axis = d.tree(&mut m.axis, 5) as u8;
-        if axis as u32 >= AXIS_STEPS {
-            return Err(format!("corrupted: {at} has axis code {axis}"));
-        }
+        check_placement(start, axis, width, height, &at)?;
         let hair = kind.hair_sides();
         let mut prims: Vec<PrimCodes> = Vec::with_capacity(n.min(4096));
         let mut prev_turn = 3usize;
@@ -298,12 +274,7 @@ pub(super) fn un_rc_curves(
             } else {
                 let t = d.tree(&mut m.turn[prev_turn], 2);
                 prev_turn = t as usize;
-                match t {
-                    0 => 0,
-                    1 => 1,
-                    2 => -1,
-                    _ => return Err(format!("corrupted: {at}, primitive {k} has turn code 3")),
-                }
+                signed_of(t, || format!("{at}, primitive {k} has turn code 3"))?
             };
             let mut side = [(0u8, 8u8); 2];
             for s in (0..2).filter(|&s| hair[s]) {
