@@ -268,7 +268,7 @@ fn dir_diffuse_matches_cpu() {
             };
             let u = rec.uniform("cfg", &cfg);
             let b = [
-                rec.upload("theta", &theta),
+                rec.upload("tangent", &dir_diffuse::tangents(&theta)),
                 rec.upload("mask", &mask),
                 rec.upload("known", &known),
                 rec.upload("known_w", &known_w),

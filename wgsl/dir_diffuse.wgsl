@@ -15,8 +15,9 @@ struct Config {
 }
 
 @group(0) @binding(0) var<uniform> cfg: Config;
-// Radians in [0, π), NaN off hair; read only with use_orient.
-@group(0) @binding(1) var<storage, read> theta: array<f32>;
+// The orientation line's unit tangent (cos θ, sin θ) interleaved per pixel, NaN off hair;
+// read only with use_orient. The host computes it once: the sweeps run hundreds of times.
+@group(0) @binding(1) var<storage, read> tangent: array<f32>;
 // One word per pixel, nonzero inside the domain.
 @group(0) @binding(2) var<storage, read> mask: array<u32>;
 // Known vectors, interleaved (x, y) per pixel, and their confidence.
@@ -64,9 +65,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         v = num / den;
     }
     if cfg.use_orient == 1u {
-        let th = theta[i];
-        if th == th {
-            let t = vec2<f32>(cos(th), sin(th));
+        let t = vec2<f32>(tangent[2u * i], tangent[2u * i + 1u]);
+        if t.x == t.x {
             v = dot(v, t) * t;
         }
     }

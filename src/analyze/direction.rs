@@ -113,15 +113,11 @@ pub fn diffuse(
         use_orient: theta.is_some() as u32,
     };
     let u = rec.uniform("coif.dir.cfg", &cfg);
-    let zeros;
-    let th = match theta {
-        Some(t) => t,
-        None => {
-            zeros = vec![0.0f32; n as usize];
-            &zeros
-        }
+    let tangent = match theta {
+        Some(t) => dir_diffuse::tangents(t),
+        None => vec![0.0f32; 2 * n as usize],
     };
-    let tb = rec.upload("coif.dir.theta", th);
+    let tb = rec.upload("coif.dir.tangent", &tangent);
     let mask32: Vec<u32> = mask.iter().map(|&m| (m != 0) as u32).collect();
     let mb = rec.upload("coif.dir.mask", &mask32);
     let kb = rec.upload("coif.dir.known", known);

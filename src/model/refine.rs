@@ -290,15 +290,34 @@ struct Joint {
 /// and density prefix sums along the strand.
 struct VertexIndex {
     cell_start: Vec<u32>,
-    /// Global vertex ids, bucket after bucket, by increasing `rho_prefix` within a bucket.
+    /// Global vertex ids, bucket after bucket, by increasing density prefix within a bucket.
     ids: Vec<u32>,
+    /// Parallel to `ids`: Σ ρ over the vertices before each one in its strand, and its
+    /// position. The search reads a bucket front to back: stored in bucket order, not looked
+    /// up through the ids (random reads over the whole set were most of its time).
+    prefix_sorted: Vec<u64>,
+    points_sorted: Vec<V3>,
     strand_of: Vec<u32>,
-    /// Σ ρ over the vertices before this one in its strand.
-    rho_prefix: Vec<u64>,
+    /// |ξ(k−1) − 2ξ(k) + ξ(k+1)| at every vertex with both neighbours (0 at the ends): the
+    /// Laplacian terms of Eq. (5) that lie wholly on ξ, computed once per iteration.
+    lap: Vec<f32>,
+    /// Per cell, the least `rho_prefix` of its bucket (saturated to u32; u32::MAX when empty).
+    cell_min: Vec<u32>,
+    /// Per cell, the least `cell_min` over the cells within `reach` of it along x, then over
+    /// the x-y square, then over the cube: lower bounds on the density term of every joint
+    /// a candidate vertex in that cell can make with a row, a slab, or all of its search cube.
+    near_min: [Vec<u32>; 3],
 }
 
 impl VertexIndex {
-    fn new(grid: &Grid, strands: &StrandSet, off: &[usize], density: &[u32]) -> Result<Self> {
+    /// `reach`: the search radius in whole cells (see `near_min`).
+    fn new(
+        grid: &Grid,
+        strands: &StrandSet,
+        off: &[usize],
+        density: &[u32],
+        reach: u32,
+    ) -> Result<Self> {
         let nv = strands.points.len();
         if nv >= u32::MAX as usize || strands.len() >= u32::MAX as usize {
             return Err(Error::Invalid(format!(
@@ -309,34 +328,67 @@ impl VertexIndex {
         let mut rho_prefix = vec![0u64; nv];
         let cells: Vec<u32> = strands
             .points
-            .iter()
+            .par_iter()
+            .with_min_len(4096)
             .map(|&v| grid.cell_of(v).map_or(u32::MAX, |c| c as u32))
             .collect();
-        let mut counts = vec![0u32; grid.len() + 1];
-        for (s, w) in off.windows(2).enumerate() {
-            let mut acc = 0u64;
-            for g in w[0]..w[1] {
-                strand_of[g] = s as u32;
-                rho_prefix[g] = acc;
-                if cells[g] != u32::MAX {
-                    acc += density[cells[g] as usize] as u64;
-                    // The root is never a joint (it must stay the strand's first vertex).
-                    if g > w[0] {
-                        counts[cells[g] as usize + 1] += 1;
+        // Per strand, in parallel: its id on each vertex and the density prefix along it.
+        let mut per_strand = Vec::with_capacity(off.len().saturating_sub(1));
+        let (mut so, mut rp) = (strand_of.as_mut_slice(), rho_prefix.as_mut_slice());
+        for w in off.windows(2) {
+            let (a, b) = std::mem::take(&mut so).split_at_mut(w[1] - w[0]);
+            let (c, d) = std::mem::take(&mut rp).split_at_mut(w[1] - w[0]);
+            per_strand.push((w[0], a, c));
+            (so, rp) = (b, d);
+        }
+        per_strand
+            .par_iter_mut()
+            .enumerate()
+            .with_min_len(256)
+            .for_each(|(s, (start, so, rp))| {
+                let mut acc = 0u64;
+                for (k, (so, rp)) in so.iter_mut().zip(rp.iter_mut()).enumerate() {
+                    *so = s as u32;
+                    *rp = acc;
+                    let c = cells[*start + k];
+                    if c != u32::MAX {
+                        acc += density[c as usize] as u64;
                     }
+                }
+            });
+        drop(per_strand);
+        let pts = &strands.points;
+        let mut lap = vec![0.0f32; nv];
+        lap.par_iter_mut()
+            .enumerate()
+            .with_min_len(4096)
+            .for_each(|(g, l)| {
+                let s = strand_of[g] as usize;
+                if g > off[s] && g + 1 < off[s + 1] {
+                    *l = lap_norm(pts[g - 1], pts[g], pts[g + 1]);
+                }
+            });
+        let mut counts = vec![0u32; grid.len() + 1];
+        for w in off.windows(2) {
+            // The root is never a joint (it must stay the strand's first vertex).
+            for &c in &cells[w[0] + 1..w[1]] {
+                if c != u32::MAX {
+                    counts[c as usize + 1] += 1;
                 }
             }
         }
         for c in 0..grid.len() {
             counts[c + 1] += counts[c];
         }
+        // (density prefix, vertex id) in bucket order: the sort below reads its keys in place.
         let mut fill = counts.clone();
-        let mut ids = vec![0u32; counts[grid.len()] as usize];
+        let mut entries = vec![(0u64, 0u32); counts[grid.len()] as usize];
         for w in off.windows(2) {
-            for (g, &c) in cells.iter().enumerate().take(w[1]).skip(w[0] + 1) {
+            for g in w[0] + 1..w[1] {
+                let c = cells[g];
                 if c != u32::MAX {
                     let c = c as usize;
-                    ids[fill[c] as usize] = g as u32;
+                    entries[fill[c] as usize] = (rho_prefix[g], g as u32);
                     fill[c] += 1;
                 }
             }
@@ -344,8 +396,8 @@ impl VertexIndex {
         // Cheapest density first within a bucket, so the E_c bound of the search can end a
         // bucket at its first vertex that cannot win (ties: lower id first, deterministic).
         // Buckets are disjoint: sorted in parallel.
-        let mut buckets: Vec<&mut [u32]> = Vec::with_capacity(grid.len());
-        let mut rest = ids.as_mut_slice();
+        let mut buckets: Vec<&mut [(u64, u32)]> = Vec::with_capacity(grid.len());
+        let mut rest = entries.as_mut_slice();
         for c in 0..grid.len() {
             let (b, r) = rest.split_at_mut((counts[c + 1] - counts[c]) as usize);
             if b.len() > 1 {
@@ -356,17 +408,38 @@ impl VertexIndex {
         buckets
             .par_iter_mut()
             .with_min_len(256)
-            .for_each(|b| b.sort_unstable_by_key(|&g| (rho_prefix[g as usize], g)));
+            .for_each(|b| b.sort_unstable());
+        let cell_min: Vec<u32> = (0..grid.len())
+            .into_par_iter()
+            .with_min_len(4096)
+            .map(|c| {
+                if counts[c + 1] > counts[c] {
+                    entries[counts[c] as usize].0.min(u32::MAX as u64 - 1) as u32
+                } else {
+                    u32::MAX
+                }
+            })
+            .collect();
+        let near_min = cube_min(grid.dims, &cell_min, reach);
+        let ids: Vec<u32> = entries.par_iter().map(|e| e.1).collect();
+        let prefix_sorted = entries.par_iter().map(|e| e.0).collect();
+        drop(entries);
+        let points_sorted = ids.par_iter().map(|&g| pts[g as usize]).collect();
         Ok(VertexIndex {
             cell_start: counts,
             ids,
+            prefix_sorted,
+            points_sorted,
             strand_of,
-            rho_prefix,
+            lap,
+            cell_min,
+            near_min,
         })
     }
 
-    fn bucket(&self, c: usize) -> &[u32] {
-        &self.ids[self.cell_start[c] as usize..self.cell_start[c + 1] as usize]
+    /// The range of cell `c`'s bucket in `ids` and the arrays parallel to it.
+    fn bucket(&self, c: usize) -> std::ops::Range<usize> {
+        self.cell_start[c] as usize..self.cell_start[c + 1] as usize
     }
 }
 
@@ -384,6 +457,43 @@ fn mid(a: V3, b: V3) -> V3 {
         (a[1] + b[1]) * 0.5,
         (a[2] + b[2]) * 0.5,
     ]
+}
+
+/// |a − 2b + c|, the Laplacian term of Eq. (5) (one rounding order everywhere, so the terms
+/// precomputed on ξ and on the candidate equal those computed at the joint).
+#[inline]
+fn lap_norm(a: V3, b: V3, c: V3) -> f32 {
+    len3([
+        a[0] - 2.0 * b[0] + c[0],
+        a[1] - 2.0 * b[1] + c[1],
+        a[2] - 2.0 * b[2] + c[2],
+    ])
+}
+
+/// The minimum of `v` over the cells within `r` of each cell (clipped at the grid's faces)
+/// along x, then over the x-y square, then over the cube: three separable passes.
+fn cube_min(dims: [u32; 3], v: &[u32], r: u32) -> [Vec<u32>; 3] {
+    let [nx, ny, nz] = dims.map(|d| d as usize);
+    let r = r as usize;
+    let pass = |a: &[u32], stride: usize, n: usize| -> Vec<u32> {
+        (0..a.len())
+            .into_par_iter()
+            .with_min_len(4096)
+            .map(|c| {
+                let k = (c / stride) % n;
+                let base = c - k * stride;
+                let (lo, hi) = (k.saturating_sub(r), (k + r).min(n - 1));
+                (lo..=hi)
+                    .map(|t| a[base + t * stride])
+                    .min()
+                    .unwrap_or(u32::MAX)
+            })
+            .collect()
+    };
+    let x = pass(v, 1, nx);
+    let xy = pass(&x, nx, ny);
+    let xyz = pass(&xy, nx * ny, nz);
+    [x, xy, xyz]
 }
 
 /// Vertex `k` of the joint strand ξ' of Eq. (4) (0-based: ξ(0..i), the average at i, then
@@ -427,6 +537,16 @@ impl Scorer<'_> {
         for m in (0..n).rev() {
             suffix[m] = suffix[m + 1] + self.rho(cand[m]);
         }
+        // The Laplacian terms that lie wholly on the candidate (0 at its ends, never read).
+        let cand_lap: Vec<f32> = (0..n)
+            .map(|m| {
+                if m >= 1 && m + 1 < n {
+                    lap_norm(cand[m - 1], cand[m], cand[m + 1])
+                } else {
+                    0.0
+                }
+            })
+            .collect();
         let r2 = self.radius * self.radius;
         let win = self.weights.len() as isize - 1;
         let dims = self.grid.dims;
@@ -440,6 +560,23 @@ impl Scorer<'_> {
                 break;
             }
             let q = cand[j];
+            // Whether a least density prefix `v` already loses: no vertex with a prefix of at
+            // least `v` passes the bound test the bucket loop makes per vertex (u32::MAX:
+            // nothing there at all).
+            let sj = suffix[j + 1];
+            let loses = |v: u32, best: Option<(Joint, f32)>| {
+                v == u32::MAX || best.is_some_and(|(_, e)| self.w_rho * (v as u64 + sj) as f32 >= e)
+            };
+            // q's cell: the row, slab and cube bounds are taken about it (none outside).
+            let qc = self.grid.cell_of(q).map(|c| self.grid.coords(c));
+            if qc.is_some_and(|c| {
+                loses(
+                    self.index.near_min[2][self.grid.index(c[0], c[1], c[2])],
+                    best,
+                )
+            }) {
+                continue;
+            }
             let lo: [u32; 3] =
                 std::array::from_fn(|a| (q[a] - self.radius).floor().max(0.0) as u32);
             let hi: [u32; 3] = std::array::from_fn(|a| {
@@ -455,33 +592,48 @@ impl Scorer<'_> {
             let reach = r2 * 1.001 + 1e-3;
             for z in lo[2]..=hi[2] {
                 let gz = gap(z, 2);
+                if qc.is_some_and(|c| {
+                    loses(self.index.near_min[1][self.grid.index(c[0], c[1], z)], best)
+                }) {
+                    continue;
+                }
                 for y in lo[1]..=hi[1] {
                     let gzy = gz + gap(y, 1);
-                    if gzy > reach {
+                    if gzy > reach
+                        || qc.is_some_and(|c| {
+                            loses(self.index.near_min[0][self.grid.index(c[0], y, z)], best)
+                        })
+                    {
                         continue;
                     }
                     for x in lo[0]..=hi[0] {
                         if gzy + gap(x, 0) > reach {
                             continue;
                         }
-                        for &g in self.index.bucket(self.grid.index(x, y, z)) {
-                            let g = g as usize;
-                            let bound = self.index.rho_prefix[g] + suffix[j + 1];
+                        let cell = self.grid.index(x, y, z);
+                        // Empty, or its cheapest vertex already loses (buckets are sorted).
+                        if loses(self.index.cell_min[cell], best) {
+                            continue;
+                        }
+                        for k in self.index.bucket(cell) {
+                            let prefix = self.index.prefix_sorted[k];
+                            let bound = prefix + suffix[j + 1];
                             if best.is_some_and(|(_, e)| self.w_rho * bound as f32 >= e) {
                                 break;
                             }
-                            let p = self.strands.points[g];
+                            let p = self.index.points_sorted[k];
                             let dv = sub(p, q);
                             if dv[0] * dv[0] + dv[1] * dv[1] + dv[2] * dv[2] > r2 {
                                 continue;
                             }
+                            let g = self.index.ids[k] as usize;
                             let s = self.index.strand_of[g] as usize;
                             let start = self.offsets[s];
                             let i = g - start;
                             let avg = mid(p, q);
                             // Density term first: it is O(1) with the prefix sums and bounds E_c
                             // from below, so most pairs are rejected before the Laplacian.
-                            let dens = self.index.rho_prefix[g] + self.rho(avg) + suffix[j + 1];
+                            let dens = prefix + self.rho(avg) + suffix[j + 1];
                             let e_rho = self.w_rho * dens as f32;
                             if best.is_some_and(|(_, e)| e_rho >= e) {
                                 continue;
@@ -495,15 +647,20 @@ impl Scorer<'_> {
                                     continue;
                                 }
                                 let k = k as usize;
-                                let a = joint_vertex(xi, i, avg, cand, j, k - 1);
-                                let b = joint_vertex(xi, i, avg, cand, j, k);
-                                let c = joint_vertex(xi, i, avg, cand, j, k + 1);
-                                let lap = [
-                                    a[0] - 2.0 * b[0] + c[0],
-                                    a[1] - 2.0 * b[1] + c[1],
-                                    a[2] - 2.0 * b[2] + c[2],
-                                ];
-                                e_s += self.weights[d.unsigned_abs()] * len3(lap);
+                                // Terms wholly on ξ or wholly on the candidate were computed
+                                // once; only the three around the average depend on the pair.
+                                let l = if k + 1 < i {
+                                    self.index.lap[start + k]
+                                } else if k > i + 1 {
+                                    cand_lap[k - i + j]
+                                } else {
+                                    lap_norm(
+                                        joint_vertex(xi, i, avg, cand, j, k - 1),
+                                        joint_vertex(xi, i, avg, cand, j, k),
+                                        joint_vertex(xi, i, avg, cand, j, k + 1),
+                                    )
+                                };
+                                e_s += self.weights[d.unsigned_abs()] * l;
                             }
                             let e = e_s + e_rho;
                             // Strictly lower: ties keep the first found (a fixed order).
@@ -737,7 +894,7 @@ pub fn refine(
             .collect();
         ir.candidates = candidates.len();
         let off = strands.offsets();
-        let index = VertexIndex::new(grid, &strands, &off, &density)?;
+        let index = VertexIndex::new(grid, &strands, &off, &density, p.radius.ceil() as u32)?;
         let scorer = Scorer {
             grid,
             density: &density,
@@ -789,7 +946,9 @@ pub fn refine(
         if added == 0 {
             break;
         }
-        density = splat_density(engine, grid, &strands)?;
+        // `running` counted every vertex of every strand added, cell by cell as the splat
+        // does: it is the new set's density, without splatting 1M vertices again.
+        density = running;
     }
     report.final_empty_share = empty_share(h, &density);
     report.final_strands = strands.len();
@@ -812,7 +971,7 @@ mod tests {
             density[grid.cell_of(*v).unwrap()] += 1;
         }
         let off = strands.offsets();
-        let index = VertexIndex::new(grid, strands, &off, &density).unwrap();
+        let index = VertexIndex::new(grid, strands, &off, &density, 3).unwrap();
         (density, off, index)
     }
 
@@ -983,5 +1142,48 @@ mod tests {
             }
         }
         assert!(found > 30, "only {found} candidates had a joint");
+    }
+
+    /// The row, slab and cube minima equal a brute-force minimum over the clipped box.
+    #[test]
+    fn cube_min_is_the_minimum_over_the_clipped_box() {
+        let dims = [7u32, 5, 6];
+        let n = (dims[0] * dims[1] * dims[2]) as usize;
+        let mut rng = Rng::new(5);
+        let v: Vec<u32> = (0..n)
+            .map(|_| {
+                if rng.below(4) == 0 {
+                    u32::MAX
+                } else {
+                    rng.below(1000)
+                }
+            })
+            .collect();
+        let r = 2i64;
+        let [x, xy, xyz] = cube_min(dims, &v, r as u32);
+        let at = |p: [i64; 3]| v[(p[0] + 7 * (p[1] + 5 * p[2])) as usize];
+        for c in 0..n {
+            let p = [(c % 7) as i64, ((c / 7) % 5) as i64, (c / 35) as i64];
+            let mut m = [u32::MAX; 3];
+            for dz in -r..=r {
+                for dy in -r..=r {
+                    for dx in -r..=r {
+                        let q = [p[0] + dx, p[1] + dy, p[2] + dz];
+                        if (0..3).any(|a| q[a] < 0 || q[a] >= dims[a] as i64) {
+                            continue;
+                        }
+                        let val = at(q);
+                        if dy == 0 && dz == 0 {
+                            m[0] = m[0].min(val);
+                        }
+                        if dz == 0 {
+                            m[1] = m[1].min(val);
+                        }
+                        m[2] = m[2].min(val);
+                    }
+                }
+            }
+            assert_eq!([x[c], xy[c], xyz[c]], m, "cell {p:?}");
+        }
     }
 }

@@ -36,9 +36,27 @@ pub fn workgroups(cfg: &Config) -> [u32; 3] {
     ]
 }
 
+/// The per-pixel tangents (cos θ, sin θ) interleaved, NaN where θ is NaN: the `tangent`
+/// binding, computed once for all the sweeps.
+pub fn tangents(theta: &[f32]) -> Vec<f32> {
+    let mut t = vec![0.0f32; 2 * theta.len()];
+    t.par_chunks_mut(2)
+        .zip(theta.par_iter())
+        .for_each(|(t, &th)| {
+            let (s, c) = if th.is_nan() {
+                (f32::NAN, f32::NAN)
+            } else {
+                th.sin_cos()
+            };
+            t[0] = c;
+            t[1] = s;
+        });
+    t
+}
+
 fn dir_diffuse_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
     let cfg: Config = b[0].uniform();
-    let (g_theta, g_mask, g_known, g_known_w, g_src) = (
+    let (g_tangent, g_mask, g_known, g_known_w, g_src) = (
         b[1].get::<f32>(),
         b[2].get::<u32>(),
         b[3].get::<f32>(),
@@ -46,10 +64,11 @@ fn dir_diffuse_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
         b[5].get::<f32>(),
     );
     // Plain slices: the RefCell guards are not Sync, the data is.
-    let (theta, mask, known): (&[f32], &[u32], &[f32]) = (&g_theta, &g_mask, &g_known);
+    let (tangent, mask, known): (&[f32], &[u32], &[f32]) = (&g_tangent, &g_mask, &g_known);
     let (known_w, src): (&[f32], &[f32]) = (&g_known_w, &g_src);
     let mut dst = b[6].get_mut::<f32>();
     let (w, h) = (cfg.width as usize, cfg.height as usize);
+    let orient = cfg.use_orient == 1;
     dst[..2 * w * h]
         .par_chunks_mut(2 * w)
         .enumerate()
@@ -61,19 +80,27 @@ fn dir_diffuse_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
                     row[2 * x + 1] = 0.0;
                     continue;
                 }
+                // The four neighbours in the shader's order (left, right, up, down), so the
+                // sums round the same way.
                 let (mut sx, mut sy, mut n) = (0.0f32, 0.0f32, 0.0f32);
-                for (dx, dy) in [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)] {
-                    let (xx, yy) = (x as i64 + dx, y as i64 + dy);
-                    if xx < 0 || yy < 0 || xx >= w as i64 || yy >= h as i64 {
-                        continue;
+                let mut add = |j: usize| {
+                    if mask[j] != 0 {
+                        sx += src[2 * j];
+                        sy += src[2 * j + 1];
+                        n += 1.0;
                     }
-                    let j = yy as usize * w + xx as usize;
-                    if mask[j] == 0 {
-                        continue;
-                    }
-                    sx += src[2 * j];
-                    sy += src[2 * j + 1];
-                    n += 1.0;
+                };
+                if x > 0 {
+                    add(i - 1);
+                }
+                if x + 1 < w {
+                    add(i + 1);
+                }
+                if y > 0 {
+                    add(i - w);
+                }
+                if y + 1 < h {
+                    add(i + w);
                 }
                 let c = cfg.lambda * known_w[i];
                 let den = n + c;
@@ -85,8 +112,8 @@ fn dir_diffuse_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
                 } else {
                     (0.0, 0.0)
                 };
-                if cfg.use_orient == 1 && !theta[i].is_nan() {
-                    let (tx, ty) = (theta[i].cos(), theta[i].sin());
+                if orient && !tangent[2 * i].is_nan() {
+                    let (tx, ty) = (tangent[2 * i], tangent[2 * i + 1]);
                     let d = vx * tx + vy * ty;
                     vx = d * tx;
                     vy = d * ty;
