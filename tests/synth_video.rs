@@ -79,6 +79,48 @@ fn deterministic_per_seed() {
     );
 }
 
+/// Camera noise: fresh per frame, the same for the same seed, zero mean with the stated σ
+/// against the clean render, and nothing but the image changes.
+#[test]
+fn camera_noise_is_seeded_and_has_its_sigma() {
+    let mut p = params(Style::Long, 2, 96, 3, 800);
+    let clean = SynthVideo::new(&p).unwrap();
+    p.noise = 4.0;
+    let (a, b) = (SynthVideo::new(&p).unwrap(), SynthVideo::new(&p).unwrap());
+    let (c1, a1, b1, a2) = (clean.frame(1), a.frame(1), b.frame(1), a.frame(2));
+    assert_eq!(a1.render.image.as_raw(), b1.render.image.as_raw());
+    assert_eq!(point_bits(&a1), point_bits(&c1));
+    assert_eq!(a1.render.mask.as_raw(), c1.render.mask.as_raw());
+    // Residuals on pixels away from 0 and 255, where clamping does not bias them.
+    let resid = |noisy: &VideoFrame, clean: &VideoFrame| -> Vec<f64> {
+        noisy
+            .render
+            .image
+            .as_raw()
+            .iter()
+            .zip(clean.render.image.as_raw())
+            .filter(|(_, &c)| (20..=235).contains(&c))
+            .map(|(&n, &c)| n as f64 - c as f64)
+            .collect()
+    };
+    let r = resid(&a1, &c1);
+    let mean = r.iter().sum::<f64>() / r.len() as f64;
+    let sd = (r.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / r.len() as f64).sqrt();
+    println!(
+        "noise σ 4: mean {mean:.3}, σ {sd:.3} over {} channels",
+        r.len()
+    );
+    assert!(
+        mean.abs() < 0.1 && (sd - 4.0).abs() < 0.15,
+        "mean {mean}, σ {sd}"
+    );
+    // Fresh per frame: the residuals of frames 1 and 2 are uncorrelated.
+    let c2 = clean.frame(2);
+    let (r1, r2) = (resid(&a1, &c1), resid(&a2, &c2));
+    let same = r1.iter().zip(&r2).filter(|(x, y)| x == y).count() as f64 / r1.len() as f64;
+    assert!(same < 0.2, "{:.0}% of residuals repeat", 100.0 * same);
+}
+
 #[test]
 fn frame_zero_is_the_still_case() {
     for style in [Style::Long, Style::SidePart] {
@@ -404,6 +446,8 @@ fn cli_refuses_bad_input() {
         (["--frames", "10001", "--size", "64"], "--frames 10001"),
         (["--frames", "2", "--size", "32"], "--size 32"),
         (["--strands", "0", "--size", "64"], "--strands 0"),
+        (["--noise", "-1", "--size", "64"], "--noise -1"),
+        (["--noise", "NaN", "--size", "64"], "--noise NaN"),
     ] {
         let mut a = vec!["synth-video", "--out", o];
         a.extend(args);

@@ -62,6 +62,8 @@ pub const HAIR_TURN_DEG: f32 = 4.0;
 /// so that the figures of the issue-15 clips stay comparable; 3° is what the README's
 /// lock-scale rows use.
 pub const LOCK_TURN_DEG: f32 = 0.0;
+/// Largest camera noise σ, grey levels.
+pub const MAX_NOISE: f32 = 64.0;
 /// Wavelength range (metres, over root positions) of the lock-scale turn: locks a few
 /// centimetres wide, as real hair moves, not the head-sized waves of the main turn.
 pub const LOCK_WAVELENGTH_M: (f32, f32) = (0.035, 0.05);
@@ -83,6 +85,10 @@ pub struct VideoParams {
     /// Scale of the lock-scale part of the hair turn, degrees (0: the head-sized waves
     /// alone, as clips made before it had).
     pub lock_turn_deg: f32,
+    /// Camera noise: σ of a zero-mean Gaussian added to every 8-bit channel of every frame
+    /// (fresh per frame, seeded), in grey levels; 0 (the default) keeps clean renders.
+    /// Real clips carry it, and it is what makes tracked features jitter.
+    pub noise: f32,
 }
 
 impl VideoParams {
@@ -104,6 +110,7 @@ impl VideoParams {
             strands: Synth3dOptions::default().strands,
             fps: Self::DEFAULT_FPS,
             lock_turn_deg: LOCK_TURN_DEG,
+            noise: 0.0,
         }
     }
 
@@ -142,6 +149,12 @@ impl VideoParams {
             return Err(Error::Invalid(format!(
                 "--lock-turn {} must be between 0 and 45 degrees",
                 self.lock_turn_deg
+            )));
+        }
+        if !(self.noise.is_finite() && (0.0..=MAX_NOISE).contains(&self.noise)) {
+            return Err(Error::Invalid(format!(
+                "--noise {} must be between 0 and {MAX_NOISE} grey levels",
+                self.noise
             )));
         }
         if !(self.fps.is_finite() && self.fps > 0.0) {
@@ -422,6 +435,21 @@ impl SynthVideo {
             .unzip()
     }
 
+    /// Adds frame `i`'s camera noise ([`VideoParams::noise`]) to `image`: its own stream
+    /// per frame, so any frame renders alone and the same every time.
+    fn add_noise(&self, i: usize, image: &mut image::RgbImage) {
+        let sigma = self.params.noise;
+        if sigma <= 0.0 {
+            return;
+        }
+        let mut g = Rng::new(self.params.synth.seed ^ 0x6e6f_6973_6500_0000 ^ ((i as u64) << 16));
+        for v in image.iter_mut() {
+            *v = (*v as f32 + sigma * g.normal_f32())
+                .round()
+                .clamp(0.0, 255.0) as u8;
+        }
+    }
+
     /// Renders frame `i`.
     pub fn frame(&self, i: usize) -> VideoFrame {
         let (camera, yaw_deg, pitch_deg, shift_px) = self.camera(i);
@@ -434,7 +462,8 @@ impl SynthVideo {
             .zip(&scale)
             .map(|(st, l)| (l * self.motion.hair_turn(t, st[0])).abs())
             .fold(0.0f32, f32::max);
-        let render = self.scene.render(&camera, &strands);
+        let mut render = self.scene.render(&camera, &strands);
+        self.add_noise(i, &mut render.image);
         VideoFrame {
             pose: FramePose {
                 index: i,

@@ -609,6 +609,10 @@ pub struct SynthVideoArgs {
     /// 0 leaves the head-sized waves alone.
     #[arg(long, default_value_t = synth::video::LOCK_TURN_DEG)]
     lock_turn: f32,
+    /// Camera noise: σ (grey levels) of Gaussian noise on every channel of every frame,
+    /// fresh per frame; 0 keeps clean renders.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    noise: f32,
 }
 
 #[derive(Args, Clone)]
@@ -753,6 +757,7 @@ impl Command {
                 params.strands = a.strands;
                 params.fps = a.fps;
                 params.lock_turn_deg = a.lock_turn;
+                params.noise = a.noise;
                 Request::one(Job::SynthVideo(SynthVideoJob { out: a.out, params }), cpu)
             }
             Command::Sketch(a) => {
