@@ -145,9 +145,11 @@ fn main() {
             );
             if let Some(r) = f.flicker_ratio {
                 println!(
-                    "  flicker on hair: input {:.2}, re-rendered {:.2}, ratio {r:.2}",
+                    "  flicker on hair: input {:.2}, re-rendered {:.2}, ratio {r:.2}; with the reference's vertex colours {:.2}, ratio {:.2}",
                     f.flicker_in.unwrap_or(0.0),
-                    f.flicker_out.unwrap_or(0.0)
+                    f.flicker_out.unwrap_or(0.0),
+                    f.flicker_vertex_out.unwrap_or(0.0),
+                    f.flicker_vertex_ratio.unwrap_or(0.0)
                 );
             }
         }

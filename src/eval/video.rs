@@ -124,6 +124,13 @@ pub struct ClipFigures {
     pub flicker_ratio: Option<f32>,
     pub flicker_in: Option<f32>,
     pub flicker_out: Option<f32>,
+    /// The same with the reference frame's vertex colours carried by the tracked strands
+    /// (C13 §4's per-vertex colours, [`ColourSource::Vertex`](crate::render::ColourSource)):
+    /// the photo mode samples each frame under the strands and so shows that frame's own
+    /// flicker, while these colours move only with the tracking, so a strand that jitters
+    /// shows here.
+    pub flicker_vertex_ratio: Option<f32>,
+    pub flicker_vertex_out: Option<f32>,
     /// Seconds per frame of tracking (orientation, flow, spread, Eq. 6, head fit, Eq. 7).
     pub seconds_per_frame: f64,
 }
@@ -446,9 +453,15 @@ pub fn evaluate(engine: &Engine, vp: &VideoParams, o: &EvalOptions) -> Result<Cl
 
     // Flicker: every frame re-rendered into its own photo with its tracked strands.
     let (mut flicker_ratio, mut flicker_in, mut flicker_out) = (None, None, None);
+    let (mut flicker_vertex_ratio, mut flicker_vertex_out) = (None, None);
     if o.flicker {
         let colours = reference.strands.colors.clone();
+        let vertex_params = crate::render::RenderParams {
+            colour: crate::render::ColourSource::Vertex,
+            ..Default::default()
+        };
         let mut rendered = Vec::with_capacity(n);
+        let mut rendered_vertex = Vec::with_capacity(n);
         for i in 0..n {
             let mut strands = tracked[i].clone();
             strands.colors = colours.clone();
@@ -465,6 +478,8 @@ pub fn evaluate(engine: &Engine, vp: &VideoParams, o: &EvalOptions) -> Result<Cl
             };
             let r = crate::render::render(engine, &scene, &crate::render::RenderParams::default())?;
             rendered.push(crate::render::to_rgb8(&r));
+            let r = crate::render::render(engine, &scene, &vertex_params)?;
+            rendered_vertex.push(crate::render::to_rgb8(&r));
         }
         let region: Vec<Vec<bool>> = (0..n)
             .map(|k| {
@@ -480,10 +495,15 @@ pub fn evaluate(engine: &Engine, vp: &VideoParams, o: &EvalOptions) -> Result<Cl
         flicker_in = Some(fi);
         flicker_out = Some(fo);
         flicker_ratio = Some(fo / fi.max(1e-6));
+        let fv = flicker(&rendered_vertex, &region);
+        flicker_vertex_out = Some(fv);
+        flicker_vertex_ratio = Some(fv / fi.max(1e-6));
         if let Some(d) = &o.write_dir {
             crate::io::ensure_dir(&d.join("rendered"))?;
-            for (i, im) in rendered.iter().enumerate() {
+            crate::io::ensure_dir(&d.join("rendered_vertex"))?;
+            for (i, (im, iv)) in rendered.iter().zip(&rendered_vertex).enumerate() {
                 crate::io::write_png(&d.join(format!("rendered/{i:04}.png")), im)?;
+                crate::io::write_png(&d.join(format!("rendered_vertex/{i:04}.png")), iv)?;
             }
         }
     }
@@ -504,6 +524,8 @@ pub fn evaluate(engine: &Engine, vp: &VideoParams, o: &EvalOptions) -> Result<Cl
         flicker_ratio,
         flicker_in,
         flicker_out,
+        flicker_vertex_ratio,
+        flicker_vertex_out,
         seconds_per_frame,
     })
 }
