@@ -9,7 +9,8 @@
 //! COIF_BENCH_STYLES ("long,whorl,sidepart"), COIF_BENCH_STRANDS (6000),
 //! COIF_BENCH_LOCK_TURN (degrees of the lock-scale hair turn; 0 for head-sized waves only),
 //! COIF_BENCH_NOISE (camera noise σ in grey levels, fresh per frame; 0: clean renders),
-//! COIF_BENCH_FLICKER=0 skips the re-render, COIF_BENCH_KEEP=DIR keeps the clips,
+//! COIF_BENCH_ORACLE_FLOW=1 composes Eq. 6 with the true flow on hair (what these features
+//! get from a flow without error), COIF_BENCH_FLICKER=0 skips the re-render, COIF_BENCH_KEEP=DIR keeps the clips,
 //! COIF_BENCH_RESIDUAL=1 spreads the features' departure from the head's motion
 //! (`TrackParams::spread_residual`).
 
@@ -95,6 +96,7 @@ fn main() {
                 track,
                 drift_frames: vec![30, 60].into_iter().filter(|&f| f < frames).collect(),
                 flicker: flicker && *name == "cpu",
+                oracle_flow: env("COIF_BENCH_ORACLE_FLOW", 0) != 0,
                 write_dir: Some(dir.clone()),
                 ..Default::default()
             };

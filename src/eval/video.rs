@@ -39,6 +39,9 @@ pub struct EvalOptions {
     /// Moves the strands by the true warp from frame 0 (where a strand covers the pixel; the
     /// head's rigid motion elsewhere) instead of W*: the error Eq. (7) itself leaves.
     pub oracle_warp: bool,
+    /// Composes Eq. (6) with the true flow on hair pixels (ours elsewhere) instead of ours:
+    /// what Eq. (6) gives these features with a flow that makes no error.
+    pub oracle_flow: bool,
     /// Writes `frames/NNNN.png` and `flow/NNNN.npy` (true flow, i ≥ 1) here, for the
     /// OpenCV peer script, and `ours/NNNN.npy` (our flow).
     pub write_dir: Option<PathBuf>,
@@ -52,6 +55,7 @@ impl Default for EvalOptions {
             drift_frames: vec![30, 60],
             flicker: true,
             oracle_warp: false,
+            oracle_flow: false,
             write_dir: None,
         }
     }
@@ -294,6 +298,20 @@ pub fn evaluate(engine: &Engine, vp: &VideoParams, o: &EvalOptions) -> Result<Cl
             tp.spread_residual.then_some(rigid.as_slice()),
             &tp.diffuse,
         )?;
+        let v = if o.oracle_flow {
+            v.iter()
+                .zip(&true_flows[i])
+                .map(|(ours, t)| {
+                    if t[0].is_finite() && t[1].is_finite() {
+                        *t
+                    } else {
+                        *ours
+                    }
+                })
+                .collect()
+        } else {
+            v
+        };
         for (k, &a) in o.alphas.iter().enumerate() {
             let next = compose(engine, &wdag, &warps[k], &v, w, h, a)?;
             warps[k] = next;
