@@ -371,6 +371,8 @@ fn cli_writes_every_file() {
         "64",
         "--strands",
         "400",
+        "--noise",
+        "2",
     ]);
     let text = String::from_utf8_lossy(&o.stdout);
     assert!(
@@ -411,6 +413,7 @@ fn cli_writes_every_file() {
     assert_eq!(cams["frames"], 3);
     assert_eq!(cams["fps"], 24.0);
     assert_eq!(cams["style"], "short");
+    assert_eq!(cams["noise_sigma"], 2.0);
     assert_eq!(cams["per_frame"].as_array().unwrap().len(), 3);
     let cam: coif::hair::head::WeakPerspective =
         serde_json::from_value(cams["per_frame"][2]["camera"].clone()).unwrap();

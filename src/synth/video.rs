@@ -372,7 +372,8 @@ impl SynthVideo {
     }
 
     /// The still case of frame 0 (what `coif model` reads: image, mask, strokes, landmarks,
-    /// gt_strands.hair, camera.json).
+    /// gt_strands.hair, camera.json), rendered without the camera noise that frame 0 of the
+    /// clip carries.
     pub fn reference(&self) -> Synth3dCase {
         self.scene.still()
     }
@@ -555,6 +556,8 @@ impl SynthVideo {
             "height": p.synth.height,
             "frames": p.frames,
             "fps": p.fps,
+            "noise_sigma": p.noise,
+            "noise_doc": "zero-mean Gaussian noise of this sigma (grey levels) on every channel of frames/, fresh per frame; reference/ holds the clean still",
             "strands": self.scene.strands.len(),
             "units": "model space in metres, y up, the face looks toward +z; image pixels, x right, y down, centres at integer + 0.5",
             "camera_doc": "image x = s (r p).x + t.x, image y = -s (r p).y + t.y, depth = s (r p).z; r = R_y(yaw) R_x(-pitch), s fixed, t = t0 + shift",
