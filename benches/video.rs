@@ -9,6 +9,7 @@
 //! COIF_BENCH_STYLES ("long,whorl,sidepart"), COIF_BENCH_STRANDS (6000),
 //! COIF_BENCH_LOCK_TURN (degrees of the lock-scale hair turn; 0 for head-sized waves only),
 //! COIF_BENCH_NOISE (camera noise σ in grey levels, fresh per frame; 0: clean renders),
+//! COIF_BENCH_JPEG (JPEG quality of every frame after the noise; 0: lossless),
 //! COIF_BENCH_ORACLE_FLOW=1 composes Eq. 6 with the true flow on hair (what these features
 //! get from a flow without error), COIF_BENCH_FLICKER=0 skips the re-render, COIF_BENCH_KEEP=DIR keeps the clips,
 //! COIF_BENCH_RESIDUAL=1 spreads the features' departure from the head's motion
@@ -56,6 +57,7 @@ fn main() {
     let strands: usize = env("COIF_BENCH_STRANDS", 6000);
     let lock_turn: f32 = env("COIF_BENCH_LOCK_TURN", coif::synth::video::LOCK_TURN_DEG);
     let noise: f32 = env("COIF_BENCH_NOISE", 0.0);
+    let jpeg: u8 = env("COIF_BENCH_JPEG", 0);
     let flicker = env("COIF_BENCH_FLICKER", 1) != 0;
     let gpu = env("COIF_BENCH_GPU", 0) != 0;
     let styles: String = env("COIF_BENCH_STYLES", "long,whorl,sidepart".to_string());
@@ -68,7 +70,7 @@ fn main() {
         }
     }
     println!(
-        "video bench: {size}², {frames} frames, {strands} strands, lock turn {lock_turn}°, camera noise σ {noise}, reference frame 0"
+        "video bench: {size}², {frames} frames, {strands} strands, lock turn {lock_turn}°, camera noise σ {noise}, JPEG quality {jpeg} (0: lossless), reference frame 0"
     );
     for style in styles.split(',') {
         let style: Style = match style.trim().parse() {
@@ -88,6 +90,7 @@ fn main() {
             vp.strands = strands;
             vp.lock_turn_deg = lock_turn;
             vp.noise = noise;
+            vp.jpeg = jpeg;
             let track = coif::video::track::TrackParams {
                 spread_residual: env("COIF_BENCH_RESIDUAL", 0) != 0,
                 ..Default::default()

@@ -373,6 +373,8 @@ fn cli_writes_every_file() {
         "400",
         "--noise",
         "2",
+        "--jpeg",
+        "80",
     ]);
     let text = String::from_utf8_lossy(&o.stdout);
     assert!(
@@ -414,6 +416,7 @@ fn cli_writes_every_file() {
     assert_eq!(cams["fps"], 24.0);
     assert_eq!(cams["style"], "short");
     assert_eq!(cams["noise_sigma"], 2.0);
+    assert_eq!(cams["jpeg_quality"], 80);
     assert_eq!(cams["per_frame"].as_array().unwrap().len(), 3);
     let cam: coif::hair::head::WeakPerspective =
         serde_json::from_value(cams["per_frame"][2]["camera"].clone()).unwrap();
@@ -451,6 +454,7 @@ fn cli_refuses_bad_input() {
         (["--strands", "0", "--size", "64"], "--strands 0"),
         (["--noise", "-1", "--size", "64"], "--noise -1"),
         (["--noise", "NaN", "--size", "64"], "--noise NaN"),
+        (["--jpeg", "101", "--size", "64"], "--jpeg 101"),
     ] {
         let mut a = vec!["synth-video", "--out", o];
         a.extend(args);

@@ -236,7 +236,7 @@ pub(super) fn degrade(rgb: &mut [[f32; 3]], w: usize, h: usize, t: &Texture, rng
 }
 
 /// A JPEG encode and decode at quality `q`, as a photo from the web has been through.
-pub(super) fn jpeg_round_trip(img: &image::RgbImage, q: u8) -> image::RgbImage {
+pub(crate) fn jpeg_round_trip(img: &image::RgbImage, q: u8) -> image::RgbImage {
     let mut buf = Vec::new();
     image::codecs::jpeg::JpegEncoder::new_with_quality(&mut buf, q.max(1))
         .encode_image(img)

@@ -89,6 +89,9 @@ pub struct VideoParams {
     /// (fresh per frame, seeded), in grey levels; 0 (the default) keeps clean renders.
     /// Real clips carry it, and it is what makes tracked features jitter.
     pub noise: f32,
+    /// JPEG quality every frame goes through after the noise (1-100, as a compressed clip's
+    /// blocks, which move from frame to frame); 0 (the default) keeps lossless frames.
+    pub jpeg: u8,
 }
 
 impl VideoParams {
@@ -111,6 +114,7 @@ impl VideoParams {
             fps: Self::DEFAULT_FPS,
             lock_turn_deg: LOCK_TURN_DEG,
             noise: 0.0,
+            jpeg: 0,
         }
     }
 
@@ -155,6 +159,12 @@ impl VideoParams {
             return Err(Error::Invalid(format!(
                 "--noise {} must be between 0 and {MAX_NOISE} grey levels",
                 self.noise
+            )));
+        }
+        if self.jpeg > 100 {
+            return Err(Error::Invalid(format!(
+                "--jpeg {} must be a quality between 1 and 100 (0: lossless frames)",
+                self.jpeg
             )));
         }
         if !(self.fps.is_finite() && self.fps > 0.0) {
@@ -372,8 +382,8 @@ impl SynthVideo {
     }
 
     /// The still case of frame 0 (what `coif model` reads: image, mask, strokes, landmarks,
-    /// gt_strands.hair, camera.json), rendered without the camera noise that frame 0 of the
-    /// clip carries.
+    /// gt_strands.hair, camera.json), rendered without the camera noise and compression that
+    /// frame 0 of the clip carries.
     pub fn reference(&self) -> Synth3dCase {
         self.scene.still()
     }
@@ -465,6 +475,9 @@ impl SynthVideo {
             .fold(0.0f32, f32::max);
         let mut render = self.scene.render(&camera, &strands);
         self.add_noise(i, &mut render.image);
+        if self.params.jpeg > 0 {
+            render.image = crate::synth::texture::jpeg_round_trip(&render.image, self.params.jpeg);
+        }
         VideoFrame {
             pose: FramePose {
                 index: i,
@@ -557,6 +570,7 @@ impl SynthVideo {
             "frames": p.frames,
             "fps": p.fps,
             "noise_sigma": p.noise,
+            "jpeg_quality": p.jpeg,
             "noise_doc": "zero-mean Gaussian noise of this sigma (grey levels) on every channel of frames/, fresh per frame; reference/ holds the clean still",
             "strands": self.scene.strands.len(),
             "units": "model space in metres, y up, the face looks toward +z; image pixels, x right, y down, centres at integer + 0.5",

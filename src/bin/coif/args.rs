@@ -613,6 +613,10 @@ pub struct SynthVideoArgs {
     /// fresh per frame; 0 keeps clean renders.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     noise: f32,
+    /// JPEG quality (1-100) every frame goes through after the noise, as a compressed clip;
+    /// 0 keeps lossless frames.
+    #[arg(long, default_value_t = 0)]
+    jpeg: u8,
 }
 
 #[derive(Args, Clone)]
@@ -758,6 +762,7 @@ impl Command {
                 params.fps = a.fps;
                 params.lock_turn_deg = a.lock_turn;
                 params.noise = a.noise;
+                params.jpeg = a.jpeg;
                 Request::one(Job::SynthVideo(SynthVideoJob { out: a.out, params }), cpu)
             }
             Command::Sketch(a) => {
