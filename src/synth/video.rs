@@ -87,7 +87,7 @@ pub struct VideoParams {
     pub lock_turn_deg: f32,
     /// Camera noise: σ of a zero-mean Gaussian added to every 8-bit channel of every frame
     /// (fresh per frame, seeded), in grey levels; 0 (the default) keeps clean renders.
-    /// Real clips carry it, and it is what makes tracked features jitter.
+    /// Real clips carry it.
     pub noise: f32,
     /// JPEG quality every frame goes through after the noise (1-100, as a compressed clip's
     /// blocks, which move from frame to frame); 0 (the default) keeps lossless frames.
