@@ -66,7 +66,21 @@ fn cz_fill_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
     let (w, h) = (cfg.width as usize, cfg.height as usize);
     // Only this colour's pixels are written and only the other colour's are read, so the
     // shader updates in place; here the reads come from copies so rows can run in parallel.
-    let (ang_src, wt_src) = (ang[..w * h].to_vec(), wt[..w * h].to_vec());
+    // Each read pixel is a neighbour of up to four written ones: its (cos, sin) is taken
+    // once here rather than once per neighbour (the same values, so the same sums).
+    let wt_src = wt[..w * h].to_vec();
+    let mut dir_src = vec![[0.0f32; 2]; w * h];
+    dir_src
+        .par_chunks_mut(w)
+        .zip(ang[..w * h].par_chunks(w))
+        .enumerate()
+        .for_each(|(y, (out, row))| {
+            let first = (y + cfg.colour as usize + 1) & 1;
+            for x in (first..w).step_by(2) {
+                let a = row[x];
+                out[x] = [a.cos(), a.sin()];
+            }
+        });
     ang[..w * h]
         .par_chunks_mut(w)
         .zip(wt[..w * h].par_chunks_mut(w))
@@ -88,10 +102,10 @@ fn cz_fill_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
                     n += 1.0;
                     let wu = wt_src[j];
                     if wu > 0.0 {
-                        let a = ang_src[j];
+                        let [c, sn] = dir_src[j];
                         sw += wu;
-                        s[0] += wu * a.cos();
-                        s[1] += wu * a.sin();
+                        s[0] += wu * c;
+                        s[1] += wu * sn;
                     }
                 };
                 if x > 0 {

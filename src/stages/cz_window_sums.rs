@@ -210,7 +210,9 @@ impl Cands {
 
 struct Ctx<'a> {
     cfg: Config,
-    prefix: &'a [f32],
+    /// The prefix sums with the maps interleaved: entry (y, x) is `[f32; N_MAPS]`, so one
+    /// box-sum row reads two adjacent records instead of 2·N_MAPS scattered floats.
+    prefix: &'a [[f32; N_MAPS]],
     runs: &'a [[i32; 4]],
     stencils: &'a [[u32; 4]],
     ztab: &'a [[f32; 2]],
@@ -232,9 +234,10 @@ impl Ctx<'_> {
             if xb <= xa {
                 continue;
             }
+            let row = y as usize * (w as usize + 1);
+            let (pb, pa) = (&self.prefix[row + xb], &self.prefix[row + xa]);
             for (m, a) in acc.iter_mut().enumerate() {
-                let row = (m * h + y as usize) * (w as usize + 1);
-                *a += self.prefix[row + xb] - self.prefix[row + xa];
+                *a += pb[m] - pa[m];
             }
         }
         acc
@@ -342,9 +345,24 @@ fn cz_window_sums_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
         b[4].get::<[u32; 4]>(),
         b[5].get::<[f32; 2]>(),
     );
+    // The shader reads the map-major buffer as it is; the mirror interleaves a copy (the
+    // same floats, summed in the same order, so the same results).
+    let plane = h * (w + 1);
+    let mut prefix = vec![[0.0f32; N_MAPS]; plane];
+    let src_all: &[f32] = &g_prefix[..N_MAPS * plane];
+    prefix
+        .par_chunks_mut(w + 1)
+        .enumerate()
+        .for_each(|(y, row)| {
+            for (m, src) in src_all.chunks(plane).enumerate() {
+                for (o, &v) in row.iter_mut().zip(&src[y * (w + 1)..][..w + 1]) {
+                    o[m] = v;
+                }
+            }
+        });
     let ctx = Ctx {
         cfg,
-        prefix: &g_prefix,
+        prefix: &prefix,
         runs: &g_runs,
         stencils: &g_st,
         ztab: &g_ztab,

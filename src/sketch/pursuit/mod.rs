@@ -472,8 +472,7 @@ impl<'a> Search<'a> {
     /// E over the hair pixels of the box [x0, x1) × [y0, y1) and the edges with an end in it.
     fn local_energy(&self, x0: usize, y0: usize, x1: usize, y1: usize) -> f64 {
         let f = self.f;
-        let w = f.width as usize;
-        let inside = |j: usize| (x0..x1).contains(&(j % w)) && (y0..y1).contains(&(j / w));
+        let (w, h) = (f.width as usize, f.height as usize);
         let mut e = 0.0f64;
         for y in y0..y1 {
             for x in x0..x1 {
@@ -489,14 +488,16 @@ impl<'a> Search<'a> {
                     self.nsk.at(r)
                 };
                 e += (f.e1(i, zi) - lp) as f64;
+                // Each edge once: one with both ends in the box is counted from its lower
+                // index (right and down), one leaving the box always.
                 let nb = [
-                    (x > 0).then(|| i - 1),
+                    (x > 0 && x == x0).then(|| i - 1),
                     (x + 1 < w).then(|| i + 1),
-                    (y > 0).then(|| i - w),
-                    (y + 1 < f.height as usize).then(|| i + w),
+                    (y > 0 && y == y0).then(|| i - w),
+                    (y + 1 < h).then(|| i + w),
                 ];
                 for j in nb.into_iter().flatten() {
-                    if f.hair[j] && !(self.fixed[i] && self.fixed[j]) && (!inside(j) || j > i) {
+                    if f.hair[j] && !(self.fixed[i] && self.fixed[j]) {
                         e += f.edge(zi, self.z[j]) as f64;
                     }
                 }
@@ -541,23 +542,22 @@ impl<'a> Search<'a> {
             self.skrho[i] = skr;
         }
         let mut free = Vec::new();
+        // The free pixels of each colour, in raster order, with their coordinates.
+        let mut by_parity: [Vec<(usize, usize, usize)>; 2] = [Vec::new(), Vec::new()];
         for y in y0..y1 {
             for x in x0..x1 {
                 let i = y * w + x;
                 if f.hair[i] && !self.fixed[i] {
                     free.push(i);
+                    by_parity[(x + y) % 2].push((i, x, y));
                 }
             }
         }
         let old: Vec<[f32; 2]> = free.iter().map(|&i| self.z[i]).collect();
         let half = 0.5 * f.smooth;
         for _ in 0..RELAX_SWEEPS {
-            for parity in 0..2 {
-                for &i in &free {
-                    let (x, y) = (i % w, i / w);
-                    if (x + y) % 2 != parity {
-                        continue;
-                    }
+            for colour in &by_parity {
+                for &(i, x, y) in colour {
                     let mut s = f.data[i];
                     for j in [
                         (x > 0).then(|| i - 1),
