@@ -35,8 +35,9 @@ impl Search<'_> {
                 kinds.push((Kind::Occluding, false));
             }
             for (kind, _) in kinds {
+                let prep = self.delta_prep(&w5, kind);
                 for dict in variants(kind, None) {
-                    let (d, code, _) = self.delta(&w5, kind, a, dict);
+                    let (d, code, _) = self.delta_with(&prep, kind, a, dict);
                     ranked.push((d, mk(kind, dict, code)));
                 }
             }
@@ -46,8 +47,9 @@ impl Search<'_> {
                     &mk(Kind::Dividing, [1, 1], [NO_REFINE; 2]).prim(),
                 );
                 if w6.inside() {
+                    let prep = self.delta_prep(&w6, Kind::Dividing);
                     for dict in variants(Kind::Dividing, None) {
-                        let (d, code, _) = self.delta(&w6, Kind::Dividing, a, dict);
+                        let (d, code, _) = self.delta_with(&prep, Kind::Dividing, a, dict);
                         ranked.push((d, mk(Kind::Dividing, dict, code)));
                     }
                 }
@@ -170,8 +172,9 @@ impl Search<'_> {
                 if !self.allowed(first.kind, &win) {
                     continue;
                 }
+                let prep = self.delta_prep(&win, first.kind);
                 for &dict in &vars {
-                    let (d, code, _) = self.delta(&win, first.kind, axis, dict);
+                    let (d, code, _) = self.delta_with(&prep, first.kind, axis, dict);
                     ranked.push((
                         d - smooth * turn_cost(turn),
                         Cand { dict, code, ..c0 },

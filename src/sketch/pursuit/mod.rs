@@ -258,6 +258,23 @@ const RELAX_SWEEPS: usize = 6;
 const RELAX_BIRTHS: usize = 3;
 const RELAX_EXTENSIONS: usize = 2;
 
+/// A window's pixels as [`Search::delta_prep`] leaves them for scoring variants.
+struct DeltaPrep {
+    px: Vec<PrepPx>,
+    /// Per side, the along-flow direction of the structure tensor over its pixels (3.75°
+    /// units of the doubled angle, unwrapped).
+    jstar: [f32; 2],
+}
+
+struct PrepPx {
+    i: u32,
+    side: u8,
+    e1_old: f32,
+    lp_old: f32,
+    edges: [f32; 2],
+    n_edges: u8,
+}
+
 /// The search state of one pursuit.
 struct Search<'a> {
     f: &'a Field,
@@ -379,6 +396,14 @@ impl<'a> Search<'a> {
         a: i32,
         dict: [u8; 2],
     ) -> (f32, [u8; 2], [[f32; 2]; 2]) {
+        let prep = self.delta_prep(win, kind);
+        self.delta_with(&prep, kind, a, dict)
+    }
+
+    /// What [`Self::delta`] computes once per window and kind, shared by every dictionary
+    /// variant scored on it: the pixels a primitive would take, in window order, with their
+    /// current terms, and each side's tensor direction.
+    fn delta_prep(&mut self, win: &Win, kind: Kind) -> DeltaPrep {
         let f = self.f;
         let hair_sides = kind.hair_sides();
         self.gen = self.gen.wrapping_add(1);
@@ -392,15 +417,55 @@ impl<'a> Search<'a> {
             }
         }
         let (w, h) = (f.width as usize, f.height as usize);
-        let nbrs = |i: usize| {
+        let mut px = Vec::with_capacity(win.px.len());
+        let mut g = [[0.0f32; 2]; 2];
+        for &(i, s) in &win.px {
+            let i = i as usize;
+            if self.mark[i] != gen {
+                continue;
+            }
+            let k = s.index().expect("marked pixels lie on a side");
+            g[k][0] += f.data[i][0];
+            g[k][1] += f.data[i][1];
+            let zo = self.z[i];
+            // Edges with both ends taken stop costing; each is counted from its lower end
+            // (right and down neighbours), as the score adds them.
             let (x, y) = (i % w, i / w);
-            [
-                (x > 0).then(|| i - 1),
-                (x + 1 < w).then(|| i + 1),
-                (y > 0).then(|| i - w),
-                (y + 1 < h).then(|| i + w),
-            ]
-        };
+            let mut edges = [0.0f32; 2];
+            let mut n_edges = 0;
+            for j in [(x + 1 < w).then(|| i + 1), (y + 1 < h).then(|| i + w)]
+                .into_iter()
+                .flatten()
+            {
+                if f.hair[j] && self.mark[j] == gen {
+                    edges[n_edges] = f.edge(self.z[j], zo);
+                    n_edges += 1;
+                }
+            }
+            px.push(PrepPx {
+                i: i as u32,
+                side: k as u8,
+                e1_old: f.e1(i, zo),
+                lp_old: self.nsk.at(f.rho(i, zo)),
+                edges,
+                n_edges: n_edges as u8,
+            });
+        }
+        let jstar = [0, 1].map(|k| g[k][1].atan2(g[k][0]) * (24.0 / std::f32::consts::PI));
+        DeltaPrep { px, jstar }
+    }
+
+    /// [`Self::delta`] for one dictionary variant on a prepared window (the same sums in the
+    /// same order, so the same score to the bit).
+    fn delta_with(
+        &self,
+        prep: &DeltaPrep,
+        kind: Kind,
+        a: i32,
+        dict: [u8; 2],
+    ) -> (f32, [u8; 2], [[f32; 2]; 2]) {
+        let f = self.f;
+        let hair_sides = kind.hair_sides();
         // Dictionary orientation of each side in 3.75° units, and the sign a refinement
         // turns it by (θ = axis − angle on the left, axis + angle on the right).
         let base = [
@@ -410,48 +475,30 @@ impl<'a> Search<'a> {
         let sign = [-1, 1];
         let mut code = [NO_REFINE; 2];
         if self.p.refine_sides {
-            let mut g = [[0.0f32; 2]; 2];
-            for &(i, s) in &win.px {
-                let i = i as usize;
-                if self.mark[i] != gen {
-                    continue;
-                }
-                let k = s.index().expect("marked pixels lie on a side");
-                g[k][0] += f.data[i][0];
-                g[k][1] += f.data[i][1];
-            }
             for k in 0..2 {
                 if !hair_sides[k] {
                     continue;
                 }
-                let jstar = g[k][1].atan2(g[k][0]) * (24.0 / std::f32::consts::PI);
-                let mut o = jstar - base[k] as f32;
+                let mut o = prep.jstar[k] - base[k] as f32;
                 o -= 48.0 * ((o + 24.0) / 48.0).floor();
                 let r = ((sign[k] as f32 * o + 0.5).floor() as i32).clamp(-8, 7);
                 code[k] = (r + NO_REFINE as i32) as u8;
             }
         }
         let zb = [0, 1].map(|k| self.z_of(base[k] + sign[k] * (code[k] as i32 - NO_REFINE as i32)));
+        let new = if self.sk_kind(kind) {
+            &self.sk
+        } else {
+            &self.nsk
+        };
         let mut d = 0.0f32;
-        for &(i, s) in &win.px {
-            let i = i as usize;
-            if self.mark[i] != gen {
-                continue;
-            }
-            let zn = zb[s.index().expect("marked pixels lie on a side")];
-            let zo = self.z[i];
-            d += f.e1(i, zo) - f.e1(i, zn);
-            let new = if self.sk_kind(kind) {
-                &self.sk
-            } else {
-                &self.nsk
-            };
-            d += new.at(f.rho(i, zn)) - self.nsk.at(f.rho(i, zo));
-            for j in nbrs(i).into_iter().flatten() {
-                // Both ends join the sketch: the edge stops costing; count it once.
-                if f.hair[j] && self.mark[j] == gen && j > i {
-                    d += f.edge(self.z[j], zo);
-                }
+        for q in &prep.px {
+            let i = q.i as usize;
+            let zn = zb[q.side as usize];
+            d += q.e1_old - f.e1(i, zn);
+            d += new.at(f.rho(i, zn)) - q.lp_old;
+            for &e in &q.edges[..q.n_edges as usize] {
+                d += e;
             }
         }
         (d, code, zb)
