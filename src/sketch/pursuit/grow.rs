@@ -332,15 +332,7 @@ impl Search<'_> {
             let (x, y) = (i % w, i / w);
             let zi = self.z[i];
             let mut sm = 0.0f32;
-            for j in [
-                (x > 0).then(|| i - 1),
-                (x + 1 < w).then(|| i + 1),
-                (y > 0).then(|| i - w),
-                (y + 1 < h).then(|| i + w),
-            ]
-            .into_iter()
-            .flatten()
-            {
+            for j in nbrs4(i, x, y, w, h).into_iter().flatten() {
                 if f.hair[j] && !self.fixed[j] {
                     sm += f.edge(zi, self.z[j]);
                 }

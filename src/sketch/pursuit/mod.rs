@@ -96,6 +96,17 @@ pub fn side_angle(dict: u8, code: u8) -> f32 {
     super::format::side_radians(dict, code)
 }
 
+/// The 4-neighbours of pixel i = y·w + x that lie inside the w × h image (left, right, up,
+/// down).
+fn nbrs4(i: usize, x: usize, y: usize, w: usize, h: usize) -> [Option<usize>; 4] {
+    [
+        (x > 0).then(|| i - 1),
+        (x + 1 < w).then(|| i + 1),
+        (y > 0).then(|| i - w),
+        (y + 1 < h).then(|| i + w),
+    ]
+}
+
 /// E3's cost between consecutive primitives whose axes differ by `d` steps, e²/2λθ² with
 /// e² = ½(1 − cos 2Δ) (Eq. 22-23), for λθ = 1 (the pursuit scales it by 1/λθ²).
 pub fn turn_cost(d: i32) -> f32 {

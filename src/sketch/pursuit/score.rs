@@ -253,15 +253,7 @@ impl Search<'_> {
             for colour in &by_parity {
                 for &(i, x, y) in colour {
                     let mut s = f.data[i];
-                    for j in [
-                        (x > 0).then(|| i - 1),
-                        (x + 1 < w).then(|| i + 1),
-                        (y > 0).then(|| i - w),
-                        (y + 1 < h).then(|| i + w),
-                    ]
-                    .into_iter()
-                    .flatten()
-                    {
+                    for j in nbrs4(i, x, y, w, h).into_iter().flatten() {
                         if f.hair[j] {
                             s[0] += half * self.z[j][0];
                             s[1] += half * self.z[j][1];
