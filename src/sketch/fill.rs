@@ -345,6 +345,14 @@ pub fn diffuse(engine: &Engine, state: &mut FillState, p: &FillParams) -> Result
         c.min_weight = wmin;
         c.converged = c.max_delta_deg < p.tol_deg && wmin > p.min_weight;
     }
+    log::debug!(
+        "fill ({:?}): {} sweeps, last max change {:.3}°, min weight {:.3}, converged {}",
+        c.mode,
+        c.sweeps,
+        c.max_delta_deg,
+        c.min_weight,
+        c.converged
+    );
     Ok(c)
 }
 

@@ -56,6 +56,11 @@ fn wrap_2pi(a: f32) -> f32 {
     }
 }
 
+/// The first x ≥ `lo` of parity `first`.
+fn from(lo: usize, first: usize) -> usize {
+    lo + ((lo + first) & 1)
+}
+
 fn cz_fill_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
     let cfg: Config = b[0].uniform();
     let (g_kind, g_cons) = (b[1].get::<u32>(), b[2].get::<f32>());
@@ -67,7 +72,17 @@ fn cz_fill_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
     // Only this colour's pixels are written and only the other colour's are read, so the
     // shader updates in place; here the reads come from copies so rows can run in parallel.
     // Each read pixel is a neighbour of up to four written ones: its (cos, sin) is taken
-    // once here rather than once per neighbour (the same values, so the same sums).
+    // once here rather than once per neighbour (the same values, so the same sums), and only
+    // where `gather` reads it (in the domain, weight > 0): the domain is often a small part
+    // of the image.
+    // Each row's span of domain pixels: nothing outside it is read or written.
+    let span: Vec<(usize, usize)> = kind[..w * h]
+        .par_chunks(w)
+        .map(|r| match r.iter().position(|&c| c != OFF) {
+            Some(lo) => (lo, w - r.iter().rev().position(|&c| c != OFF).unwrap_or(0)),
+            None => (0, 0),
+        })
+        .collect();
     let wt_src = wt[..w * h].to_vec();
     let mut dir_src = vec![[0.0f32; 2]; w * h];
     dir_src
@@ -75,10 +90,13 @@ fn cz_fill_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
         .zip(ang[..w * h].par_chunks(w))
         .enumerate()
         .for_each(|(y, (out, row))| {
-            let first = (y + cfg.colour as usize + 1) & 1;
-            for x in (first..w).step_by(2) {
-                let a = row[x];
-                out[x] = [a.cos(), a.sin()];
+            let (lo, hi) = span[y];
+            for x in (from(lo, (y + cfg.colour as usize + 1) & 1)..hi).step_by(2) {
+                let i = y * w + x;
+                if kind[i] != OFF && wt_src[i] > 0.0 {
+                    let a = row[x];
+                    out[x] = [a.cos(), a.sin()];
+                }
             }
         });
     ang[..w * h]
@@ -87,8 +105,8 @@ fn cz_fill_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
         .zip(delta[..w * h].par_chunks_mut(w))
         .enumerate()
         .for_each(|(y, ((ang_row, wt_row), delta_row))| {
-            let first = (y + cfg.colour as usize) & 1;
-            for x in (first..w).step_by(2) {
+            let (lo, hi) = span[y];
+            for x in (from(lo, (y + cfg.colour as usize) & 1)..hi).step_by(2) {
                 let i = y * w + x;
                 let c = kind[i];
                 if c == OFF || c == CLAMPED {
