@@ -8,21 +8,23 @@
 // gain a say as they settle. The mean runs over the 4-neighbours inside the domain (¼Σ in the
 // interior); at the mask edge it is over the ones that exist, so w still tends to 1 there.
 //
-// Angles: with `doubled` = 0 they are directions τ (period 2π); with 1 they are doubled
-// orientations 2θ, which is the same flow for an undirected field. A pixel's angle means
-// something only where its weight is > 0 (a clamped pixel, or one that has been reached);
-// pixels none of whose neighbours has weight yet stay unset.
+// Angles are held as unit vectors e^{iτ}: the update is then a weighted sum and a
+// normalisation, with no atan2 or cos/sin per pixel (the host converts to and from angles
+// once per batch of sweeps). With `doubled` = 0 they are directions τ (period 2π); with 1
+// doubled orientations 2θ, which is the same flow for an undirected field. A pixel's vector
+// means something only where its weight is > 0 (a clamped pixel, or one that has been
+// reached); pixels none of whose neighbours has weight yet stay unset.
 //
 // Pixel classes: 0 outside the domain (not hair, or hair the sketch cannot reach), 1 free,
 // 2 clamped (the sketch: angle and weight 1 fixed), 3 axis-constrained: its angle is its
-// orientation `cons` or that + π, whichever the neighbours favour (a sketch pixel whose
-// orientation is known but not its direction, in the directed fill).
+// orientation `cons` (a unit vector) or its opposite, whichever the neighbours favour (a
+// sketch pixel whose orientation is known but not its direction, in the directed fill).
 //
 // Threads cover half the x range: x = 2 gid.x + ((y + colour) & 1); every 4-neighbour has the
 // other colour, so the update is in place and race-free. `delta` receives each updated
-// pixel's change of angle, in the output's units (τ, or θ = half the doubled angle), π for a
-// pixel set for the first time and 0 for one still unset: the host reads it every few sweeps
-// to decide convergence.
+// pixel's change as the chord |e_new − e_old| (2 for a pixel set for the first time, 0 for
+// one still unset): the host turns it into an angle, 2 asin(chord / 2), every few sweeps to
+// decide convergence.
 
 struct Config {
     width: u32,
@@ -31,25 +33,14 @@ struct Config {
     doubled: u32,
 }
 
-const PI: f32 = 3.14159265358979;
-const TWO_PI: f32 = 6.28318530717959;
-
 @group(0) @binding(0) var<uniform> cfg: Config;
 @group(0) @binding(1) var<storage, read> kind: array<u32>;
-// Orientation in [0, π) of class-3 pixels; unread elsewhere.
-@group(0) @binding(2) var<storage, read> cons: array<f32>;
-// Angle in [0, 2π) per pixel (τ or 2θ).
-@group(0) @binding(3) var<storage, read_write> ang: array<f32>;
+// Unit vector of the orientation of class-3 pixels; unread elsewhere.
+@group(0) @binding(2) var<storage, read> cons: array<vec2<f32>>;
+// Unit vector e^{iτ} (or e^{2iθ}) per pixel.
+@group(0) @binding(3) var<storage, read_write> dir: array<vec2<f32>>;
 @group(0) @binding(4) var<storage, read_write> wt: array<f32>;
 @group(0) @binding(5) var<storage, read_write> delta: array<f32>;
-
-fn wrap_2pi(a: f32) -> f32 {
-    var r = a - TWO_PI * floor(a / TWO_PI);
-    if r >= TWO_PI || r < 0.0 {
-        r = 0.0;
-    }
-    return r;
-}
 
 fn gather(j: u32, s: ptr<function, vec2<f32>>, sw: ptr<function, f32>, n: ptr<function, f32>) {
     if kind[j] == 0u {
@@ -58,9 +49,8 @@ fn gather(j: u32, s: ptr<function, vec2<f32>>, sw: ptr<function, f32>, n: ptr<fu
     *n = *n + 1.0;
     let wu = wt[j];
     if wu > 0.0 {
-        let a = ang[j];
         *sw = *sw + wu;
-        *s = *s + wu * vec2<f32>(cos(a), sin(a));
+        *s = *s + wu * dir[j];
     }
 }
 
@@ -97,25 +87,26 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let w_old = wt[i];
     var d = 0.0;
     if sw > 0.0 {
-        var a = atan2(s.y, s.x);
+        // s / |s|, scaled first: far from the sketch the weights are tiny and |s|² would
+        // underflow. An exactly cancelled sum points at angle 0, as atan2(0, 0) does.
+        var e = vec2<f32>(1.0, 0.0);
+        let m = max(abs(s.x), abs(s.y));
+        if m > 0.0 {
+            let t = s / m;
+            e = t / sqrt(dot(t, t));
+        }
         if c == 3u {
-            let t = cons[i];
-            a = t;
-            if dot(s, vec2<f32>(cos(t), sin(t))) < 0.0 {
-                a = t + PI;
+            e = cons[i];
+            if dot(s, e) < 0.0 {
+                e = -e;
             }
         }
-        a = wrap_2pi(a);
         if w_old > 0.0 {
-            let e = abs(a - ang[i]);
-            d = min(e, TWO_PI - e);
+            d = length(e - dir[i]);
         } else {
-            d = PI;
+            d = 2.0;
         }
-        if cfg.doubled == 1u {
-            d = 0.5 * d;
-        }
-        ang[i] = a;
+        dir[i] = e;
     }
     delta[i] = d;
     wt[i] = w_old + 0.2 * (sw / n - w_old);

@@ -5,7 +5,10 @@
 //!   optionally smoothed by a normalised Gaussian over the drawn pixels (σ 1.5 by default).
 //! - Θ and d: the flow of Eq. 16 with the weight schedule of Eq. 17, the `cz_fill` pass run to
 //!   convergence (max change of angle per sweep < 0.05° and min weight > 0.9, checked every
-//!   [`FillParams::check_every`] sweeps, at most 600 sweeps).
+//!   [`FillParams::check_every`] sweeps, at most 600 sweeps). On whole hairstyles the cap is
+//!   what ends it: Eq. 17's weights diffuse at about 0.05 px² a sweep, so far from every
+//!   curve they stay small for thousands of sweeps while the angles have long settled (see
+//!   the README, Fill).
 //!
 //! Two fills, both `cz_fill`:
 //! - orientation-only (doubled angles 2θ), clamped on every sketch pixel that carries an
@@ -272,7 +275,8 @@ impl FillState {
 }
 
 /// Runs `sweeps` sweeps of `cz_fill` on `state` in one recording and returns each pixel's
-/// change of angle in the last sweep (radians of τ or θ; 0 where not updated).
+/// change of angle in the last sweep (radians of τ or θ; 0 where not updated). The pass holds
+/// angles as unit vectors: they are converted here, once per call.
 pub fn run_sweeps(engine: &Engine, state: &mut FillState, sweeps: u32) -> Result<Vec<f32>> {
     let n = state.kind.len();
     if n == 0 || n != (state.width as usize) * (state.height as usize) {
@@ -281,10 +285,18 @@ pub fn run_sweeps(engine: &Engine, state: &mut FillState, sweeps: u32) -> Result
             n, state.width, state.height
         )));
     }
+    let unit = |a: f32| [a.cos(), a.sin()];
+    let dir: Vec<[f32; 2]> = state.ang.iter().map(|&a| unit(a)).collect();
+    let cons: Vec<[f32; 2]> = (0..n)
+        .map(|k| match state.kind[k] {
+            cz_fill::AXIS => unit(state.cons[k]),
+            _ => [0.0; 2],
+        })
+        .collect();
     let mut rec = Recording::default();
     let kind = rec.upload("coif.cz_fill.kind", &state.kind);
-    let cons = rec.upload("coif.cz_fill.cons", &state.cons);
-    let ang = rec.upload("coif.cz_fill.ang", &state.ang);
+    let cons = rec.upload("coif.cz_fill.cons", &cons);
+    let dirb = rec.upload("coif.cz_fill.dir", &dir);
     let wt = rec.upload("coif.cz_fill.weight", &state.weight);
     let delta = rec.alloc("coif.cz_fill.delta", 4 * n as u64, 0);
     let doubled = (state.mode == Mode::Orientation) as u32;
@@ -300,18 +312,32 @@ pub fn run_sweeps(engine: &Engine, state: &mut FillState, sweeps: u32) -> Result
             rec.dispatch(
                 &cz_fill::STAGE,
                 cz_fill::workgroups(cfg),
-                &[u, kind, cons, ang, wt, delta],
+                &[u, kind, cons, dirb, wt, delta],
                 &[],
             );
         }
     }
-    rec.download(ang);
+    rec.download(dirb);
     rec.download(wt);
     rec.download(delta);
     let out = engine.run(rec)?;
-    state.ang = out.get::<f32>(ang);
+    let dir = out.get::<[f32; 2]>(dirb);
     state.weight = out.get::<f32>(wt);
-    Ok(out.get::<f32>(delta))
+    // Clamped pixels keep their angle exactly; the others take the vector's.
+    for k in 0..n {
+        let c = state.kind[k];
+        if c != cz_fill::OFF && c != cz_fill::CLAMPED && state.weight[k] > 0.0 {
+            let r = dir[k][1].atan2(dir[k][0]).rem_euclid(2.0 * PI);
+            state.ang[k] = if r < 2.0 * PI { r } else { 0.0 };
+        }
+    }
+    // The chord between unit vectors to the angle between them; θ is half the doubled angle.
+    let scale = if doubled == 1 { 0.5 } else { 1.0 };
+    Ok(out
+        .get::<f32>(delta)
+        .into_iter()
+        .map(|c| scale * 2.0 * (0.5 * c).clamp(0.0, 1.0).asin())
+        .collect())
 }
 
 /// Sweeps `state` until it converges (see [`FillParams`]) or reaches the cap.

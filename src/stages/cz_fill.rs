@@ -1,11 +1,11 @@
 //! One red-black half-sweep of CZ06's fill-in of the vector field from the sketch (§3.1,
 //! Eq. 16-17): nonlinear Gauss-Seidel on the angle, τ_v = arg Σ_{u∈∂v} w(u) e^{iτ_u}, with the
-//! growing weight schedule w_v ← w_v + 0.2 (mean_{u∈∂v} w(u) − w_v). See `wgsl/cz_fill.wgsl`;
-//! the host is `crate::sketch::fill`.
+//! growing weight schedule w_v ← w_v + 0.2 (mean_{u∈∂v} w(u) − w_v). The angles are held as
+//! unit vectors e^{iτ}, so a pixel costs a weighted sum and a normalisation, no trigonometry.
+//! See `wgsl/cz_fill.wgsl`; the host is `crate::sketch::fill`.
 
 use crate::gpu::engine::{Bind, CpuBinding, StageDef};
 use rayon::prelude::*;
-use std::f32::consts::PI;
 
 pub const STAGE: StageDef = StageDef {
     name: "cz_fill",
@@ -25,7 +25,7 @@ pub const STAGE: StageDef = StageDef {
 pub const OFF: u32 = 0;
 pub const FREE: u32 = 1;
 pub const CLAMPED: u32 = 2;
-/// Orientation known, direction free: the angle is `cons` or `cons` + π.
+/// Orientation known, direction free: the vector is `cons` or −`cons`.
 pub const AXIS: u32 = 3;
 
 #[derive(Clone, Copy, Debug, Default, encase::ShaderType)]
@@ -46,35 +46,31 @@ pub fn workgroups(cfg: &Config) -> [u32; 3] {
     ]
 }
 
-fn wrap_2pi(a: f32) -> f32 {
-    let two_pi = 2.0 * PI;
-    let r = a - two_pi * (a / two_pi).floor();
-    if !(0.0..two_pi).contains(&r) {
-        0.0
-    } else {
-        r
-    }
-}
-
 /// The first x ≥ `lo` of parity `first`.
 fn from(lo: usize, first: usize) -> usize {
     lo + ((lo + first) & 1)
 }
 
+/// s / |s|, scaled first so tiny weights do not underflow |s|²; (1, 0) for a zero sum.
+pub fn unit(s: [f32; 2]) -> [f32; 2] {
+    let m = s[0].abs().max(s[1].abs());
+    if m > 0.0 {
+        let t = [s[0] / m, s[1] / m];
+        let l = (t[0] * t[0] + t[1] * t[1]).sqrt();
+        [t[0] / l, t[1] / l]
+    } else {
+        [1.0, 0.0]
+    }
+}
+
 fn cz_fill_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
     let cfg: Config = b[0].uniform();
-    let (g_kind, g_cons) = (b[1].get::<u32>(), b[2].get::<f32>());
-    let (kind, cons): (&[u32], &[f32]) = (&g_kind, &g_cons);
-    let mut ang = b[3].get_mut::<f32>();
+    let (g_kind, g_cons) = (b[1].get::<u32>(), b[2].get::<[f32; 2]>());
+    let (kind, cons): (&[u32], &[[f32; 2]]) = (&g_kind, &g_cons);
+    let mut dir = b[3].get_mut::<[f32; 2]>();
     let mut wt = b[4].get_mut::<f32>();
     let mut delta = b[5].get_mut::<f32>();
     let (w, h) = (cfg.width as usize, cfg.height as usize);
-    // Only this colour's pixels are written and only the other colour's are read, so the
-    // shader updates in place; here the reads come from copies so rows can run in parallel.
-    // Each read pixel is a neighbour of up to four written ones: its (cos, sin) is taken
-    // once here rather than once per neighbour (the same values, so the same sums), and only
-    // where `gather` reads it (in the domain, weight > 0): the domain is often a small part
-    // of the image.
     // Each row's span of domain pixels: nothing outside it is read or written.
     let span: Vec<(usize, usize)> = kind[..w * h]
         .par_chunks(w)
@@ -83,28 +79,16 @@ fn cz_fill_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
             None => (0, 0),
         })
         .collect();
+    // Only this colour's pixels are written and only the other colour's are read, so the
+    // shader updates in place; here the reads come from copies so rows can run in parallel.
     let wt_src = wt[..w * h].to_vec();
-    let mut dir_src = vec![[0.0f32; 2]; w * h];
-    dir_src
-        .par_chunks_mut(w)
-        .zip(ang[..w * h].par_chunks(w))
-        .enumerate()
-        .for_each(|(y, (out, row))| {
-            let (lo, hi) = span[y];
-            for x in (from(lo, (y + cfg.colour as usize + 1) & 1)..hi).step_by(2) {
-                let i = y * w + x;
-                if kind[i] != OFF && wt_src[i] > 0.0 {
-                    let a = row[x];
-                    out[x] = [a.cos(), a.sin()];
-                }
-            }
-        });
-    ang[..w * h]
+    let dir_src = dir[..w * h].to_vec();
+    dir[..w * h]
         .par_chunks_mut(w)
         .zip(wt[..w * h].par_chunks_mut(w))
         .zip(delta[..w * h].par_chunks_mut(w))
         .enumerate()
-        .for_each(|(y, ((ang_row, wt_row), delta_row))| {
+        .for_each(|(y, ((dir_row, wt_row), delta_row))| {
             let (lo, hi) = span[y];
             for x in (from(lo, (y + cfg.colour as usize) & 1)..hi).step_by(2) {
                 let i = y * w + x;
@@ -144,25 +128,20 @@ fn cz_fill_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
                 let w_old = wt_row[x];
                 let mut d = 0.0f32;
                 if sw > 0.0 {
-                    let mut a = s[1].atan2(s[0]);
+                    let mut e = unit(s);
                     if c == AXIS {
-                        let t = cons[i];
-                        a = t;
-                        if s[0] * t.cos() + s[1] * t.sin() < 0.0 {
-                            a = t + PI;
+                        e = cons[i];
+                        if s[0] * e[0] + s[1] * e[1] < 0.0 {
+                            e = [-e[0], -e[1]];
                         }
                     }
-                    a = wrap_2pi(a);
                     d = if w_old > 0.0 {
-                        let e = (a - ang_row[x]).abs();
-                        e.min(2.0 * PI - e)
+                        let old = dir_row[x];
+                        ((e[0] - old[0]).powi(2) + (e[1] - old[1]).powi(2)).sqrt()
                     } else {
-                        PI
+                        2.0
                     };
-                    if cfg.doubled == 1 {
-                        d *= 0.5;
-                    }
-                    ang_row[x] = a;
+                    dir_row[x] = e;
                 }
                 delta_row[x] = d;
                 wt_row[x] = w_old + 0.2 * (sw / n - w_old);
