@@ -46,6 +46,9 @@ pub fn workgroups(cfg: &Config) -> [u32; 3] {
     ]
 }
 
+/// Rows per parallel band of the CPU mirror.
+const BAND: usize = 16;
+
 /// The first x ≥ `lo` of parity `first`.
 fn from(lo: usize, first: usize) -> usize {
     lo + ((lo + first) & 1)
@@ -80,71 +83,94 @@ fn cz_fill_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
         })
         .collect();
     // Only this colour's pixels are written and only the other colour's are read, so the
-    // shader updates in place; here the reads come from copies so rows can run in parallel.
-    let wt_src = wt[..w * h].to_vec();
-    let dir_src = dir[..w * h].to_vec();
+    // shader updates in place. Here bands of rows run in parallel, each in place on its own
+    // rows; the row above and the row below a band (other bands' rows, read only at the
+    // other colour) come from copies taken first.
+    let rows_of = |y: usize| (y * w, (y + 1) * w);
+    let halo = |y: Option<usize>| -> (Vec<[f32; 2]>, Vec<f32>) {
+        match y {
+            Some(y) if y < h => {
+                let (a, b) = rows_of(y);
+                (dir[a..b].to_vec(), wt[a..b].to_vec())
+            }
+            _ => (Vec::new(), Vec::new()),
+        }
+    };
+    let halos: Vec<_> = (0..h.div_ceil(BAND))
+        .map(|k| (halo((k * BAND).checked_sub(1)), halo(Some((k + 1) * BAND))))
+        .collect();
     dir[..w * h]
-        .par_chunks_mut(w)
-        .zip(wt[..w * h].par_chunks_mut(w))
-        .zip(delta[..w * h].par_chunks_mut(w))
+        .par_chunks_mut(BAND * w)
+        .zip(wt[..w * h].par_chunks_mut(BAND * w))
+        .zip(delta[..w * h].par_chunks_mut(BAND * w))
+        .zip(halos.par_iter())
         .enumerate()
-        .for_each(|(y, ((dir_row, wt_row), delta_row))| {
-            let (lo, hi) = span[y];
-            for x in (from(lo, (y + cfg.colour as usize) & 1)..hi).step_by(2) {
-                let i = y * w + x;
-                let c = kind[i];
-                if c == OFF || c == CLAMPED {
-                    continue;
+        .for_each(|(k, (((dir_b, wt_b), delta_b), (up, down)))| {
+            let (y0, rows) = (k * BAND, dir_b.len() / w);
+            // A neighbour's (vector, weight): in the band, or in a halo row.
+            let at = |dir_b: &[[f32; 2]], wt_b: &[f32], x: usize, y: usize| {
+                if y + 1 == y0 {
+                    (up.0[x], up.1[x])
+                } else if y == y0 + rows {
+                    (down.0[x], down.1[x])
+                } else {
+                    let l = (y - y0) * w + x;
+                    (dir_b[l], wt_b[l])
                 }
-                let (mut s, mut sw, mut n) = ([0.0f32; 2], 0.0f32, 0.0f32);
-                let mut gather = |j: usize| {
-                    if kind[j] == OFF {
-                        return;
+            };
+            for r in 0..rows {
+                let y = y0 + r;
+                let (lo, hi) = span[y];
+                for x in (from(lo, (y + cfg.colour as usize) & 1)..hi).step_by(2) {
+                    let i = y * w + x;
+                    let c = kind[i];
+                    if c == OFF || c == CLAMPED {
+                        continue;
                     }
-                    n += 1.0;
-                    let wu = wt_src[j];
-                    if wu > 0.0 {
-                        let [c, sn] = dir_src[j];
-                        sw += wu;
-                        s[0] += wu * c;
-                        s[1] += wu * sn;
-                    }
-                };
-                if x > 0 {
-                    gather(i - 1);
-                }
-                if x + 1 < w {
-                    gather(i + 1);
-                }
-                if y > 0 {
-                    gather(i - w);
-                }
-                if y + 1 < h {
-                    gather(i + w);
-                }
-                if n == 0.0 {
-                    continue;
-                }
-                let w_old = wt_row[x];
-                let mut d = 0.0f32;
-                if sw > 0.0 {
-                    let mut e = unit(s);
-                    if c == AXIS {
-                        e = cons[i];
-                        if s[0] * e[0] + s[1] * e[1] < 0.0 {
-                            e = [-e[0], -e[1]];
+                    let (mut s, mut sw, mut n) = ([0.0f32; 2], 0.0f32, 0.0f32);
+                    let nbrs = [
+                        (x > 0).then(|| (x.wrapping_sub(1), y)),
+                        (x + 1 < w).then_some((x + 1, y)),
+                        (y > 0).then(|| (x, y.wrapping_sub(1))),
+                        (y + 1 < h).then_some((x, y + 1)),
+                    ];
+                    for (xx, yy) in nbrs.into_iter().flatten() {
+                        if kind[yy * w + xx] == OFF {
+                            continue;
+                        }
+                        n += 1.0;
+                        let (d, wu) = at(dir_b, wt_b, xx, yy);
+                        if wu > 0.0 {
+                            sw += wu;
+                            s[0] += wu * d[0];
+                            s[1] += wu * d[1];
                         }
                     }
-                    d = if w_old > 0.0 {
-                        let old = dir_row[x];
-                        ((e[0] - old[0]).powi(2) + (e[1] - old[1]).powi(2)).sqrt()
-                    } else {
-                        2.0
-                    };
-                    dir_row[x] = e;
+                    if n == 0.0 {
+                        continue;
+                    }
+                    let l = r * w + x;
+                    let w_old = wt_b[l];
+                    let mut d = 0.0f32;
+                    if sw > 0.0 {
+                        let mut e = unit(s);
+                        if c == AXIS {
+                            e = cons[i];
+                            if s[0] * e[0] + s[1] * e[1] < 0.0 {
+                                e = [-e[0], -e[1]];
+                            }
+                        }
+                        d = if w_old > 0.0 {
+                            let old = dir_b[l];
+                            ((e[0] - old[0]).powi(2) + (e[1] - old[1]).powi(2)).sqrt()
+                        } else {
+                            2.0
+                        };
+                        dir_b[l] = e;
+                    }
+                    delta_b[l] = d;
+                    wt_b[l] = w_old + 0.2 * (sw / n - w_old);
                 }
-                delta_row[x] = d;
-                wt_row[x] = w_old + 0.2 * (sw / n - w_old);
             }
         });
 }
