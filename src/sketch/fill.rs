@@ -324,10 +324,10 @@ pub fn run_sweeps(engine: &Engine, state: &mut FillState, sweeps: u32) -> Result
     let dir = out.get::<[f32; 2]>(dirb);
     state.weight = out.get::<f32>(wt);
     // Clamped pixels keep their angle exactly; the others take the vector's.
-    for k in 0..n {
+    for (k, e) in dir.iter().enumerate() {
         let c = state.kind[k];
         if c != cz_fill::OFF && c != cz_fill::CLAMPED && state.weight[k] > 0.0 {
-            let r = dir[k][1].atan2(dir[k][0]).rem_euclid(2.0 * PI);
+            let r = e[1].atan2(e[0]).rem_euclid(2.0 * PI);
             state.ang[k] = if r < 2.0 * PI { r } else { 0.0 };
         }
     }
