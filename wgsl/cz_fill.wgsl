@@ -10,8 +10,8 @@
 //
 // Angles are held as unit vectors e^{iτ}: the update is then a weighted sum and a
 // normalisation, with no atan2 or cos/sin per pixel (the host converts to and from angles
-// once per batch of sweeps). With `doubled` = 0 they are directions τ (period 2π); with 1
-// doubled orientations 2θ, which is the same flow for an undirected field. A pixel's vector
+// once per batch of sweeps). They are directions τ (period 2π) or doubled orientations 2θ,
+// the same flow for an undirected field: the pass need not know which. A pixel's vector
 // means something only where its weight is > 0 (a clamped pixel, or one that has been
 // reached); pixels none of whose neighbours has weight yet stay unset.
 //
@@ -30,7 +30,6 @@ struct Config {
     width: u32,
     height: u32,
     colour: u32,
-    doubled: u32,
 }
 
 @group(0) @binding(0) var<uniform> cfg: Config;

@@ -299,12 +299,10 @@ pub fn run_sweeps(engine: &Engine, state: &mut FillState, sweeps: u32) -> Result
     let dirb = rec.upload("coif.cz_fill.dir", &dir);
     let wt = rec.upload("coif.cz_fill.weight", &state.weight);
     let delta = rec.alloc("coif.cz_fill.delta", 4 * n as u64, 0);
-    let doubled = (state.mode == Mode::Orientation) as u32;
     let cfgs = [0u32, 1].map(|colour| cz_fill::Config {
         width: state.width,
         height: state.height,
         colour,
-        doubled,
     });
     let us = cfgs.map(|c| rec.uniform("coif.cz_fill.cfg", &c));
     for _ in 0..sweeps {
@@ -332,7 +330,11 @@ pub fn run_sweeps(engine: &Engine, state: &mut FillState, sweeps: u32) -> Result
         }
     }
     // The chord between unit vectors to the angle between them; θ is half the doubled angle.
-    let scale = if doubled == 1 { 0.5 } else { 1.0 };
+    let scale = if state.mode == Mode::Orientation {
+        0.5
+    } else {
+        1.0
+    };
     Ok(out
         .get::<f32>(delta)
         .into_iter()

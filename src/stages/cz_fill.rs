@@ -34,8 +34,6 @@ pub struct Config {
     pub height: u32,
     /// Which pixels this half-sweep updates: those with (x + y) & 1 == colour.
     pub colour: u32,
-    /// 1: the angles are doubled orientations 2θ; 0: directions τ.
-    pub doubled: u32,
 }
 
 pub fn workgroups(cfg: &Config) -> [u32; 3] {
