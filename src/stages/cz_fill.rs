@@ -53,7 +53,7 @@ fn from(lo: usize, first: usize) -> usize {
 }
 
 /// s / |s|, scaled first so tiny weights do not underflow |s|²; (1, 0) for a zero sum.
-pub fn unit(s: [f32; 2]) -> [f32; 2] {
+fn normalise(s: [f32; 2]) -> [f32; 2] {
     let m = s[0].abs().max(s[1].abs());
     if m > 0.0 {
         let t = [s[0] / m, s[1] / m];
@@ -84,13 +84,9 @@ fn cz_fill_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
     // shader updates in place. Here bands of rows run in parallel, each in place on its own
     // rows; the row above and the row below a band (other bands' rows, read only at the
     // other colour) come from copies taken first.
-    let rows_of = |y: usize| (y * w, (y + 1) * w);
     let halo = |y: Option<usize>| -> (Vec<[f32; 2]>, Vec<f32>) {
         match y {
-            Some(y) if y < h => {
-                let (a, b) = rows_of(y);
-                (dir[a..b].to_vec(), wt[a..b].to_vec())
-            }
+            Some(y) if y < h => (dir[y * w..][..w].to_vec(), wt[y * w..][..w].to_vec()),
             _ => (Vec::new(), Vec::new()),
         }
     };
@@ -127,9 +123,9 @@ fn cz_fill_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
                     }
                     let (mut s, mut sw, mut n) = ([0.0f32; 2], 0.0f32, 0.0f32);
                     let nbrs = [
-                        (x > 0).then(|| (x.wrapping_sub(1), y)),
+                        (x > 0).then(|| (x - 1, y)),
                         (x + 1 < w).then_some((x + 1, y)),
-                        (y > 0).then(|| (x, y.wrapping_sub(1))),
+                        (y > 0).then(|| (x, y - 1)),
                         (y + 1 < h).then_some((x, y + 1)),
                     ];
                     for (xx, yy) in nbrs.into_iter().flatten() {
@@ -151,7 +147,7 @@ fn cz_fill_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
                     let w_old = wt_b[l];
                     let mut d = 0.0f32;
                     if sw > 0.0 {
-                        let mut e = unit(s);
+                        let mut e = normalise(s);
                         if c == AXIS {
                             e = cons[i];
                             if s[0] * e[0] + s[1] * e[1] < 0.0 {
