@@ -212,6 +212,7 @@ pub fn write(
         },
         "energy": { "per_curve": r.energy, "directions": r.swc.energy },
         "seconds": crate::io::seconds(&r.seconds),
+        "pursuit": r.pursuit,
     });
     if let (Some(o), Some(e)) = (report.as_object_mut(), extra.as_object()) {
         for (k, v) in e {

@@ -290,16 +290,19 @@ impl Field {
     }
 
     /// The cost of an edge between double-angle vectors a and b.
+    #[inline]
     pub fn edge(&self, a: [f32; 2], b: [f32; 2]) -> f32 {
         self.smooth * 0.5 * (1.0 - (a[0] * b[0] + a[1] * b[1]))
     }
 
     /// (∇_θ I)²/2σθ² at pixel i for the orientation with double-angle vector z.
+    #[inline]
     pub fn e1(&self, i: usize, z: [f32; 2]) -> f32 {
         (self.a[i] - (self.data[i][0] * z[0] + self.data[i][1] * z[1])).max(0.0)
     }
 
     /// ρ = |∇⊥θ I| at pixel i for the orientation with double-angle vector z.
+    #[inline]
     pub fn rho(&self, i: usize, z: [f32; 2]) -> f32 {
         let s2 = self.gx[i] * self.gx[i] + self.gy[i] * self.gy[i];
         (s2 - 2.0 * self.sigma2 * self.e1(i, z)).max(0.0).sqrt()

@@ -2,14 +2,14 @@
 //! tracing and placing a curve on the lattice, and the window pass's maps and screening.
 
 use super::*;
+use rayon::prelude::*;
 
 impl Search<'_> {
     /// The exact best birth at integer corner (x, y): δ − λ_NC over every kind, axis and
-    /// side variant the mask allows there.
-    pub(super) fn best_birth(&mut self, x: i32, y: i32) -> Option<(f32, Cand)> {
-        let mut best: Option<(f32, Cand)> = None;
-        let mut ranked: Vec<(f32, Cand)> = Vec::with_capacity(256);
+    /// side variant the mask allows there. Reads the state only.
+    pub(super) fn best_birth(&self, x: i32, y: i32) -> Option<(f32, Cand)> {
         let (hair_min, spill, lambda) = (self.p.hair_min, self.p.spill, birth_cost(self.p));
+        let mut ranked: Vec<(f32, Cand)> = Vec::with_capacity(256);
         for a in 0..AXIS_STEPS as i32 {
             let mk = |kind, dict, code| Cand {
                 kind,
@@ -19,22 +19,19 @@ impl Search<'_> {
                 dict,
                 code,
             };
-            let mut kinds: Vec<(Kind, bool)> = Vec::with_capacity(5);
-            let w5 = self.win(
-                Kind::Stream,
-                &mk(Kind::Stream, [0, 0], [NO_REFINE; 2]).prim(),
-            );
+            let mut kinds: Vec<Kind> = Vec::with_capacity(4);
+            let w5 = self.win_at(Kind::Stream, a, x, y);
             if w5.at_edge(hair_min, spill) {
-                kinds.push((Kind::Boundary, false));
-                kinds.push((Kind::Source, false));
+                kinds.push(Kind::Boundary);
+                kinds.push(Kind::Source);
             }
             // c, d, e look the same from either end: half the axes suffice.
             let half = a < AXIS_STEPS as i32 / 2;
             if half && w5.inside() {
-                kinds.push((Kind::Stream, false));
-                kinds.push((Kind::Occluding, false));
+                kinds.push(Kind::Stream);
+                kinds.push(Kind::Occluding);
             }
-            for (kind, _) in kinds {
+            for kind in kinds {
                 let prep = self.delta_prep(&w5, kind);
                 for dict in variants(kind, None) {
                     let (d, code, _) = self.delta_with(&prep, kind, a, dict);
@@ -42,10 +39,7 @@ impl Search<'_> {
                 }
             }
             if half {
-                let w6 = self.win(
-                    Kind::Dividing,
-                    &mk(Kind::Dividing, [1, 1], [NO_REFINE; 2]).prim(),
-                );
+                let w6 = self.win_at(Kind::Dividing, a, x, y);
                 if w6.inside() {
                     let prep = self.delta_prep(&w6, Kind::Dividing);
                     for dict in variants(Kind::Dividing, None) {
@@ -55,8 +49,8 @@ impl Search<'_> {
                 }
             }
         }
-        self.stats.exact_births += 1;
         ranked.sort_by(|a, b| b.0.total_cmp(&a.0));
+        let mut best: Option<(f32, Cand)> = None;
         for &(_, c) in ranked.iter().take(RELAX_BIRTHS) {
             let d = self.exact(&c).0 - lambda;
             if best.is_none_or(|(b, _)| d > b) {
@@ -67,7 +61,7 @@ impl Search<'_> {
     }
 
     /// The exact δ of candidate `c` (its refinement as it is), with its relaxed field.
-    pub(super) fn exact(&mut self, c: &Cand) -> (f32, Vec<(u32, [f32; 2])>) {
+    pub(super) fn exact(&self, c: &Cand) -> (f32, Vec<(u32, [f32; 2])>) {
         let win = self.win(c.kind, &c.prim());
         let zb = self.zb_of(c);
         self.relax(&win, c.kind, zb)
@@ -90,21 +84,28 @@ impl Search<'_> {
     }
 
     pub(super) fn fresh(&self, e: &Entry) -> bool {
-        if e.stamp == PROXY {
-            return false;
-        }
-        let (x, y) = self.corner(e.pos);
-        let w = self.f.width as usize;
-        let h = self.f.height as usize;
+        e.stamp != PROXY && self.fresh_at(e.pos, e.stamp)
+    }
+
+    /// Whether a score made at `stamp` for birth position `pos` is still valid.
+    fn fresh_at(&self, pos: u32, stamp: u32) -> bool {
+        let (x, y) = self.corner(pos);
+        let (w, h) = (self.f.width as usize, self.f.height as usize);
         let (cx, cy) = (
             (x as usize).min(w - 1) / CELL,
             (y as usize).min(h - 1) / CELL,
         );
-        self.dirty[cy * self.cells_x + cx] <= e.stamp
+        self.dirty[cy * self.cells_x + cx] <= stamp
     }
 
     /// The best birth by exact δ (lazily: stale scores are refreshed until the top is
     /// fresh); None when no position has a positive score.
+    ///
+    /// Refreshing is where the pursuit spends its time, one position after another. So
+    /// when the top needs a score, the next stale positions in heap order are scored with
+    /// it, in parallel, and kept until their turn comes or a change near them makes them
+    /// stale. The heap itself moves exactly as if they were scored one by one: the same
+    /// births come out, whatever the number of threads.
     pub(super) fn pop_best(&mut self) -> Option<(f32, Cand, u32)> {
         while let Some(e) = self.heap.pop() {
             if e.delta <= 0.0 {
@@ -117,8 +118,14 @@ impl Search<'_> {
                 let c = self.best_at[e.pos as usize].expect("fresh entries were scored");
                 return Some((e.delta, c, e.pos));
             }
-            let (x, y) = self.corner(e.pos);
-            if let Some((d, c)) = self.best_birth(x, y) {
+            let scored = match self.memo[e.pos as usize] {
+                Some((stamp, r)) if self.fresh_at(e.pos, stamp) => {
+                    self.stats.memo_hits += 1;
+                    r
+                }
+                _ => self.score_ahead(e.pos),
+            };
+            if let Some((d, c)) = scored {
                 self.best_at[e.pos as usize] = Some(c);
                 self.heap.push(Entry {
                     delta: d,
@@ -130,35 +137,76 @@ impl Search<'_> {
         None
     }
 
+    /// Scores birth position `pos` and, in parallel with it, the stale positions that come
+    /// next in the heap (the heap is left as it was); the others' scores go to the memo.
+    fn score_ahead(&mut self, pos: u32) -> Option<(f32, Cand)> {
+        let want = match rayon::current_num_threads() {
+            0 | 1 => 1,
+            t => SCORE_AHEAD * t,
+        };
+        let mut batch = vec![pos];
+        let mut popped = Vec::new();
+        while batch.len() < want && popped.len() < 4 * want {
+            let Some(f) = self.heap.pop() else {
+                break;
+            };
+            popped.push(f);
+            if f.delta <= 0.0 {
+                break;
+            }
+            let p = f.pos as usize;
+            let known = matches!(self.memo[p], Some((stamp, _)) if self.fresh_at(f.pos, stamp));
+            if !self.blacklist[p] && !self.fresh(&f) && !known {
+                batch.push(f.pos);
+            }
+        }
+        self.heap.extend(popped);
+        let score = |&q: &u32| {
+            let (x, y) = self.corner(q);
+            self.best_birth(x, y)
+        };
+        // One position is scored here: handing it to the pool costs a wake-up.
+        let scores: Vec<Option<(f32, Cand)>> = if batch.len() == 1 {
+            batch.iter().map(score).collect()
+        } else {
+            batch.par_iter().map(score).collect()
+        };
+        self.stats.exact_births += batch.len() as u64;
+        for (&q, &r) in batch.iter().zip(&scores).skip(1) {
+            self.memo[q as usize] = Some((self.epoch, r));
+        }
+        scores[0]
+    }
+
     /// The best extension of a curve at either end: (δ − turn cost, candidate, at the end).
     /// Ahead of the last primitive the new one turns by −1, 0 or +1 step and sits STEP px
     /// along its own axis; behind the first it sits STEP px back along the first's axis
     /// (the chain rule of [`chain`]) and its axis turns into the first's.
-    pub(super) fn best_extension(&mut self, curve: &VecDeque<Cand>) -> Option<(f32, Cand, bool)> {
+    pub(super) fn best_extension(&self, curve: &VecDeque<Cand>) -> Option<(f32, Cand, bool)> {
         let (w, h) = (self.f.width as f32, self.f.height as f32);
         let first = curve[0];
+        let last = *curve.back().expect("a curve has a primitive");
         let along_left = (first.kind == Kind::Occluding).then_some(first.dict[0] == 0);
         let vars = variants(first.kind, along_left);
         let smooth = self.f.smooth;
-        let mut ranked: Vec<(f32, Cand, bool, i32)> = Vec::new();
-        for at_end in [true, false] {
-            let end = if at_end {
-                *curve.back().expect("a curve has a primitive")
-            } else {
-                first
-            };
-            for turn in -1..=1 {
-                let (axis, step_axis, sign) = if at_end {
-                    (end.axis + turn, end.axis + turn, 1.0)
+        let places: Vec<(bool, i32)> = [true, false]
+            .into_iter()
+            .flat_map(|at_end| (-1..=1).map(move |turn| (at_end, turn)))
+            .collect();
+        let per_place: Vec<Vec<(f32, Cand, bool, i32)>> = places
+            .iter()
+            .map(|&(at_end, turn)| {
+                let (end, axis, step_axis, sign) = if at_end {
+                    (last, last.axis + turn, last.axis + turn, 1.0)
                 } else {
-                    (end.axis - turn, end.axis, -1.0)
+                    (first, first.axis - turn, first.axis, -1.0)
                 };
                 let (x, y) = (
                     end.x + sign * STEP * cos15(step_axis as i64) as f32,
                     end.y + sign * STEP * sin15(step_axis as i64) as f32,
                 );
                 if !(0.0..=w).contains(&x) || !(0.0..=h).contains(&y) {
-                    continue;
+                    return Vec::new();
                 }
                 let c0 = Cand {
                     kind: first.kind,
@@ -170,24 +218,32 @@ impl Search<'_> {
                 };
                 let win = self.win(first.kind, &c0.prim());
                 if !self.allowed(first.kind, &win) {
-                    continue;
+                    return Vec::new();
                 }
                 let prep = self.delta_prep(&win, first.kind);
-                for &dict in &vars {
-                    let (d, code, _) = self.delta_with(&prep, first.kind, axis, dict);
-                    ranked.push((
-                        d - smooth * turn_cost(turn),
-                        Cand { dict, code, ..c0 },
-                        at_end,
-                        turn,
-                    ));
-                }
-            }
-        }
+                vars.iter()
+                    .map(|&dict| {
+                        let (d, code, _) = self.delta_with(&prep, first.kind, axis, dict);
+                        (
+                            d - smooth * turn_cost(turn),
+                            Cand { dict, code, ..c0 },
+                            at_end,
+                            turn,
+                        )
+                    })
+                    .collect()
+            })
+            .collect();
+        let mut ranked: Vec<(f32, Cand, bool, i32)> = per_place.into_iter().flatten().collect();
+        // A stable sort: ties keep the order of the places, as when they ran one by one.
         ranked.sort_by(|a, b| b.0.total_cmp(&a.0));
+        ranked.truncate(RELAX_EXTENSIONS);
+        let exact: Vec<f32> = ranked
+            .iter()
+            .map(|&(_, c, _, turn)| self.exact(&c).0 - smooth * turn_cost(turn))
+            .collect();
         let mut best: Option<(f32, Cand, bool)> = None;
-        for &(_, c, at_end, turn) in ranked.iter().take(RELAX_EXTENSIONS) {
-            let d = self.exact(&c).0 - smooth * turn_cost(turn);
+        for (&d, &(_, c, at_end, _)) in exact.iter().zip(&ranked) {
             if best.as_ref().is_none_or(|b| d > b.0) {
                 best = Some((d, c, at_end));
             }
@@ -198,6 +254,7 @@ impl Search<'_> {
     /// Paints candidate `c` with its refinement as it is; returns its exact δ (before λ_NC
     /// and turns) and ρ.
     pub(super) fn place(&mut self, c: &Cand) -> (f32, f32) {
+        self.stats.placements += 1;
         let win = self.win(c.kind, &c.prim());
         let zb = self.zb_of(c);
         let (d, relaxed) = self.relax(&win, c.kind, zb);
@@ -247,9 +304,13 @@ impl Search<'_> {
     /// Returns the kept curve and its δ, or None (the state is then as before).
     pub(super) fn trace(&mut self, birth: Cand) -> Option<(Curve, f32)> {
         let mark = self.log.len();
+        // A dropped curve leaves the state as it found it, so the scores it made stale are
+        // valid again: its staleness marks are taken back with it.
+        let dirty = self.dirty.clone();
         let mut curve = VecDeque::from([birth]);
         self.place(&birth);
         while curve.len() < self.p.max_prims {
+            self.stats.extensions += 1;
             let Some((d, c, at_end)) = self.best_extension(&curve) else {
                 break;
             };
@@ -266,6 +327,7 @@ impl Search<'_> {
         self.undo_to(mark);
         if curve.len() < self.p.min_prims {
             self.stats.dropped_short += 1;
+            self.dirty = dirty;
             return None;
         }
         // On the lattice: an integer start, centres chained from it, each primitive placed
@@ -294,12 +356,14 @@ impl Search<'_> {
         }
         let Some((_, start)) = best else {
             self.stats.dropped_snapped += 1;
+            self.dirty = dirty;
             return None;
         };
         let (delta, prims) = self.lay(&curve, &axes, start);
         if delta <= 0.0 {
             self.undo_to(mark);
             self.stats.dropped_snapped += 1;
+            self.dirty = dirty;
             return None;
         }
         // Accepted: nothing of it will be undone.
@@ -353,6 +417,8 @@ impl Search<'_> {
         let t = Instant::now();
         let (best, _code) = window_pass(engine, self.f, &self.maps(), self.p)?;
         self.stats.window_runs += 1;
+        // Θ was diffused again: every score ahead is stale.
+        self.memo.fill(None);
         self.stats.seconds_windows += t.elapsed().as_secs_f64();
         self.heap.clear();
         for (pos, &d) in best.iter().enumerate() {

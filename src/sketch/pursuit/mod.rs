@@ -186,6 +186,7 @@ impl Lut {
         }
     }
 
+    #[inline]
     fn at(&self, r: f32) -> f32 {
         let t = r / self.step;
         let i = t as usize;
@@ -215,6 +216,52 @@ impl Win {
     fn at_edge(&self, hair_min: f32, spill: f32) -> bool {
         self.hair[0] as f32 >= hair_min * self.total[0] as f32
             && self.hair[1] as f32 <= spill * self.total[1] as f32
+    }
+}
+
+/// A window's pixels on an integer centre: offsets in raster order with their sides, and
+/// per side how many there are.
+struct Stencil {
+    px: Vec<(i32, i32, Side)>,
+    total: [u32; 2],
+}
+
+impl Stencil {
+    /// One per axis step, from `prim::window` on a blank image large enough to hold it.
+    fn all(dividing: bool) -> Vec<Stencil> {
+        let kind = if dividing {
+            Kind::Dividing
+        } else {
+            Kind::Stream
+        };
+        (0..AXIS_STEPS)
+            .map(|a| {
+                let c = 16;
+                let p = Primitive {
+                    x: c as f32,
+                    y: c as f32,
+                    axis: a as f32 * AXIS_QUANTUM,
+                    rho: 0.0,
+                    side: [0.0; 2],
+                };
+                let mut st = Stencil {
+                    px: Vec::new(),
+                    total: [0; 2],
+                };
+                prim::window(kind, &p, 2 * c, 2 * c, |i, s| {
+                    let i = i as i32;
+                    st.px.push((
+                        i % (2 * c as i32) - c as i32,
+                        i / (2 * c as i32) - c as i32,
+                        s,
+                    ));
+                    if let Some(k) = s.index() {
+                        st.total[k] += 1;
+                    }
+                });
+                st
+            })
+            .collect()
     }
 }
 
@@ -269,6 +316,9 @@ const RELAX_SWEEPS: usize = 6;
 /// ranking score).
 const RELAX_BIRTHS: usize = 3;
 const RELAX_EXTENSIONS: usize = 2;
+/// Birth positions scored at once per thread when the heap's top needs a score (see
+/// `pop_best`): enough work per hand-over that waking the threads does not eat the gain.
+const SCORE_AHEAD: usize = 4;
 
 /// The search state of one pursuit.
 struct Search<'a> {
@@ -286,13 +336,15 @@ struct Search<'a> {
     epoch: u32,
     dirty: Vec<u32>,
     cells_x: usize,
-    mark: Vec<u32>,
-    gen: u32,
     /// (cos 2θ, sin 2θ) of θ = j·3.75°.
     ztab: Vec<[f32; 2]>,
     nx: u32,
     heap: BinaryHeap<Entry>,
     best_at: Vec<Option<Cand>>,
+    /// Window stencils on integer centres, per axis: [other kinds, dividing lines].
+    stencils: [Vec<Stencil>; 2],
+    /// Scores made ahead of their turn (`pop_best`): the epoch and the best birth.
+    memo: Vec<Option<(u32, Option<(f32, Cand)>)>>,
     blacklist: Vec<bool>,
     stats: PursuitStats,
 }
@@ -326,12 +378,12 @@ impl<'a> Search<'a> {
             epoch: 0,
             dirty: vec![0; cells_x * h.div_ceil(CELL)],
             cells_x,
-            mark: vec![0; n],
-            gen: 0,
             ztab: ws::ztab(),
             nx,
             heap: BinaryHeap::new(),
             best_at: vec![None; (nx * ny) as usize],
+            stencils: [false, true].map(Stencil::all),
+            memo: vec![None; (nx * ny) as usize],
             blacklist: vec![false; (nx * ny) as usize],
             stats: PursuitStats::default(),
         }
@@ -340,6 +392,32 @@ impl<'a> Search<'a> {
     /// (cos 2θ, sin 2θ) of θ = j·3.75°.
     fn z_of(&self, j: i32) -> [f32; 2] {
         self.ztab[j.rem_euclid(ws::FINE) as usize]
+    }
+
+    /// The window of a `kind` primitive with axis `a` (15° steps) centred on the integer
+    /// corner (x, y), from the stencils made once: where a window sits on whole pixels its
+    /// pixel pattern depends on the axis alone. The same window as [`Self::win`] gives.
+    fn win_at(&self, kind: Kind, a: i32, x: i32, y: i32) -> Win {
+        let st = &self.stencils[(kind == Kind::Dividing) as usize]
+            [a.rem_euclid(AXIS_STEPS as i32) as usize];
+        let (w, h) = (self.f.width as i32, self.f.height as i32);
+        let mut out = Win {
+            px: Vec::with_capacity(st.px.len()),
+            hair: [0; 2],
+            total: st.total,
+        };
+        for &(dx, dy, s) in &st.px {
+            let (i, j) = (x + dx, y + dy);
+            if i < 0 || j < 0 || i >= w || j >= h {
+                continue;
+            }
+            let i = (j * w + i) as usize;
+            out.px.push((i as u32, s));
+            if let Some(k) = s.index() {
+                out.hair[k] += self.f.hair[i] as u32;
+            }
+        }
+        out
     }
 
     fn win(&self, kind: Kind, p: &Primitive) -> Win {
@@ -486,11 +564,17 @@ impl<'a> Search<'a> {
         let mut t_search = 0.0;
         let mut t_mark = Instant::now();
         while curves.len() < self.p.max_curves {
-            let Some((_, birth, pos)) = self.pop_best() else {
+            let t = Instant::now();
+            let best = self.pop_best();
+            self.stats.seconds_births += t.elapsed().as_secs_f64();
+            let Some((_, birth, pos)) = best else {
                 break;
             };
             self.stats.births += 1;
-            match self.trace(birth) {
+            let t = Instant::now();
+            let traced = self.trace(birth);
+            self.stats.seconds_traces += t.elapsed().as_secs_f64();
+            match traced {
                 Some((c, _)) => {
                     curves.push(c);
                     energy.push(self.energy(&curves));
@@ -642,18 +726,9 @@ pub fn pursue(
                 s.z[i] = solved.z[i];
             }
         }
-        let st = std::mem::take(&mut s.stats);
-        stats.births += st.births;
-        stats.dropped_short += st.dropped_short;
-        stats.dropped_snapped += st.dropped_snapped;
-        stats.rebuilds += st.rebuilds;
-        stats.window_runs += st.window_runs;
-        stats.exact_births += st.exact_births;
-        stats.seconds_theta += st.seconds_theta;
-        stats.seconds_windows += st.seconds_windows;
-        stats.seconds_search += st.seconds_search;
+        s.stats.passes = 1;
+        stats.add(&s.stats);
         stats.sweeps_final = solved.sweeps;
-        stats.passes += 1;
         let energy_final = s.energy(&curves);
         let theta = theta::theta_of(&s.z, &fl);
         let rho = rho::rho_field(&f.gx, &f.gy, &theta);
@@ -677,6 +752,20 @@ pub fn pursue(
         });
     }
     let mut out = out.expect("at least one pass runs");
+    log::debug!(
+        "pursuit: {} births traced ({} exact birth scores, {} of them made ahead and used, \
+         {:.1} s), {} extension steps and {} placements ({:.1} s traces), {:.1} s \
+         diffusion, {:.1} s window pass",
+        stats.births,
+        stats.exact_births,
+        stats.memo_hits,
+        stats.seconds_births,
+        stats.extensions,
+        stats.placements,
+        stats.seconds_traces,
+        stats.seconds_theta,
+        stats.seconds_windows
+    );
     out.stats = stats;
     Ok(out)
 }
@@ -717,6 +806,41 @@ mod tests {
         assert!((side_angle(2, NO_REFINE) - std::f32::consts::FRAC_PI_2).abs() < 1e-7);
         assert!((side_angle(0, 0) + 30f32.to_radians()).abs() < 1e-6);
         assert!((side_angle(3, 15) - (120.0f32 + 26.25).to_radians()).abs() < 1e-6);
+    }
+
+    #[test]
+    fn stencil_windows_are_the_windows() {
+        let (w, h) = (23u32, 17u32);
+        let n = (w * h) as usize;
+        let high: Vec<f32> = (0..n).map(|i| ((i * 7919) % 13) as f32).collect();
+        let hair: Vec<bool> = (0..n).map(|i| (i * 31) % 7 != 0).collect();
+        let f = Field::new(&high, w, h, &hair, 1.0, 1.0).unwrap();
+        let p = PursuitParams::default();
+        let prior = RhoPrior {
+            weight: [0.5; 2],
+            mean: [1.0, 4.0],
+            sigma: [1.0; 2],
+        };
+        let s = Search::new(&f, &p, vec![[1.0, 0.0]; n], (prior, prior));
+        for kind in [Kind::Stream, Kind::Dividing, Kind::Boundary] {
+            for a in -2..AXIS_STEPS as i32 + 2 {
+                for y in 0..=h as i32 {
+                    for x in 0..=w as i32 {
+                        let c = Cand {
+                            kind,
+                            x: x as f32,
+                            y: y as f32,
+                            axis: a,
+                            dict: [1, 1],
+                            code: [NO_REFINE; 2],
+                        };
+                        let (u, v) = (s.win_at(kind, a, x, y), s.win(kind, &c.prim()));
+                        assert_eq!(u.px, v.px, "{kind:?} axis {a} at ({x}, {y})");
+                        assert_eq!((u.hair, u.total), (v.hair, v.total));
+                    }
+                }
+            }
+        }
     }
 
     #[test]

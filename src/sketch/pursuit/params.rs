@@ -142,6 +142,12 @@ pub struct PursuitStats {
     pub window_runs: u32,
     /// Birth positions scored exactly (all kinds, axes and variants at once).
     pub exact_births: u64,
+    /// Of them, scored ahead of their turn (in parallel with another) and then used.
+    pub memo_hits: u64,
+    /// Extension steps scored (both ends of a curve at once), and primitives painted with
+    /// the field around them relaxed (while tracing and when placing on the lattice).
+    pub extensions: u64,
+    pub placements: u64,
     /// Sweeps of Θ∅, and of the final Θ.
     pub sweeps_empty: u32,
     pub sweeps_final: u32,
@@ -149,6 +155,30 @@ pub struct PursuitStats {
     pub seconds_theta: f64,
     pub seconds_windows: f64,
     pub seconds_search: f64,
+    /// Of the search: choosing births (the heap and the exact scores), and tracing curves.
+    pub seconds_births: f64,
+    pub seconds_traces: f64,
+}
+
+impl PursuitStats {
+    /// Adds the counts and times of another pass (the final sweeps are the last pass's).
+    pub(super) fn add(&mut self, o: &PursuitStats) {
+        self.passes += o.passes;
+        self.births += o.births;
+        self.dropped_short += o.dropped_short;
+        self.dropped_snapped += o.dropped_snapped;
+        self.rebuilds += o.rebuilds;
+        self.window_runs += o.window_runs;
+        self.exact_births += o.exact_births;
+        self.memo_hits += o.memo_hits;
+        self.extensions += o.extensions;
+        self.placements += o.placements;
+        self.seconds_theta += o.seconds_theta;
+        self.seconds_windows += o.seconds_windows;
+        self.seconds_search += o.seconds_search;
+        self.seconds_births += o.seconds_births;
+        self.seconds_traces += o.seconds_traces;
+    }
 }
 
 /// The result of a pursuit.

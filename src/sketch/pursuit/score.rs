@@ -32,7 +32,7 @@ impl Search<'_> {
     /// around is left out, or a seam's side would follow the blur it is meant to replace).
     /// Returns the score, the refinement codes and the sides' double-angle vectors.
     pub(super) fn delta(
-        &mut self,
+        &self,
         win: &Win,
         kind: Kind,
         a: i32,
@@ -44,49 +44,65 @@ impl Search<'_> {
 
     /// What [`Self::delta`] computes once per window and kind, shared by every dictionary
     /// variant scored on it: the pixels a primitive would take, in window order, with their
-    /// current terms, and each side's tensor direction.
-    pub(super) fn delta_prep(&mut self, win: &Win, kind: Kind) -> DeltaPrep {
+    /// current terms, and each side's tensor direction. Reads the state only, so windows
+    /// are prepared in parallel (the taken pixels are marked in a bitset over the window's
+    /// bounding box, not in the image).
+    pub(super) fn delta_prep(&self, win: &Win, kind: Kind) -> DeltaPrep {
         let f = self.f;
         let hair_sides = kind.hair_sides();
-        self.gen = self.gen.wrapping_add(1);
-        let gen = self.gen;
-        for &(i, s) in &win.px {
-            let i = i as usize;
-            if let Some(k) = s.index() {
-                if hair_sides[k] && f.hair[i] && !self.on[i] {
-                    self.mark[i] = gen;
-                }
-            }
-        }
         let (w, h) = (f.width as usize, f.height as usize);
-        let mut px = Vec::with_capacity(win.px.len());
-        let mut g = [[0.0f32; 2]; 2];
-        for &(i, s) in &win.px {
+        let n = win.px.len();
+        debug_assert!(win.px.windows(2).all(|p| p[0].0 < p[1].0), "raster order");
+        // Which window pixels the primitive takes.
+        let mut small = [false; 256];
+        let mut large = Vec::new();
+        let tk: &mut [bool] = if n <= small.len() {
+            &mut small[..n]
+        } else {
+            large.resize(n, false);
+            &mut large
+        };
+        for (t, &(i, s)) in tk.iter_mut().zip(&win.px) {
             let i = i as usize;
-            if self.mark[i] != gen {
+            *t = s
+                .index()
+                .is_some_and(|k| hair_sides[k] && f.hair[i] && !self.on[i]);
+        }
+        let mut px = Vec::with_capacity(n);
+        let mut g = [[0.0f32; 2]; 2];
+        // The window is in raster order, so the pixel below a taken one is found by a
+        // cursor that only moves forward.
+        let mut below = 0;
+        for (k, &(i, s)) in win.px.iter().enumerate() {
+            if !tk[k] {
                 continue;
             }
-            let k = s.index().expect("marked pixels lie on a side");
-            g[k][0] += f.data[i][0];
-            g[k][1] += f.data[i][1];
+            let i = i as usize;
+            let side = s.index().expect("taken pixels lie on a side");
+            g[side][0] += f.data[i][0];
+            g[side][1] += f.data[i][1];
             let zo = self.z[i];
             // Edges with both ends taken stop costing; each is counted from its lower end
             // (right and down neighbours), as the score adds them.
             let (x, y) = (i % w, i / w);
             let mut edges = [0.0f32; 2];
             let mut n_edges = 0;
-            for j in [(x + 1 < w).then(|| i + 1), (y + 1 < h).then(|| i + w)]
-                .into_iter()
-                .flatten()
-            {
-                if f.hair[j] && self.mark[j] == gen {
-                    edges[n_edges] = f.edge(self.z[j], zo);
+            if x + 1 < w && k + 1 < n && win.px[k + 1].0 as usize == i + 1 && tk[k + 1] {
+                edges[n_edges] = f.edge(self.z[i + 1], zo);
+                n_edges += 1;
+            }
+            if y + 1 < h {
+                while below < n && (win.px[below].0 as usize) < i + w {
+                    below += 1;
+                }
+                if below < n && win.px[below].0 as usize == i + w && tk[below] {
+                    edges[n_edges] = f.edge(self.z[i + w], zo);
                     n_edges += 1;
                 }
             }
             px.push(PrepPx {
                 i: i as u32,
-                side: k as u8,
+                side: side as u8,
                 e1_old: f.e1(i, zo),
                 lp_old: self.nsk.at(f.rho(i, zo)),
                 edges,
@@ -158,125 +174,195 @@ impl Search<'_> {
         })
     }
 
-    /// E over the hair pixels of the box [x0, x1) × [y0, y1) and the edges with an end in it.
-    pub(super) fn local_energy(&self, x0: usize, y0: usize, x1: usize, y1: usize) -> f64 {
-        let f = self.f;
-        let (w, h) = (f.width as usize, f.height as usize);
-        let mut e = 0.0f64;
-        for y in y0..y1 {
-            for x in x0..x1 {
-                let i = y * w + x;
-                if !f.hair[i] {
-                    continue;
-                }
-                let zi = self.z[i];
-                let r = f.rho(i, zi);
-                let lp = if self.fixed[i] && self.skrho[i] {
-                    self.sk.at(r)
-                } else {
-                    self.nsk.at(r)
-                };
-                e += (f.e1(i, zi) - lp) as f64;
-                // Each edge once: one with both ends in the box is counted from its lower
-                // index (right and down), one leaving the box always.
-                let nb = [
-                    (x > 0 && x == x0).then(|| i - 1),
-                    (x + 1 < w).then(|| i + 1),
-                    (y > 0 && y == y0).then(|| i - w),
-                    (y + 1 < h).then(|| i + w),
-                ];
-                for j in nb.into_iter().flatten() {
-                    if f.hair[j] && !(self.fixed[i] && self.fixed[j]) {
-                        e += f.edge(zi, self.z[j]) as f64;
-                    }
-                }
-            }
-        }
-        e
-    }
-
     /// The exact δ (before λ_NC or the turn cost) of painting `win` with `zb` and relaxing
     /// the free pixels within [`RELAX_MARGIN`] px of it by [`RELAX_SWEEPS`] Gauss-Seidel
-    /// sweeps; returns δ and the relaxed values (the state is left as it was).
+    /// sweeps; returns δ and the relaxed values. Works on a copy of the box and the ring
+    /// of pixels around it, so candidates are scored in parallel.
     pub(super) fn relax(
-        &mut self,
+        &self,
         win: &Win,
         kind: Kind,
         zb: [[f32; 2]; 2],
     ) -> (f32, Vec<(u32, [f32; 2])>) {
         let f = self.f;
         let (w, h) = (f.width as usize, f.height as usize);
-        let hair_sides = kind.hair_sides();
-        let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
-        let mut taken: Vec<(usize, [f32; 2])> = Vec::with_capacity(win.px.len());
-        for &(i, s) in &win.px {
-            let i = i as usize;
-            let (x, y) = (i % w, i / w);
-            (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x + 1), y1.max(y + 1));
-            if let Some(k) = s.index() {
-                if hair_sides[k] && f.hair[i] && !self.on[i] {
-                    taken.push((i, zb[k]));
-                }
-            }
-        }
         if win.px.is_empty() {
             return (0.0, Vec::new());
         }
-        let (x0, y0) = (
-            x0.saturating_sub(RELAX_MARGIN),
-            y0.saturating_sub(RELAX_MARGIN),
-        );
-        let (x1, y1) = ((x1 + RELAX_MARGIN).min(w), (y1 + RELAX_MARGIN).min(h));
-        let before = self.local_energy(x0, y0, x1, y1);
-        let saved: Vec<[f32; 2]> = taken.iter().map(|&(i, _)| self.z[i]).collect();
-        let skr = self.sk_kind(kind);
-        for &(i, z) in &taken {
-            self.z[i] = z;
-            self.fixed[i] = true;
-            self.skrho[i] = skr;
+        let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
+        for &(i, _) in &win.px {
+            let (x, y) = (i as usize % w, i as usize / w);
+            (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x + 1), y1.max(y + 1));
         }
-        let mut free = Vec::new();
-        // The free pixels of each colour, in raster order, with their coordinates.
-        let mut by_parity: [Vec<(usize, usize, usize)>; 2] = [Vec::new(), Vec::new()];
-        for y in y0..y1 {
-            for x in x0..x1 {
-                let i = y * w + x;
-                if f.hair[i] && !self.fixed[i] {
-                    free.push(i);
-                    by_parity[(x + y) % 2].push((i, x, y));
+        let bx = Boxed {
+            x0: x0.saturating_sub(RELAX_MARGIN),
+            y0: y0.saturating_sub(RELAX_MARGIN),
+            x1: (x1 + RELAX_MARGIN).min(w),
+            y1: (y1 + RELAX_MARGIN).min(h),
+        };
+        let mut patch = Patch::copy(self, &bx);
+        let before = patch.energy(self, &bx);
+        let hair_sides = kind.hair_sides();
+        let skr = self.sk_kind(kind);
+        for &(i, s) in &win.px {
+            let i = i as usize;
+            if let Some(k) = s.index() {
+                if hair_sides[k] && f.hair[i] && !self.on[i] {
+                    let c = patch.at(i % w, i / w);
+                    patch.z[c] = zb[k];
+                    patch.fixed[c] = true;
+                    patch.skrho[c] = skr;
                 }
             }
         }
-        let old: Vec<[f32; 2]> = free.iter().map(|&i| self.z[i]).collect();
+        // The free pixels of each colour, in raster order: image and patch index.
+        let mut by_parity: [Vec<(u32, u32)>; 2] = [Vec::new(), Vec::new()];
+        for y in bx.y0..bx.y1 {
+            let c0 = patch.at(bx.x0, y);
+            for (k, x) in (bx.x0..bx.x1).enumerate() {
+                let c = c0 + k;
+                if patch.hair[c] && !patch.fixed[c] {
+                    by_parity[(x + y) % 2].push(((y * w + x) as u32, c as u32));
+                }
+            }
+        }
         let half = 0.5 * f.smooth;
+        let pw = patch.w;
         for _ in 0..RELAX_SWEEPS {
             for colour in &by_parity {
-                for &(i, x, y) in colour {
+                for &(i, c) in colour {
+                    let (i, c) = (i as usize, c as usize);
                     let mut s = f.data[i];
-                    for j in nbrs4(i, x, y, w, h).into_iter().flatten() {
-                        if f.hair[j] {
-                            s[0] += half * self.z[j][0];
-                            s[1] += half * self.z[j][1];
+                    // Left, right, up, down, as `nbrs4` orders them; the ring off the
+                    // image is no hair.
+                    for cj in [c - 1, c + 1, c - pw, c + pw] {
+                        if patch.hair[cj] {
+                            s[0] += half * patch.z[cj][0];
+                            s[1] += half * patch.z[cj][1];
                         }
                     }
                     let n2 = s[0] * s[0] + s[1] * s[1];
                     if n2 > 1e-24 {
                         let n = n2.sqrt();
-                        self.z[i] = [s[0] / n, s[1] / n];
+                        patch.z[c] = [s[0] / n, s[1] / n];
                     }
                 }
             }
         }
-        let after = self.local_energy(x0, y0, x1, y1);
-        let relaxed: Vec<(u32, [f32; 2])> = free.iter().map(|&i| (i as u32, self.z[i])).collect();
-        for (k, &i) in free.iter().enumerate() {
-            self.z[i] = old[k];
-        }
-        for (k, &(i, _)) in taken.iter().enumerate() {
-            self.z[i] = saved[k];
-            self.fixed[i] = false;
-            self.skrho[i] = false;
+        let after = patch.energy(self, &bx);
+        let mut relaxed: Vec<(u32, [f32; 2])> =
+            Vec::with_capacity(by_parity[0].len() + by_parity[1].len());
+        for y in bx.y0..bx.y1 {
+            let c0 = patch.at(bx.x0, y);
+            for (k, x) in (bx.x0..bx.x1).enumerate() {
+                let c = c0 + k;
+                if patch.hair[c] && !patch.fixed[c] {
+                    relaxed.push(((y * w + x) as u32, patch.z[c]));
+                }
+            }
         }
         ((before - after) as f32, relaxed)
+    }
+}
+
+/// A box of pixels [x0, x1) × [y0, y1).
+struct Boxed {
+    x0: usize,
+    y0: usize,
+    x1: usize,
+    y1: usize,
+}
+
+/// A copy of the state over a box and a ring of one pixel around it: what
+/// [`Search::relax`] changes and reads. The ring is there even where it falls off the
+/// image, as pixels without hair, so no neighbour needs a bounds check.
+struct Patch {
+    /// The image coordinates of the patch's (0, 0) are (x0 − 1, y0 − 1) of the box.
+    ox: isize,
+    oy: isize,
+    w: usize,
+    hair: Vec<bool>,
+    z: Vec<[f32; 2]>,
+    fixed: Vec<bool>,
+    skrho: Vec<bool>,
+}
+
+impl Patch {
+    fn copy(s: &Search, b: &Boxed) -> Patch {
+        let (w, h) = (s.f.width as usize, s.f.height as usize);
+        let (ox, oy) = (b.x0 as isize - 1, b.y0 as isize - 1);
+        let pw = b.x1 - b.x0 + 2;
+        let ph = b.y1 - b.y0 + 2;
+        let n = pw * ph;
+        let mut p = Patch {
+            ox,
+            oy,
+            w: pw,
+            hair: vec![false; n],
+            z: vec![[0.0; 2]; n],
+            fixed: vec![false; n],
+            skrho: vec![false; n],
+        };
+        // The part of the patch inside the image.
+        let (x0, y0) = (b.x0.saturating_sub(1), b.y0.saturating_sub(1));
+        let (x1, y1) = ((b.x1 + 1).min(w), (b.y1 + 1).min(h));
+        for y in y0..y1 {
+            let r = y * w + x0..y * w + x1;
+            let c = p.at(x0, y);
+            let c = c..c + (x1 - x0);
+            p.hair[c.clone()].copy_from_slice(&s.f.hair[r.clone()]);
+            p.z[c.clone()].copy_from_slice(&s.z[r.clone()]);
+            p.fixed[c.clone()].copy_from_slice(&s.fixed[r.clone()]);
+            p.skrho[c].copy_from_slice(&s.skrho[r]);
+        }
+        p
+    }
+
+    #[inline]
+    fn at(&self, x: usize, y: usize) -> usize {
+        (y as isize - self.oy) as usize * self.w + (x as isize - self.ox) as usize
+    }
+
+    /// E over the hair pixels of the box and the edges with an end in it.
+    fn energy(&self, s: &Search, b: &Boxed) -> f64 {
+        let f = s.f;
+        let w = f.width as usize;
+        let pw = self.w;
+        let mut e = 0.0f64;
+        for y in b.y0..b.y1 {
+            let c0 = self.at(b.x0, y);
+            for (k, x) in (b.x0..b.x1).enumerate() {
+                let c = c0 + k;
+                if !self.hair[c] {
+                    continue;
+                }
+                let i = y * w + x;
+                let zi = self.z[c];
+                let r = f.rho(i, zi);
+                let lp = if self.fixed[c] && self.skrho[c] {
+                    s.sk.at(r)
+                } else {
+                    s.nsk.at(r)
+                };
+                e += (f.e1(i, zi) - lp) as f64;
+                // Each edge once: one with both ends in the box is counted from its lower
+                // index (right and down), one leaving the box always; the ring off the
+                // image is no hair.
+                let mut edge = |cj: usize| {
+                    if self.hair[cj] && !(self.fixed[c] && self.fixed[cj]) {
+                        e += f.edge(zi, self.z[cj]) as f64;
+                    }
+                };
+                if x == b.x0 {
+                    edge(c - 1);
+                }
+                edge(c + 1);
+                if y == b.y0 {
+                    edge(c - pw);
+                }
+                edge(c + pw);
+            }
+        }
+        e
     }
 }
