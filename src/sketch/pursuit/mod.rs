@@ -273,6 +273,9 @@ struct Undo {
     skrho: bool,
 }
 
+/// A birth position's exact score and candidate (None: nothing allowed there).
+type Birth = Option<(f32, Cand)>;
+
 /// A heap entry: δ at a birth position, scored at `stamp` (PROXY: by the window pass).
 #[derive(Clone, Copy, Debug)]
 struct Entry {
@@ -344,7 +347,7 @@ struct Search<'a> {
     /// Window stencils on integer centres, per axis: [other kinds, dividing lines].
     stencils: [Vec<Stencil>; 2],
     /// Scores made ahead of their turn (`pop_best`): the epoch and the best birth.
-    memo: Vec<Option<(u32, Option<(f32, Cand)>)>>,
+    memo: Vec<Option<(u32, Birth)>>,
     blacklist: Vec<bool>,
     stats: PursuitStats,
 }
