@@ -216,6 +216,9 @@ struct Ctx<'a> {
     runs: &'a [[i32; 4]],
     stencils: &'a [[u32; 4]],
     ztab: &'a [[f32; 2]],
+    /// The box every stencil's runs lie in, relative to the centre: [y0, y1] inclusive,
+    /// [x0, x1) half-open.
+    reach: [i32; 4],
 }
 
 impl Ctx<'_> {
@@ -247,10 +250,31 @@ impl Ctx<'_> {
         self.stencils[st][2] as f32
     }
 
+    /// The hair pixels in the box [cx + x0, cx + x1) × [cy + y0, cy + y1] that holds every
+    /// stencil (`reach`), exact: the hair map's prefix sums are integers below 2^24.
+    fn hair_near(&self, cx: i32, cy: i32) -> f32 {
+        let (w, h) = (self.cfg.width as i32, self.cfg.height as i32);
+        let [y0, y1, x0, x1] = self.reach;
+        let xa = (cx + x0).clamp(0, w) as usize;
+        let xb = (cx + x1).clamp(0, w) as usize;
+        let mut n = 0.0f32;
+        for y in (cy + y0).max(0)..=(cy + y1).min(h - 1) {
+            let row = y as usize * (w as usize + 1);
+            n += self.prefix[row + xb][MAP_HAIR] - self.prefix[row + xa][MAP_HAIR];
+        }
+        n
+    }
+
     fn position(&self, gx: u32, gy: u32) -> (f32, u32) {
         let cfg = &self.cfg;
         let cx = (gx * cfg.stride + cfg.stride / 2) as i32;
         let cy = (gy * cfg.stride + cfg.stride / 2) as i32;
+        // Without hair under any window no kind is allowed here (every rule below asks for
+        // some): the answer the full scan gives, without the scan. Most of a portrait's
+        // positions are such.
+        if cfg.hair_min > 0.0 && self.hair_near(cx, cy) == 0.0 {
+            return (NEG, NO_CODE);
+        }
         let si = stencil_index;
         let refine = cfg.refine == 1;
         let zt = self.ztab;
@@ -360,12 +384,24 @@ fn cz_window_sums_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
                 }
             }
         });
+    let mut reach = [i32::MAX, i32::MIN, i32::MAX, i32::MIN];
+    for e in g_st.iter() {
+        for r in &g_runs[e[0] as usize..(e[0] + e[1]) as usize] {
+            reach = [
+                reach[0].min(r[0]),
+                reach[1].max(r[0]),
+                reach[2].min(r[1]),
+                reach[3].max(r[2]),
+            ];
+        }
+    }
     let ctx = Ctx {
         cfg,
         prefix: &prefix,
         runs: &g_runs,
         stencils: &g_st,
         ztab: &g_ztab,
+        reach,
     };
     let (nx, ny) = (cfg.nx as usize, cfg.ny as usize);
     let out: Vec<(f32, u32)> = (0..nx * ny)
