@@ -7,7 +7,7 @@ use rayon::prelude::*;
 impl Search<'_> {
     /// The exact best birth at integer corner (x, y): δ − λ_NC over every kind, axis and
     /// side variant the mask allows there. Reads the state only.
-    pub(super) fn best_birth(&self, x: i32, y: i32) -> Option<(f32, Cand)> {
+    pub(super) fn best_birth(&self, x: i32, y: i32) -> Birth {
         let (hair_min, spill, lambda) = (self.p.hair_min, self.p.spill, birth_cost(self.p));
         let mut ranked: Vec<(f32, Cand)> = Vec::with_capacity(256);
         for a in 0..AXIS_STEPS as i32 {
@@ -139,7 +139,7 @@ impl Search<'_> {
 
     /// Scores birth position `pos` and, in parallel with it, the stale positions that come
     /// next in the heap (the heap is left as it was); the others' scores go to the memo.
-    fn score_ahead(&mut self, pos: u32) -> Option<(f32, Cand)> {
+    fn score_ahead(&mut self, pos: u32) -> Birth {
         let want = match rayon::current_num_threads() {
             0 | 1 => 1,
             t => SCORE_AHEAD * t,
@@ -166,7 +166,7 @@ impl Search<'_> {
             self.best_birth(x, y)
         };
         // One position is scored here: handing it to the pool costs a wake-up.
-        let scores: Vec<Option<(f32, Cand)>> = if batch.len() == 1 {
+        let scores: Vec<Birth> = if batch.len() == 1 {
             batch.iter().map(score).collect()
         } else {
             batch.par_iter().map(score).collect()
@@ -185,28 +185,28 @@ impl Search<'_> {
     pub(super) fn best_extension(&self, curve: &VecDeque<Cand>) -> Option<(f32, Cand, bool)> {
         let (w, h) = (self.f.width as f32, self.f.height as f32);
         let first = curve[0];
-        let last = *curve.back().expect("a curve has a primitive");
         let along_left = (first.kind == Kind::Occluding).then_some(first.dict[0] == 0);
         let vars = variants(first.kind, along_left);
         let smooth = self.f.smooth;
-        let places: Vec<(bool, i32)> = [true, false]
-            .into_iter()
-            .flat_map(|at_end| (-1..=1).map(move |turn| (at_end, turn)))
-            .collect();
-        let per_place: Vec<Vec<(f32, Cand, bool, i32)>> = places
-            .iter()
-            .map(|&(at_end, turn)| {
-                let (end, axis, step_axis, sign) = if at_end {
-                    (last, last.axis + turn, last.axis + turn, 1.0)
+        let mut ranked: Vec<(f32, Cand, bool, i32)> = Vec::new();
+        for at_end in [true, false] {
+            let end = if at_end {
+                *curve.back().expect("a curve has a primitive")
+            } else {
+                first
+            };
+            for turn in -1..=1 {
+                let (axis, step_axis, sign) = if at_end {
+                    (end.axis + turn, end.axis + turn, 1.0)
                 } else {
-                    (first, first.axis - turn, first.axis, -1.0)
+                    (end.axis - turn, end.axis, -1.0)
                 };
                 let (x, y) = (
                     end.x + sign * STEP * cos15(step_axis as i64) as f32,
                     end.y + sign * STEP * sin15(step_axis as i64) as f32,
                 );
                 if !(0.0..=w).contains(&x) || !(0.0..=h).contains(&y) {
-                    return Vec::new();
+                    continue;
                 }
                 let c0 = Cand {
                     kind: first.kind,
@@ -218,32 +218,24 @@ impl Search<'_> {
                 };
                 let win = self.win(first.kind, &c0.prim());
                 if !self.allowed(first.kind, &win) {
-                    return Vec::new();
+                    continue;
                 }
                 let prep = self.delta_prep(&win, first.kind);
-                vars.iter()
-                    .map(|&dict| {
-                        let (d, code, _) = self.delta_with(&prep, first.kind, axis, dict);
-                        (
-                            d - smooth * turn_cost(turn),
-                            Cand { dict, code, ..c0 },
-                            at_end,
-                            turn,
-                        )
-                    })
-                    .collect()
-            })
-            .collect();
-        let mut ranked: Vec<(f32, Cand, bool, i32)> = per_place.into_iter().flatten().collect();
-        // A stable sort: ties keep the order of the places, as when they ran one by one.
+                for &dict in &vars {
+                    let (d, code, _) = self.delta_with(&prep, first.kind, axis, dict);
+                    ranked.push((
+                        d - smooth * turn_cost(turn),
+                        Cand { dict, code, ..c0 },
+                        at_end,
+                        turn,
+                    ));
+                }
+            }
+        }
         ranked.sort_by(|a, b| b.0.total_cmp(&a.0));
-        ranked.truncate(RELAX_EXTENSIONS);
-        let exact: Vec<f32> = ranked
-            .iter()
-            .map(|&(_, c, _, turn)| self.exact(&c).0 - smooth * turn_cost(turn))
-            .collect();
         let mut best: Option<(f32, Cand, bool)> = None;
-        for (&d, &(_, c, at_end, _)) in exact.iter().zip(&ranked) {
+        for &(_, c, at_end, turn) in ranked.iter().take(RELAX_EXTENSIONS) {
+            let d = self.exact(&c).0 - smooth * turn_cost(turn);
             if best.as_ref().is_none_or(|b| d > b.0) {
                 best = Some((d, c, at_end));
             }

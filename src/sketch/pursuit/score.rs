@@ -44,9 +44,9 @@ impl Search<'_> {
 
     /// What [`Self::delta`] computes once per window and kind, shared by every dictionary
     /// variant scored on it: the pixels a primitive would take, in window order, with their
-    /// current terms, and each side's tensor direction. Reads the state only, so windows
-    /// are prepared in parallel (the taken pixels are marked in a bitset over the window's
-    /// bounding box, not in the image).
+    /// current terms, and each side's tensor direction. Reads the state only (the taken
+    /// pixels are marked per window pixel, not in the image), so positions are scored in
+    /// parallel.
     pub(super) fn delta_prep(&self, win: &Win, kind: Kind) -> DeltaPrep {
         let f = self.f;
         let hair_sides = kind.hair_sides();
