@@ -160,6 +160,21 @@ pub fn analyse(engine: &Engine, inp: &SketchInputs, p: &SketchParams) -> Result<
     })
 }
 
+/// The pursuit's counts, with its wall-clock times under "seconds" as everywhere in the
+/// reports (so runs compare equal without them).
+fn pursuit_report(st: &pursuit::PursuitStats) -> serde_json::Value {
+    let mut v = json!(st);
+    if let Some(o) = v.as_object_mut() {
+        let times: serde_json::Map<_, _> = o
+            .iter()
+            .filter_map(|(k, x)| Some((k.strip_prefix("seconds_")?.to_string(), x.clone())))
+            .collect();
+        o.retain(|k, _| !k.starts_with("seconds_"));
+        o.insert("seconds".into(), times.into());
+    }
+    v
+}
+
 /// Writes the sketch's files into `out` (each atomically): `hair.czs`, `sketch.json`,
 /// `sketch.svg`, `theta.npy`, `vector.npy`, `rho.npy`, `sketch.png`, `field.png`,
 /// `energy.png`, `shading.png` and `report.json`.
@@ -212,7 +227,7 @@ pub fn write(
         },
         "energy": { "per_curve": r.energy, "directions": r.swc.energy },
         "seconds": crate::io::seconds(&r.seconds),
-        "pursuit": r.pursuit,
+        "pursuit": pursuit_report(&r.pursuit),
     });
     if let (Some(o), Some(e)) = (report.as_object_mut(), extra.as_object()) {
         for (k, v) in e {
