@@ -743,6 +743,36 @@ fn analyze_rejects_bad_strokes_with_the_file_named() {
 }
 
 #[test]
+fn analyze_refuses_a_bad_parting_ratio_and_can_turn_it_off() {
+    let c = Case::new();
+    synth_case(&c);
+    let run = |parting: &str| {
+        coif(&[
+            "analyze",
+            "--image",
+            &c.s("case/image.png"),
+            "--strokes",
+            &c.s("case/strokes.json"),
+            "--mask",
+            &c.s("case/mask.png"),
+            "--out",
+            &c.s("an"),
+            "--backend",
+            "cpu",
+            &format!("--parting={parting}"),
+        ])
+    };
+    for bad in ["-1", "nan", "inf", "x"] {
+        fails(&run(bad), 64, &["--parting", "finite number"]);
+    }
+    let o = run("0");
+    assert!(o.status.success(), "{}", stderr(&o));
+    let meta: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(c.p("an/analyze.json")).unwrap()).unwrap();
+    assert_eq!(meta["parting_cuts"], 0, "{meta}");
+}
+
+#[test]
 fn analyze_with_strokes_off_the_hair() {
     let c = Case::new();
     synth_case(&c);

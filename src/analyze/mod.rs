@@ -4,6 +4,7 @@
 
 pub mod direction;
 pub mod orient;
+pub mod parting;
 pub mod recut;
 pub mod resolve;
 pub mod segment;
@@ -14,6 +15,7 @@ pub use write::{load_photo, run, run_orient, write, write_orient, OrientRun};
 
 use crate::analyze::direction::{dense_direction, DirectionParams, Domain};
 use crate::analyze::orient::{orient, GrayImage, OrientMap, OrientParams};
+use crate::analyze::parting::{cut_at_partings, PartingImage, PartingParams};
 use crate::analyze::recut::{cut_disagreeing, RecutParams};
 use crate::analyze::resolve::{resolve_directions, ResolveParams, Resolved};
 use crate::analyze::segment::{segment, SegmentParams};
@@ -32,6 +34,9 @@ pub struct AnalyzeParams {
     /// resolves them whole, since the tracer already cuts curves at a parting's apex. See
     /// [`split_curves`].
     pub piece_vertices: usize,
+    /// Traced curves cut where they cross a line of strand ends (a parting the orientation
+    /// runs through); see [`crate::analyze::parting`].
+    pub parting: PartingParams,
     pub resolve: ResolveParams,
     /// Curves cut where they point against their neighbours, then resolved again (parts that
     /// curled or swept hair leaves at an angle); see [`crate::analyze::recut`].
@@ -49,6 +54,8 @@ pub struct Analysis {
     pub orient: OrientMap,
     /// Curves as traced (split into pieces), before their direction is known.
     pub traced: Vec<Curve>,
+    /// Where traced curves were cut at a line of strand ends ([`parting`]).
+    pub parting_cuts: Vec<[f32; 2]>,
     pub resolved: Resolved,
     /// The direction strokes, root→tip.
     pub strokes: Vec<Vec<[f32; 2]>>,
@@ -137,14 +144,18 @@ pub fn analyze(
         }
     }
     let t = Instant::now();
-    let om = orient(engine, &GrayImage::from_rgb(image), Some(&mask), &p.orient)?;
+    let gray = GrayImage::from_rgb(image);
+    let om = orient(engine, &gray, Some(&mask), &p.orient)?;
     timings.push(("orientation", t.elapsed().as_secs_f64()));
     crate::interrupt::check()?;
     let t = Instant::now();
-    let mut traced = split_curves(
+    let traced = split_curves(
         &trace_curves(&om.theta, &om.confidence, &mask, w, h, &p.trace),
         p.piece_vertices,
     );
+    let parting = PartingImage::new(&gray.data, &mask, w, h, &p.parting);
+    let (mut traced, cuts) = cut_at_partings(&traced, &parting, &p.parting);
+    log::debug!("{} traced curves cut at a line of strand ends", cuts.len());
     timings.push(("trace", t.elapsed().as_secs_f64()));
     let t = Instant::now();
     let mut resolved = resolve_directions(&traced, &dir_strokes, &p.resolve);
@@ -198,6 +209,7 @@ pub fn analyze(
         mask_computed,
         orient: om,
         traced,
+        parting_cuts: cuts,
         resolved,
         strokes: dir_strokes,
         direction,

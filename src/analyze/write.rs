@@ -196,6 +196,7 @@ pub fn write(
         "backend": backend,
         "mask": if an.mask_computed { "segmented from the strokes" } else { "given" },
         "curves": an.traced.len(),
+        "parting_cuts": an.parting_cuts.len(),
         "unreachable_curves": an.resolved.unreachable.len(),
         "warnings": an.warnings,
         "seconds": seconds(&an.timings),

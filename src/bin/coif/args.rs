@@ -305,6 +305,13 @@ pub enum ShadingArg {
     KajiyaKay,
 }
 
+fn parse_non_negative(s: &str) -> Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
+        _ => Err(format!("expected a finite number ≥ 0, got {s:?}")),
+    }
+}
+
 fn parse_size(s: &str) -> Result<(u32, u32), String> {
     let (a, b) = s
         .split_once(['x', 'X'])
@@ -723,6 +730,11 @@ pub struct AnalyzeArgs {
     /// Weight of a user stroke in the vote, C13's w_m.
     #[arg(long, default_value_t = coif::analyze::resolve::ResolveParams::default().stroke_weight)]
     stroke_weight: f32,
+    /// Cut traced curves where they cross a line of strand ends (a parting the orientation
+    /// runs through) whose along/across derivative ratio exceeds this; 0 turns it off.
+    #[arg(long, value_name = "RATIO", value_parser = parse_non_negative,
+          default_value_t = coif::analyze::parting::PartingParams::default().threshold)]
+    parting: f32,
 }
 
 /// What the command line asks for.
@@ -835,6 +847,7 @@ impl Command {
                 };
                 params.resolve.radius = a.radius;
                 params.resolve.stroke_weight = a.stroke_weight;
+                params.parting.threshold = a.parting;
                 let job = AnalyzeJob {
                     image: a.input.image,
                     strokes: a.input.strokes,
