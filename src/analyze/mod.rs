@@ -153,8 +153,13 @@ pub fn analyze(
         &trace_curves(&om.theta, &om.confidence, &mask, w, h, &p.trace),
         p.piece_vertices,
     );
-    let parting = PartingImage::new(&gray.data, &mask, w, h, &p.parting);
-    let (mut traced, cuts) = cut_at_partings(&traced, &parting, &p.parting);
+    // Off (threshold 0) means no cut, so the smoothed image is not made at all.
+    let (mut traced, cuts) = if p.parting.threshold > 0.0 {
+        let parting = PartingImage::new(&gray.data, &mask, w, h, &p.parting);
+        cut_at_partings(&traced, &parting, &p.parting)
+    } else {
+        (traced, Vec::new())
+    };
     log::debug!("{} traced curves cut at a line of strand ends", cuts.len());
     timings.push(("trace", t.elapsed().as_secs_f64()));
     let t = Instant::now();

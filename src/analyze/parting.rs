@@ -208,11 +208,17 @@ pub fn cut_at_partings(
             // The two end vertices on each side are never cut: a piece of one segment says
             // little about its direction.
             for i in 2..m - 2 {
-                let near = |j: usize| (arc[j] - arc[i]).abs() <= PEAK_GAP;
-                let peak = (0..m)
-                    .filter(|&j| j != i && near(j))
+                if r[i] < p.threshold || i <= start {
+                    continue;
+                }
+                // Arc length grows along the curve, so the vertices within the gap are one
+                // contiguous run around i.
+                let lo = arc.partition_point(|&a| a < arc[i] - PEAK_GAP);
+                let hi = arc.partition_point(|&a| a <= arc[i] + PEAK_GAP);
+                let peak = (lo..hi)
+                    .filter(|&j| j != i)
                     .all(|j| r[j] < r[i] || (r[j] == r[i] && j > i));
-                if r[i] >= p.threshold && peak && i > start {
+                if peak {
                     pieces.push(Curve {
                         points: pts[start..=i].to_vec(),
                     });
