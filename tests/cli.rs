@@ -746,7 +746,7 @@ fn analyze_rejects_bad_strokes_with_the_file_named() {
 fn analyze_refuses_a_bad_parting_ratio_and_can_turn_it_off() {
     let c = Case::new();
     synth_case(&c);
-    let run = |parting: &str| {
+    let run = |flag: &str| {
         coif(&[
             "analyze",
             "--image",
@@ -759,17 +759,27 @@ fn analyze_refuses_a_bad_parting_ratio_and_can_turn_it_off() {
             &c.s("an"),
             "--backend",
             "cpu",
-            &format!("--parting={parting}"),
+            flag,
         ])
     };
     for bad in ["-1", "nan", "inf", "x"] {
-        fails(&run(bad), 64, &["--parting", "finite number"]);
+        fails(
+            &run(&format!("--parting={bad}")),
+            64,
+            &["--parting", "finite number"],
+        );
+        fails(
+            &run(&format!("--parting-line={bad}")),
+            64,
+            &["--parting-line", "finite number"],
+        );
     }
-    let o = run("0");
+    let o = run("--parting=0");
     assert!(o.status.success(), "{}", stderr(&o));
     let meta: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(c.p("an/analyze.json")).unwrap()).unwrap();
     assert_eq!(meta["parting_cuts"], 0, "{meta}");
+    assert_eq!(meta["partings"], serde_json::json!([]), "{meta}");
 }
 
 #[test]

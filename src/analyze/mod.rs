@@ -15,9 +15,9 @@ pub use write::{load_photo, run, run_orient, write, write_orient, OrientRun};
 
 use crate::analyze::direction::{dense_direction, DirectionParams, Domain};
 use crate::analyze::orient::{orient, GrayImage, OrientMap, OrientParams};
-use crate::analyze::parting::{cut_at_partings, PartingImage, PartingParams};
+use crate::analyze::parting::{cut_at_partings, Parted, PartingImage, PartingLine, PartingParams};
 use crate::analyze::recut::{cut_disagreeing, RecutParams};
-use crate::analyze::resolve::{resolve_directions, ResolveParams, Resolved};
+use crate::analyze::resolve::{resolve_directions_apart, ResolveParams, Resolved};
 use crate::analyze::segment::{segment, SegmentParams};
 use crate::analyze::trace::{split_curves, trace_curves, Curve, TraceParams};
 use crate::error::{Error, Result};
@@ -56,6 +56,9 @@ pub struct Analysis {
     pub traced: Vec<Curve>,
     /// Where traced curves were cut at a line of strand ends ([`parting`]).
     pub parting_cuts: Vec<[f32; 2]>,
+    /// Straight runs of those cuts: partings, across which curves do not vote on each
+    /// other's direction ([`resolve::resolve_directions_apart`]).
+    pub parting_lines: Vec<PartingLine>,
     pub resolved: Resolved,
     /// The direction strokes, root→tip.
     pub strokes: Vec<Vec<[f32; 2]>>,
@@ -154,16 +157,25 @@ pub fn analyze(
         p.piece_vertices,
     );
     // Off (threshold 0) means no cut, so the smoothed image is not made at all.
-    let (mut traced, cuts) = if p.parting.threshold > 0.0 {
+    let Parted {
+        pieces: mut traced,
+        cuts,
+        lines,
+    } = if p.parting.threshold > 0.0 {
         let parting = PartingImage::new(&gray.data, &mask, w, h, &p.parting);
         cut_at_partings(&traced, &parting, &p.parting)
     } else {
-        (traced, Vec::new())
+        Parted {
+            pieces: traced,
+            cuts: Vec::new(),
+            lines: Vec::new(),
+        }
     };
     log::debug!("{} traced curves cut at a line of strand ends", cuts.len());
     timings.push(("trace", t.elapsed().as_secs_f64()));
     let t = Instant::now();
-    let mut resolved = resolve_directions(&traced, &dir_strokes, &p.resolve);
+    log::debug!("{} partings among the cuts", lines.len());
+    let mut resolved = resolve_directions_apart(&traced, &dir_strokes, &lines, &p.resolve);
     let recut_resolve = ResolveParams {
         radius: p.recut.resolve_radius.min(p.resolve.radius),
         ..p.resolve.clone()
@@ -178,7 +190,7 @@ pub fn analyze(
             break;
         };
         traced = cut;
-        resolved = resolve_directions(&traced, &dir_strokes, &recut_resolve);
+        resolved = resolve_directions_apart(&traced, &dir_strokes, &lines, &recut_resolve);
     }
     timings.push(("resolve", t.elapsed().as_secs_f64()));
     crate::interrupt::check()?;
@@ -215,6 +227,7 @@ pub fn analyze(
         orient: om,
         traced,
         parting_cuts: cuts,
+        parting_lines: lines,
         resolved,
         strokes: dir_strokes,
         direction,

@@ -36,6 +36,7 @@
 //! are checked vertex by vertex (in a branch-free, vectorisable loop). Coarse cells won in
 //! measurements: fewer, larger groups and longer vectorised loops beat tighter rims.
 
+use crate::analyze::parting::{PartingLine, MAX_LINES};
 use crate::analyze::trace::Curve;
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
@@ -81,6 +82,42 @@ pub fn resolve_directions(
     strokes: &[Vec<[f32; 2]>],
     p: &ResolveParams,
 ) -> Resolved {
+    resolve_directions_apart(curves, strokes, &[], p)
+}
+
+/// The sides of `lines` that `pts` lie on within `reach`, as bits: line k sets bit 2k for
+/// side 1 and bit 2k + 1 for side -1 ([`PartingLine::side`]).
+fn side_bits(pts: &[[f32; 2]], lines: &[PartingLine], reach: f32) -> u64 {
+    let mut bits = 0u64;
+    for (k, l) in lines.iter().take(MAX_LINES).enumerate() {
+        match l.side(pts, reach) {
+            1 => bits |= 1 << (2 * k),
+            -1 => bits |= 1 << (2 * k + 1),
+            _ => {}
+        }
+    }
+    bits
+}
+
+/// Whether two side sets lie on opposite sides of some line.
+fn apart(a: u64, b: u64) -> bool {
+    const POS: u64 = 0x5555_5555_5555_5555;
+    let (pa, na) = (a & POS, (a >> 1) & POS);
+    let (pb, nb) = (b & POS, (b >> 1) & POS);
+    (pa & nb) | (na & pb) != 0
+}
+
+/// [`resolve_directions`] where curves (and strokes) on opposite sides of a detected parting
+/// (`lines`, from [`crate::analyze::parting::parting_lines`]) do not vote on each other in
+/// Eq. (1): hair grows away from a part on both sides, so a neighbour across it is evidence
+/// for the wrong direction, however near. A curve crossing a line (not cut there) votes with
+/// both sides, as does every curve beyond the line's ends or farther than the radius.
+pub fn resolve_directions_apart(
+    curves: &[Curve],
+    strokes: &[Vec<[f32; 2]>],
+    lines: &[PartingLine],
+    p: &ResolveParams,
+) -> Resolved {
     let n = curves.len();
     let radius = if p.radius.is_finite() && p.radius > 0.0 {
         p.radius
@@ -103,8 +140,14 @@ pub fn resolve_directions(
     };
 
     let grid = Grid::new(curves, &tangents, radius);
+    let sides: Vec<u64> = curves
+        .iter()
+        .map(|c| side_bits(&c.points, lines, radius))
+        .collect();
     let mut st = State {
         grid,
+        sides,
+        from: 0,
         r2: radius * radius,
         p_score: vec![0.0; n],
         status: vec![Status::Ambiguous; n],
@@ -123,6 +166,7 @@ pub fn resolve_directions(
             .iter()
             .map(|d| [d[0] * p.stroke_weight, d[1] * p.stroke_weight])
             .collect();
+        st.from = side_bits(&pts, lines, radius);
         st.push_resolved(&pts, &t);
     }
     st.enqueue_touched();
@@ -161,6 +205,7 @@ pub fn resolve_directions(
         order.push(i);
         remaining -= 1;
         let t: Vec<[f32; 2]> = tangents[i].iter().map(|d| [s * d[0], s * d[1]]).collect();
+        st.from = st.sides[i];
         st.push_resolved(&curves[i].points, &t);
         st.enqueue_touched();
     }
@@ -347,6 +392,10 @@ impl Grid {
 
 struct State {
     grid: Grid,
+    /// Each curve's sides of the parting lines ([`side_bits`]).
+    sides: Vec<u64>,
+    /// The sides of what `push_resolved` is adding: it skips curves [`apart`] from it.
+    from: u64,
     r2: f32,
     /// P of each curve with s = +1 (its traced order), accumulated over resolved neighbours.
     p_score: Vec<f64>,
@@ -451,7 +500,7 @@ impl State {
                 if whole {
                     for run in &g.runs[ra..rb] {
                         let i = run.curve as usize;
-                        if self.status[i] == Status::Resolved {
+                        if self.status[i] == Status::Resolved || apart(self.from, self.sides[i]) {
                             continue;
                         }
                         let s = run.sum;
@@ -507,7 +556,7 @@ impl State {
                 }
                 for run in &g.runs[ra..rb] {
                     let i = run.curve as usize;
-                    if self.status[i] == Status::Resolved {
+                    if self.status[i] == Status::Resolved || apart(self.from, self.sides[i]) {
                         continue;
                     }
                     let s = run.sum;
@@ -639,6 +688,37 @@ mod tests {
                 "not root -> tip"
             );
         }
+    }
+
+    #[test]
+    fn curves_across_a_parting_do_not_vote() {
+        // A vertical part at x = 50, y 0-40. Right of it, strands and a stroke grow right
+        // (away from it). Left of it, one strand traced rightwards (towards the part) and, 40
+        // px below it and beyond the part's end, a stroke growing left.
+        let mut curves = vec![line(10.0, 20.0, 2.0, 0.0, 20)];
+        for y in [10.0, 20.0, 30.0] {
+            curves.push(line(52.0, y, 2.0, 0.0, 24));
+        }
+        let right = (0..20)
+            .map(|k| [55.0 + 2.0 * k as f32, 15.0])
+            .collect::<Vec<_>>();
+        let left = (0..20)
+            .map(|k| [45.0 - 2.0 * k as f32, 60.0])
+            .collect::<Vec<_>>();
+        let strokes = vec![right, left];
+        let p = ResolveParams::default();
+        // Voting across the part, the near right side wins: the left strand points at it.
+        let r = resolve_directions(&curves, &strokes, &p);
+        assert!(!r.flipped[0]);
+        let lines =
+            crate::analyze::parting::parting_lines(&[[50.0, 0.0], [50.0, 20.0], [50.0, 40.0]]);
+        let r = resolve_directions_apart(&curves, &strokes, &lines, &p);
+        assert!(r.flipped[0], "the left strand grows away from the part");
+        assert!(r.flipped[1..].iter().all(|&f| !f));
+        assert!(apart(
+            side_bits(&curves[0].points, &lines, 70.0),
+            side_bits(&curves[1].points, &lines, 70.0)
+        ));
     }
 
     #[test]

@@ -197,6 +197,10 @@ pub fn write(
         "mask": if an.mask_computed { "segmented from the strokes" } else { "given" },
         "curves": an.traced.len(),
         "parting_cuts": an.parting_cuts.len(),
+        "partings": an.parting_lines.iter().map(|l| json!({
+            "ends": l.ends(),
+            "cuts": l.cuts,
+        })).collect::<Vec<_>>(),
         "unreachable_curves": an.resolved.unreachable.len(),
         "warnings": an.warnings,
         "seconds": seconds(&an.timings),

@@ -735,6 +735,12 @@ pub struct AnalyzeArgs {
     #[arg(long, value_name = "RATIO", value_parser = parse_non_negative,
           default_value_t = coif::analyze::parting::PartingParams::default().threshold)]
     parting: f32,
+    /// Also cut where the ratio exceeds this (at most --parting; 0: never) at peaks that line
+    /// up with a cut above --parting: curves on the two sides of such a line then do not vote
+    /// on each other's direction.
+    #[arg(long, value_name = "RATIO", value_parser = parse_non_negative,
+          default_value_t = coif::analyze::parting::PartingParams::default().line_threshold)]
+    parting_line: f32,
 }
 
 /// What the command line asks for.
@@ -848,6 +854,7 @@ impl Command {
                 params.resolve.radius = a.radius;
                 params.resolve.stroke_weight = a.stroke_weight;
                 params.parting.threshold = a.parting;
+                params.parting.line_threshold = a.parting_line;
                 let job = AnalyzeJob {
                     image: a.input.image,
                     strokes: a.input.strokes,
