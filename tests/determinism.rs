@@ -143,41 +143,69 @@ fn cpu_backend_is_bit_identical_across_runs_and_thread_counts_and_lavapipe_withi
     );
     assert!(d <= 1e-4, "direction differs by {d}");
 
-    // Strands: the same roots (chosen on the CPU); growth can end a strand one step earlier
-    // or later where a tolerance test sits on a rounding edge, so the counts are compared
-    // in proportion and the geometry strand by strand where the vertex counts agree.
+    // Strands: the same roots (chosen on the CPU), so the grown strands (model.json's
+    // `strands.grown`, first in the file) pair up one to one. Growth can end a strand one
+    // step earlier or later, or cut its last step short, where a stopping test sits on a
+    // rounding edge: so at least 99% of them have the same vertex count, and those agree
+    // within 1 mm but for their last vertex, which agrees within that last step.
     let sa = strands::read(&cpu.join("strands.hair")).unwrap();
     let sb = strands::read(&gpu.join("strands.hair")).unwrap();
+    let grown = |d: &Path| -> usize {
+        let v: Value =
+            serde_json::from_str(&std::fs::read_to_string(d.join("model.json")).unwrap()).unwrap();
+        v["strands"]["grown"].as_u64().unwrap() as usize
+    };
+    let (ga, gb) = (grown(&cpu), grown(&gpu));
+    assert_eq!(ga, gb, "grown strands");
     let (na, nb) = (sa.counts.len(), sb.counts.len());
-    assert!(
-        na.abs_diff(nb) as f64 <= 1e-3 * na as f64,
-        "{na} vs {nb} strands: more than 0.1% apart"
-    );
-    let (mut off_a, mut off_b, mut same, mut worst) = (0usize, 0usize, 0usize, 0f32);
-    for (&ca, &cb) in sa.counts.iter().zip(&sb.counts) {
+    let dist = |p: [f32; 3], q: [f32; 3]| {
+        ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
+    };
+    let (mut off_a, mut off_b, mut same, mut worst, mut worst_last) =
+        (0usize, 0usize, 0usize, 0f32, 0f32);
+    for (&ca, &cb) in sa.counts.iter().zip(&sb.counts).take(ga) {
         let (ca, cb) = (ca as usize, cb as usize);
         if ca == cb {
             same += 1;
             for i in 0..ca {
-                let (p, q) = (sa.points[off_a + i], sb.points[off_b + i]);
-                let dist =
-                    ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt();
-                worst = worst.max(dist);
+                let d = dist(sa.points[off_a + i], sb.points[off_b + i]);
+                if i + 1 < ca {
+                    worst = worst.max(d);
+                } else if ca >= 2 {
+                    let step = dist(sa.points[off_a + i], sa.points[off_a + i - 1]);
+                    worst_last = worst_last.max(d - step);
+                }
             }
         }
         off_a += ca;
         off_b += cb;
     }
     assert!(
-        same as f64 >= 0.99 * na.min(nb) as f64,
-        "only {same} of {} strands have the same vertex count",
-        na.min(nb)
+        same as f64 >= 0.99 * ga as f64,
+        "only {same} of {ga} grown strands have the same vertex count"
     );
     // Half a pixel: the head is about 0.25 m across 128 px, so 1 mm.
-    assert!(worst <= 1e-3, "strands differ by up to {worst} m");
+    assert!(worst <= 1e-3, "grown strands differ by up to {worst} m");
+    assert!(
+        worst_last <= 1e-3,
+        "a grown strand's last vertex differs by {worst_last} m more than its last step"
+    );
+    // Refinement (C13 Eq. 4-5) then adds strands in a greedy sequence of thousands of
+    // accept decisions, each seeing the density of those before: one decision on a rounding
+    // edge re-routes the rest, so its strands do not pair up. Two such runs differ like two
+    // draws of the process: the counts of strands added by it, by a few times the square
+    // root of their sum (counting statistics; measured on four 128² long cases 0-102 apart
+    // for 7,000-7,600 added, 0.35% of the strands at most).
+    let added = (na + nb - 2 * ga) as f64;
+    let bound = 3.0 * added.sqrt();
+    assert!(
+        (na.abs_diff(nb) as f64) <= bound,
+        "{na} vs {nb} strands: the refinements differ by more than {bound:.0}"
+    );
     eprintln!(
         "cpu vs lavapipe: orientation {:.2e}°, confidence {c:.2e}, direction {d:.2e}, \
-         strands {na} vs {nb}, {same} with equal vertex counts, up to {worst:.2e} m apart",
+         strands {na} vs {nb} ({ga} grown, {same} of them with equal vertex counts, up to \
+         {worst:.2e} m apart, last vertices {worst_last:.2e} m beyond their last step)",
         o.to_degrees()
     );
 }
