@@ -694,6 +694,21 @@ fn bad_input_is_invalid_not_a_panic() {
         1,
         None,
     ));
+    for turn in [0.0, -1.0, 181.0, f32::NAN] {
+        rinv(refine(
+            &e,
+            &sc.grid,
+            &sc.d,
+            &sc.h,
+            strands.clone(),
+            &RefineParams {
+                max_turn_deg: turn,
+                ..rp
+            },
+            1,
+            None,
+        ));
+    }
     // Empty inputs are fine.
     assert!(grow(&e, &sc.grid, &sc.d, &sc.h, &[], &[], &p)
         .unwrap()

@@ -178,6 +178,22 @@ fn coverage_seeds(
 /// long-hair re-render 24.1 -> 25.8 dB for 0.1k more strands.
 const COVER_PX_PER_SEED: usize = 3;
 
+/// `half` (a traced half of a candidate, from its seed out) up to the vertex before its first
+/// turn whose cosine is below `min_cos`.
+fn until_turn(half: &[V3], min_cos: f32) -> &[V3] {
+    let sub = |p: V3, q: V3| [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
+    let dot = |a: V3, b: V3| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    for k in 2..half.len() {
+        let a = sub(half[k - 1], half[k - 2]);
+        let b = sub(half[k], half[k - 1]);
+        let (la, lb) = (dot(a, a).sqrt(), dot(b, b).sqrt());
+        if la > 0.0 && lb > 0.0 && dot(a, b) < min_cos * la * lb {
+            return &half[..k];
+        }
+    }
+    half
+}
+
 /// Refinement parameters (C13 §2.2: σ_c = 1, w_ρ = 0.01, smoothing variance 2 vertices
 /// within two vertices of the joint, 4-5 iterations).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -199,6 +215,12 @@ pub struct RefineParams {
     pub max_seeds_per_iteration: u32,
     /// Candidates with fewer vertices are dropped (too short to be a strand).
     pub min_candidate_len: u32,
+    /// Each half of a candidate ends before its first turn sharper than this (degrees,
+    /// between consecutive segments; 180 keeps every candidate whole). C13 grows candidates
+    /// to the end of the field; where the field circles (two constraints pointing apart
+    /// across a parting leave a vortex between them) a candidate then loops until its
+    /// length runs out, and a joint strand that takes it on is no plausible hair.
+    pub max_turn_deg: f32,
     /// Variance (vertices²) of the Gaussian smoothing after a cut-and-connect.
     pub smooth_variance: f32,
     /// Vertices either side of the joint that are smoothed.
@@ -217,6 +239,7 @@ impl Default for RefineParams {
             seed_spacing: 2,
             max_seeds_per_iteration: 50_000,
             min_candidate_len: 5,
+            max_turn_deg: 60.0,
             smooth_variance: 2.0,
             smooth_reach: 2,
             grow: GrowParams::default(),
@@ -241,6 +264,12 @@ impl RefineParams {
         }
         if self.seed_spacing == 0 {
             return Err(Error::Invalid("refine seed_spacing must be >= 1".into()));
+        }
+        if !(self.max_turn_deg > 0.0 && self.max_turn_deg <= 180.0) {
+            return Err(Error::Invalid(format!(
+                "refine max_turn_deg must be in (0, 180], got {}",
+                self.max_turn_deg
+            )));
         }
         // The neighbour search visits (2·radius + 1)³ cells per candidate vertex.
         if self.radius > 16.0 {
@@ -468,11 +497,12 @@ pub fn refine(
         let traced = grow(engine, grid, d, h, &both, &signs, &p.grow)?;
         let ns = seeds.len();
         let toff = traced.offsets();
+        let max_turn_cos = p.max_turn_deg.to_radians().cos();
         // (seed number, candidate, index of the seed in the candidate)
         let candidates: Vec<(usize, Vec<V3>, usize)> = (0..ns)
             .filter_map(|c| {
-                let fwd = &traced.points[toff[c]..toff[c + 1]];
-                let back = &traced.points[toff[ns + c]..toff[ns + c + 1]];
+                let fwd = until_turn(&traced.points[toff[c]..toff[c + 1]], max_turn_cos);
+                let back = until_turn(&traced.points[toff[ns + c]..toff[ns + c + 1]], max_turn_cos);
                 let mut cand: Vec<V3> = back[1..].iter().rev().copied().collect();
                 cand.extend_from_slice(fwd);
                 (cand.len() >= p.min_candidate_len.max(2) as usize).then_some((
@@ -548,4 +578,28 @@ pub fn refine(
         (report.final_strands - report.initial_strands) as f64 / report.final_strands as f64
     };
     Ok((strands, report))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_candidate_half_ends_before_its_first_sharp_turn() {
+        // Straight, a 45° turn at vertex 3, then back on itself at vertex 5.
+        let half: Vec<V3> = vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [2.0, 0.0, 0.0],
+            [3.0, 0.0, 0.0],
+            [3.7, 0.7, 0.0],
+            [4.4, 1.4, 0.0],
+            [3.7, 0.7, 0.0],
+        ];
+        let cos = |deg: f32| deg.to_radians().cos();
+        assert_eq!(until_turn(&half, cos(60.0)).len(), 6);
+        assert_eq!(until_turn(&half, cos(30.0)).len(), 4);
+        assert_eq!(until_turn(&half, cos(180.0)).len(), 7);
+        assert_eq!(until_turn(&half[..2], cos(1.0)).len(), 2);
+    }
 }
