@@ -27,6 +27,10 @@
 //! with its own neighbourhood, but each such group's overall direction is arbitrary; callers
 //! that need certainty should ask the user for a stroke there.
 //!
+//! One departure ([`resolve_directions_apart`]): curves and strokes on opposite sides of a
+//! parting line found among the traced curves' cuts ([`crate::analyze::parting`]) do not
+//! vote on each other, since hair grows away from a part on both sides.
+//!
 //! Cost: every (resolved vertex, unresolved vertex) pair within `radius` contributes once, when
 //! the first of the two is resolved. Unresolved vertices live in a uniform grid (the spatial
 //! index) of cells `radius / 3` wide, grouped per (cell, curve) with a pre-summed direction.

@@ -179,7 +179,13 @@ pub fn write(
         vis::draw_polyline(&mut after_img, s, 4.0, |_| image::Rgb([255, 255, 255]));
     }
     let sdraw: Vec<&[[f32; 2]]> = an.strokes.iter().map(|s| s.as_slice()).collect();
-    let after_img = vis::directed_curves(&after_img, &sdraw, 2.0);
+    let mut after_img = vis::directed_curves(&after_img, &sdraw, 2.0);
+    // Partings as white lines edged in black, which no direction hue is.
+    for l in &an.parting_lines {
+        let ends = l.ends();
+        vis::draw_polyline(&mut after_img, &ends, 3.0, |_| image::Rgb([0, 0, 0]));
+        vis::draw_polyline(&mut after_img, &ends, 1.0, |_| image::Rgb([255, 255, 255]));
+    }
     write_png(&out.join("curves_after.png"), &after_img)?;
     write_png(
         &out.join("direction.png"),
