@@ -681,30 +681,22 @@ fn bad_input_is_invalid_not_a_panic() {
     let mut broken = strands.clone();
     broken.counts.push(5);
     rinv(refine(&e, &sc.grid, &sc.d, &sc.h, broken, &rp, 1, None));
-    rinv(refine(
-        &e,
-        &sc.grid,
-        &sc.d,
-        &sc.h,
-        strands.clone(),
-        &RefineParams {
-            radius: f32::NAN,
-            ..rp
-        },
-        1,
-        None,
-    ));
-    for turn in [0.0, -1.0, 181.0, f32::NAN] {
+    let nan_radius = RefineParams {
+        radius: f32::NAN,
+        ..rp
+    };
+    let turns = [0.0, -1.0, 181.0, f32::NAN].map(|t| RefineParams {
+        max_turn_deg: t,
+        ..rp
+    });
+    for bad in std::iter::once(&nan_radius).chain(&turns) {
         rinv(refine(
             &e,
             &sc.grid,
             &sc.d,
             &sc.h,
             strands.clone(),
-            &RefineParams {
-                max_turn_deg: turn,
-                ..rp
-            },
+            bad,
             1,
             None,
         ));
