@@ -11,7 +11,7 @@
 
 use coif::analyze::parting::PartingParams;
 use coif::analyze::{analyze, AnalyzeParams};
-use coif::eval::metrics::erode;
+use coif::eval::metrics::{direction_agreement, erode};
 use coif::gpu::engine::Engine;
 use coif::synth::{synth_textured, Style, SynthParams, Texture};
 
@@ -74,16 +74,7 @@ fn main() {
                 for (k, (_, p)) in configs.iter().enumerate() {
                     let an = analyze(&engine, &c.image, &c.strokes, Some(mask.clone()), p)
                         .expect("analysis of a synthetic case");
-                    let (mut good, mut n) = (0usize, 0usize);
-                    for (i, &keep) in inner.iter().enumerate() {
-                        if keep && c.gt_dir[2 * i].is_finite() {
-                            n += 1;
-                            let d = an.direction[2 * i] * c.gt_dir[2 * i]
-                                + an.direction[2 * i + 1] * c.gt_dir[2 * i + 1];
-                            good += (d > 0.0) as usize;
-                        }
-                    }
-                    row[k] = 100.0 * good as f64 / n.max(1) as f64;
+                    row[k] = 100.0 * direction_agreement(&an.direction, &c.gt_dir, &inner).0;
                     sums[k] += row[k];
                     worst[k] = worst[k].min(row[k]);
                     (cuts, lines) = (an.parting_cuts.len(), an.parting_lines.len());

@@ -8,7 +8,7 @@
 //! sides, and the parts then reach 98.1-98.6%.
 
 use coif::analyze::{analyze, AnalyzeParams};
-use coif::eval::metrics::erode;
+use coif::eval::metrics::{direction_agreement, erode};
 use coif::gpu::engine::Engine;
 use coif::synth::{synth, Style, SynthParams};
 
@@ -52,17 +52,7 @@ fn directions_on_synthetic_portraits() {
             let an = analyze(&engine, &case.image, &case.strokes, Some(mask), &p).unwrap();
             let (curve_ok, len) = curve_share(&an.resolved.curves, &case.gt_dir, 512);
             let inner = erode(&case.mask, 5);
-            let (mut good, mut n) = (0usize, 0usize);
-            for (i, &keep) in inner.iter().enumerate() {
-                if !keep || !case.gt_dir[2 * i].is_finite() {
-                    continue;
-                }
-                n += 1;
-                let d = an.direction[2 * i] * case.gt_dir[2 * i]
-                    + an.direction[2 * i + 1] * case.gt_dir[2 * i + 1];
-                good += (d > 0.0) as usize;
-            }
-            let px_ok = good as f64 / n as f64;
+            let (px_ok, n) = direction_agreement(&an.direction, &case.gt_dir, &inner);
             let line = format!(
                 "{style:<9} seed {seed}: {} curves ({:.0} px), {:.2}% of curve length and {:.2}% of {n} hair px point the true way, {} unreachable",
                 an.traced.len(),

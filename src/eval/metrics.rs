@@ -28,6 +28,21 @@ pub fn orient_diff(a: f32, b: f32) -> f32 {
     d.min(std::f32::consts::PI - d)
 }
 
+/// Share of the pixels of `keep` where the true growth direction is set whose direction in
+/// `dir` points the same way (positive dot product), and how many were scored; both are
+/// H×W×2 (x, y per pixel).
+pub fn direction_agreement(dir: &[f32], truth: &[f32], keep: &[bool]) -> (f64, usize) {
+    let (mut good, mut n) = (0usize, 0usize);
+    for (i, &k) in keep.iter().enumerate() {
+        if k && truth[2 * i].is_finite() {
+            n += 1;
+            let d = dir[2 * i] * truth[2 * i] + dir[2 * i + 1] * truth[2 * i + 1];
+            good += (d > 0.0) as usize;
+        }
+    }
+    (good as f64 / n.max(1) as f64, n)
+}
+
 /// Mean orientation error in degrees of `theta` against `truth` over the pixels of `keep`
 /// where the truth is set (an unset `theta` counts 90°), and how many were scored.
 pub fn mean_orient_error_deg(theta: &[f32], truth: &[f32], keep: &[bool]) -> (f64, usize) {
@@ -139,6 +154,20 @@ pub fn ssim_region(a: &[f32], b: &[f32], w: usize, h: usize, region: &[bool], pe
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn direction_agreement_counts_pixels_pointing_the_true_way() {
+        let truth = [1.0, 0.0, 0.0, 1.0, f32::NAN, f32::NAN, -1.0, 0.0];
+        let dir = [0.9, 0.1, 0.0, -1.0, 1.0, 0.0, 1.0, 0.0];
+        // Pixel 2 has no truth; of the other three only pixel 0 agrees.
+        let (share, n) = direction_agreement(&dir, &truth, &[true; 4]);
+        assert_eq!(n, 3);
+        assert!((share - 1.0 / 3.0).abs() < 1e-12);
+        assert_eq!(
+            direction_agreement(&dir, &truth, &[true, false, false, false]),
+            (1.0, 1)
+        );
+    }
 
     #[test]
     fn ssim_is_one_for_equal_images_and_low_for_unrelated_ones() {
