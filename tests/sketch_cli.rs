@@ -399,6 +399,25 @@ fn bad_inputs_are_refused_with_the_file_named() {
         ],
         "--mask, --strokes or --whole",
     );
+    // Penalties that are no costs.
+    for (flag, needle) in [
+        ("--curve-penalty=-1", "curve penalty"),
+        ("--primitive-penalty=-0.5", "primitive penalty"),
+        ("--primitive-penalty=NaN", "primitive penalty"),
+    ] {
+        fails_with(
+            &[
+                "sketch".as_ref(),
+                "--image".as_ref(),
+                &os(&img),
+                "--whole".as_ref(),
+                flag.as_ref(),
+                "--out".as_ref(),
+                &os(&out),
+            ],
+            needle,
+        );
+    }
     assert!(!out.exists(), "a refused run left {}", out.display());
 }
 

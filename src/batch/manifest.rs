@@ -117,6 +117,8 @@ pub struct SketchOpts {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub curve_penalty: Option<f32>,
     #[serde(skip_serializing_if = "Option::is_none")]
+    pub primitive_penalty: Option<f32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub directions: Option<String>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sweeps: Option<usize>,
@@ -437,6 +439,7 @@ impl BatchJob {
                     };
                     let mut params = crate::sketch::run::SketchParams::default();
                     set(&mut params.pursuit.lambda_nc, o.curve_penalty);
+                    set(&mut params.pursuit.lambda_b, o.primitive_penalty);
                     if let Some(d) = &o.directions {
                         params.method = d.parse().expect("checked");
                     }

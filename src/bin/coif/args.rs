@@ -177,6 +177,10 @@ pub struct SketchArgs {
     /// Curve penalty λ_NC of Eq. 5 (larger: fewer curves).
     #[arg(long, default_value_t = coif::sketch::pursuit::PursuitParams::default().lambda_nc)]
     curve_penalty: f32,
+    /// Primitive penalty λ_B: the cost of each primitive of a curve (larger: fewer and
+    /// shorter curves, a smaller file).
+    #[arg(long, default_value_t = coif::sketch::pursuit::PursuitParams::default().lambda_b)]
+    primitive_penalty: f32,
     /// How directions are chosen: swc (Swendsen-Wang cuts, CZ06 §4.2), icm, or prior (each
     /// curve by the direction prior alone; the ablation baselines).
     #[arg(long, default_value = "swc")]
@@ -668,6 +672,7 @@ impl Command {
                 };
                 let mut params = coif::sketch::run::SketchParams::default();
                 params.pursuit.lambda_nc = a.curve_penalty;
+                params.pursuit.lambda_b = a.primitive_penalty;
                 params.method = a.directions.parse()?;
                 params.swc.sweeps = a.sweeps;
                 params.bases = a.bases;

@@ -1,6 +1,6 @@
 //! `hair.czs`: the sketch's codes bit-packed, with its length and a CRC-32. Version 3 range
-//! codes the curves ([`rc`], adaptive contexts); versions 1 and 2 (fixed-width fields) are
-//! still read.
+//! codes the curves ([`rc`], adaptive contexts), version 4 with richer contexts; versions 1
+//! and 2 (fixed-width fields) are still read, as is 3.
 
 use super::czs_rc::{rc_curves, un_rc_curves};
 use super::*;
@@ -191,7 +191,7 @@ fn pack(c: &Codes, version: u8) -> (Vec<u8>, [usize; 5]) {
         return (w.bytes, [header, curves, shading, colour, region]);
     }
     // Version 3: the curves last, range coded from the next whole byte on.
-    let coded = rc_curves(c, refine, undecided);
+    let coded = rc_curves(c, refine, undecided, version >= 4);
     let pad = w.bytes.len() * 8 - w.bits;
     let mut bytes = w.bytes;
     bytes.extend(&coded);
@@ -368,7 +368,14 @@ fn unpack(data: &[u8], version: u8) -> std::result::Result<Codes, String> {
         if pad > 0 && r.get(pad as u32, "the padding")? != 0 {
             return Err("corrupted: the padding bits are not zero".into());
         }
-        curves = un_rc_curves(&data[r.pos / 8..], width, height, refine, undecided)?;
+        curves = un_rc_curves(
+            &data[r.pos / 8..],
+            width,
+            height,
+            refine,
+            undecided,
+            version >= 4,
+        )?;
     } else {
         if r.left() >= 8 {
             return Err(format!(
@@ -667,10 +674,10 @@ mod tests {
         v1.extend(crc.to_le_bytes());
         let back = from_czs(&v1, Path::new("old.czs")).unwrap();
         assert_eq!(back, quantise(&s));
-        let mut v4 = to_czs(&s);
-        v4[3] = 4;
-        let m = from_czs(&v4, Path::new("new.czs")).unwrap_err().to_string();
-        assert!(m.contains("version 4"), "{m}");
+        let mut v5 = to_czs(&s);
+        v5[3] = 5;
+        let m = from_czs(&v5, Path::new("new.czs")).unwrap_err().to_string();
+        assert!(m.contains("version 5"), "{m}");
     }
 
     /// A sketch with every kind, turns, refined and plain sides, undecided labels: version 3
@@ -730,10 +737,12 @@ mod tests {
         let c = codes(&s);
         let (v2, _) = assemble(&c, 2);
         let (v3, bits) = assemble(&c, 3);
+        let (v4, _) = assemble(&c, 4);
         let a = from_czs(&v2, Path::new("v2.czs")).unwrap();
         let b = from_czs(&v3, Path::new("v3.czs")).unwrap();
         assert_eq!(a, quantise(&s));
         assert_eq!(b, a);
+        assert_eq!(from_czs(&v4, Path::new("v4.czs")).unwrap(), a);
         assert!(v3.len() < v2.len(), "{} vs {} bytes", v3.len(), v2.len());
         let frame = 4 + leb128(v3.len() as u64).len() + 4;
         assert_eq!(

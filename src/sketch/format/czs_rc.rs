@@ -163,11 +163,19 @@ fn un_rc_count(
     Ok(v)
 }
 
-/// The version-3 curve section: the fields of version 2, range coded with [`CurveModel`].
-pub(super) fn rc_curves(c: &Codes, refine: bool, undecided: bool) -> Vec<u8> {
+/// The version-3 curve section: the fields of version 2, range coded with [`CurveModel`];
+/// `warm`, version 4's (the same contexts, probabilities that learn fast at first: on the
+/// synthetic styles, the fur crops and the astronaut 6% fewer bytes in all, while finer
+/// contexts, turns by the side's drift or the second side by its offset from the mirror,
+/// cost more to learn than they saved).
+pub(super) fn rc_curves(c: &Codes, refine: bool, undecided: bool, warm: bool) -> Vec<u8> {
     let (xb, yb) = (bits_for(c.width), bits_for(c.height));
     let mut m = CurveModel::new();
-    let mut e = rc::Encoder::default();
+    let mut e = if warm {
+        rc::Encoder::warm()
+    } else {
+        rc::Encoder::default()
+    };
     rc_count(&mut e, &mut m, 0, c.curves.len() as u64 + 1);
     for cv in &c.curves {
         let kc = cv.kind.code() as usize;
@@ -221,6 +229,7 @@ pub(super) fn un_rc_curves(
     height: u32,
     refine: bool,
     undecided: bool,
+    warm: bool,
 ) -> std::result::Result<Vec<CurveCodes>, String> {
     // Bounds on counts a damaged file could claim (the coder can code many symbols in few
     // bytes, so the data's length bounds nothing).
@@ -228,7 +237,7 @@ pub(super) fn un_rc_curves(
     const MAX_PRIMS: usize = 1 << 20;
     let (xb, yb) = (bits_for(width), bits_for(height));
     let mut m = CurveModel::new();
-    let mut d = rc::Decoder::new(data);
+    let mut d = rc::Decoder::new(data, warm);
     let n_curves = un_rc_count(&mut d, &mut m, 0, "the curve count")? - 1;
     if n_curves > MAX_CURVES {
         return Err(format!("corrupted: {n_curves} curves"));

@@ -48,9 +48,9 @@ pub const MAGIC: &[u8; 3] = b"CZS";
 /// `.czs` and `sketch.json` format version: 2 adds the hair region; version 1 files (no
 /// region: the whole image) are still read.
 pub const VERSION: u8 = 2;
-/// `.czs` container version: 3 range codes the curves (the sketch is that of [`VERSION`]);
-/// versions 1 and 2 are still read.
-pub const CZS_VERSION: u8 = 3;
+/// `.czs` container version: 3 range codes the curves (the sketch is that of [`VERSION`]),
+/// 4 with richer contexts (the same fields); versions 1 to 3 are still read.
+pub const CZS_VERSION: u8 = 4;
 /// The JSON Schema `sketch.json` is checked against.
 pub const SCHEMA: &str = include_str!("../../../schemas/sketch.v1.schema.json");
 const SCHEMA_URL: &str = "urn:coif:sketch.v1.schema.json";

@@ -280,7 +280,7 @@ impl Search<'_> {
                 ..*c
             };
             let (d, placed, rho) = self.place_refined(&c);
-            delta += d;
+            delta += d - self.p.lambda_b;
             if k > 0 {
                 delta -= self.f.smooth * turn_cost(c.axis - axes[k - 1]);
             }
@@ -306,7 +306,7 @@ impl Search<'_> {
             let Some((d, c, at_end)) = self.best_extension(&curve) else {
                 break;
             };
-            if d <= 0.0 {
+            if d <= self.p.lambda_b {
                 break;
             }
             self.place(&c);
@@ -488,6 +488,6 @@ impl Search<'_> {
                 }
             }
         }
-        e + curve_energy(curves, self.p.lambda_nc, f.smooth)
+        e + curve_energy(curves, self.p, f.smooth)
     }
 }

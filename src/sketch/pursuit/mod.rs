@@ -599,10 +599,11 @@ impl<'a> Search<'a> {
     }
 }
 
-/// λ_NC N_C + the turn costs of E3.
-fn curve_energy(curves: &[Curve], lambda_nc: f32, smooth: f32) -> f64 {
-    let mut e = lambda_nc as f64 * curves.len() as f64;
+/// λ_NC N_C + λ_B N_B + the turn costs of E3.
+fn curve_energy(curves: &[Curve], p: &PursuitParams, smooth: f32) -> f64 {
+    let mut e = p.lambda_nc as f64 * curves.len() as f64;
     for c in curves {
+        e += p.lambda_b as f64 * c.prims.len() as f64;
         for pair in c.prims.windows(2) {
             let d = (pair[1].axis - pair[0].axis) / AXIS_QUANTUM;
             e += (smooth * turn_cost(d.round() as i32)) as f64;
@@ -777,9 +778,9 @@ pub fn pursue(
 /// (the curve pays λ_NC when it is finished).
 fn birth_cost(p: &PursuitParams) -> f32 {
     if p.birth_lookahead {
-        0.0
+        p.lambda_b
     } else {
-        p.lambda_nc
+        p.lambda_nc + p.lambda_b
     }
 }
 

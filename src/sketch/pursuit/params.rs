@@ -13,6 +13,9 @@ pub struct PursuitParams {
     /// (`pursuit_512_timing` with COIF_LAMBDA_NC). With the literal birth rule
     /// (`birth_lookahead` false) the scale differs: there 20 gives ~25-60.
     pub lambda_nc: f32,
+    /// λ_B, the cost of each primitive, in the same units: a primitive is kept (a birth
+    /// started, a curve extended) only where it gains more than its own description.
+    pub lambda_b: f32,
     /// Θ is diffused again, and births screened again, after this many new curves. Default 4.
     pub rebuild_every: u32,
     /// Sweeps of a re-diffusion (warm from the current field; the convergence test of
@@ -62,6 +65,7 @@ impl Default for PursuitParams {
     fn default() -> Self {
         PursuitParams {
             lambda_nc: 40.0,
+            lambda_b: 0.0,
             rebuild_every: 4,
             rebuild_sweeps: 60,
             min_prims: 3,
@@ -84,7 +88,16 @@ impl PursuitParams {
     pub fn validate(&self) -> Result<()> {
         let bad = |m: String| Err(Error::Invalid(format!("pursuit: {m}")));
         if !(self.lambda_nc.is_finite() && self.lambda_nc >= 0.0) {
-            return bad(format!("lambda_nc {} must be a number ≥ 0", self.lambda_nc));
+            return bad(format!(
+                "the curve penalty λ_NC {} must be a number ≥ 0",
+                self.lambda_nc
+            ));
+        }
+        if !(self.lambda_b.is_finite() && self.lambda_b >= 0.0) {
+            return bad(format!(
+                "the primitive penalty λ_B {} must be a number ≥ 0",
+                self.lambda_b
+            ));
         }
         if self.rebuild_every == 0 {
             return bad("rebuild_every must be at least 1".into());
