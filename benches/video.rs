@@ -12,6 +12,8 @@
 //! COIF_BENCH_JPEG (JPEG quality of every frame after the noise; 0: lossless),
 //! COIF_BENCH_ORACLE_FLOW=1 composes Eq. 6 with the true flow on hair (what these features
 //! get from a flow without error), COIF_BENCH_FLICKER=0 skips the re-render, COIF_BENCH_KEEP=DIR keeps the clips,
+//! COIF_BENCH_ANCHOR=chain tracks features frame to frame only (KLT as C13 uses it; the
+//! default refines each step against the reference frame's patch),
 //! COIF_BENCH_RESIDUAL=1 spreads the features' departure from the head's motion
 //! (`TrackParams::spread_residual`).
 
@@ -62,6 +64,7 @@ fn main() {
     let gpu = env("COIF_BENCH_GPU", 0) != 0;
     let styles: String = env("COIF_BENCH_STYLES", "long,whorl,sidepart".to_string());
     let keep: Option<std::path::PathBuf> = std::env::var("COIF_BENCH_KEEP").ok().map(Into::into);
+    let chain = env("COIF_BENCH_ANCHOR", "reference".to_string()) == "chain";
     let mut engines = vec![("cpu", Engine::cpu())];
     if gpu {
         match Engine::new(BackendChoice::Gpu) {
@@ -91,10 +94,13 @@ fn main() {
             vp.lock_turn_deg = lock_turn;
             vp.noise = noise;
             vp.jpeg = jpeg;
-            let track = coif::video::track::TrackParams {
+            let mut track = coif::video::track::TrackParams {
                 spread_residual: env("COIF_BENCH_RESIDUAL", 0) != 0,
                 ..Default::default()
             };
+            if chain {
+                track.klt.anchor = coif::video::features::Anchor::Chain;
+            }
             let o = EvalOptions {
                 track,
                 drift_frames: vec![30, 60].into_iter().filter(|&f| f < frames).collect(),
