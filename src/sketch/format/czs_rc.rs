@@ -171,11 +171,7 @@ fn un_rc_count(
 pub(super) fn rc_curves(c: &Codes, refine: bool, undecided: bool, warm: bool) -> Vec<u8> {
     let (xb, yb) = (bits_for(c.width), bits_for(c.height));
     let mut m = CurveModel::new();
-    let mut e = if warm {
-        rc::Encoder::warm()
-    } else {
-        rc::Encoder::default()
-    };
+    let mut e = rc::Encoder::new(warm);
     rc_count(&mut e, &mut m, 0, c.curves.len() as u64 + 1);
     for cv in &c.curves {
         let kc = cv.kind.code() as usize;

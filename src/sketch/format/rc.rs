@@ -65,10 +65,11 @@ impl Default for Encoder {
 }
 
 impl Encoder {
-    /// An encoder whose probabilities learn fast at first (see [`Prob`]): version 4.
-    pub fn warm() -> Self {
+    /// `warm`: probabilities learn fast at first (see [`Prob`]), as version 4 codes;
+    /// otherwise as version 3.
+    pub fn new(warm: bool) -> Self {
         Encoder {
-            warm: true,
+            warm,
             ..Default::default()
         }
     }
@@ -141,7 +142,7 @@ pub struct Decoder<'a> {
 }
 
 impl<'a> Decoder<'a> {
-    /// `warm`: as the encoder was made (see [`Encoder::warm`]).
+    /// `warm`: as the encoder was made (see [`Encoder::new`]).
     pub fn new(data: &'a [u8], warm: bool) -> Self {
         let mut d = Decoder {
             data,
@@ -218,11 +219,7 @@ mod tests {
             })
             .collect();
         for warm in [false, true] {
-            let mut e = if warm {
-                Encoder::warm()
-            } else {
-                Encoder::default()
-            };
+            let mut e = Encoder::new(warm);
             let mut p = [HALF; 4];
             for (k, &b) in bits.iter().enumerate() {
                 e.bit(&mut p[k / 10_000], b);
@@ -245,11 +242,7 @@ mod tests {
     fn warm_probabilities_learn_short_contexts_cheaply() {
         let bits: Vec<bool> = (0..96).map(|k| k % 8 == 7).collect();
         let code = |warm: bool| {
-            let mut e = if warm {
-                Encoder::warm()
-            } else {
-                Encoder::default()
-            };
+            let mut e = Encoder::new(warm);
             let mut p = [HALF; 12];
             for (k, &b) in bits.iter().enumerate() {
                 e.bit(&mut p[k / 8], b);
