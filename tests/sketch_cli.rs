@@ -272,48 +272,67 @@ fn the_command_writes_every_file_and_they_agree() {
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
     write_case(&d.join("case"));
-    let out = coif()
-        .args(["sketch", "--backend", "cpu", "--image"])
-        .arg(d.join("case/image.png"))
-        .arg("--mask")
-        .arg(d.join("case/mask.png"))
-        .arg("--out")
-        .arg(d.join("sk"))
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    println!("{}", String::from_utf8_lossy(&out.stdout));
-    for f in [
-        "hair.czs",
-        "sketch.json",
-        "sketch.svg",
-        "theta.npy",
-        "vector.npy",
-        "rho.npy",
-        "sketch.png",
-        "field.png",
-        "energy.png",
-        "shading.png",
-        "report.json",
-    ] {
-        assert!(d.join("sk").join(f).is_file(), "{f} missing");
+    let mut sizes = Vec::new();
+    for (name, extra) in [("sk", None), ("dict", Some("--dictionary-sides"))] {
+        let out = coif()
+            .args(["sketch", "--backend", "cpu", "--image"])
+            .arg(d.join("case/image.png"))
+            .arg("--mask")
+            .arg(d.join("case/mask.png"))
+            .arg("--out")
+            .arg(d.join(name))
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        println!("{}", String::from_utf8_lossy(&out.stdout));
+        let dir = d.join(name);
+        for f in [
+            "hair.czs",
+            "sketch.json",
+            "sketch.svg",
+            "theta.npy",
+            "vector.npy",
+            "rho.npy",
+            "sketch.png",
+            "field.png",
+            "energy.png",
+            "shading.png",
+            "report.json",
+        ] {
+            assert!(dir.join(f).is_file(), "{name}: {f} missing");
+        }
+        let a = format::load(&dir.join("hair.czs")).unwrap();
+        let b = format::load(&dir.join("sketch.json")).unwrap();
+        let c = format::load(&dir.join("sketch.svg")).unwrap();
+        assert_eq!(a, b);
+        assert_eq!(a, c);
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).unwrap())
+                .unwrap();
+        assert_eq!(report["curves"].as_u64().unwrap() as usize, a.curves.len());
+        let bytes = std::fs::metadata(dir.join("hair.czs")).unwrap().len();
+        assert_eq!(report["bytes"]["total"].as_u64().unwrap(), bytes);
+        if extra.is_some() {
+            // Every side on the dictionary {0, π/3, π/2, 2π/3}.
+            use std::f32::consts::PI;
+            let dict = [0.0, PI / 3.0, PI / 2.0, 2.0 * PI / 3.0];
+            for p in a.curves.iter().flat_map(|c| &c.prims) {
+                for s in p.side {
+                    assert!(
+                        dict.iter().any(|d| (s.abs() - d).abs() < 1e-3),
+                        "side {s} off the dictionary"
+                    );
+                }
+            }
+        }
+        sizes.push(bytes);
     }
-    let a = format::load(&d.join("sk/hair.czs")).unwrap();
-    let b = format::load(&d.join("sk/sketch.json")).unwrap();
-    let c = format::load(&d.join("sk/sketch.svg")).unwrap();
-    assert_eq!(a, b);
-    assert_eq!(a, c);
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(d.join("sk/report.json")).unwrap()).unwrap();
-    assert_eq!(report["curves"].as_u64().unwrap() as usize, a.curves.len());
-    assert_eq!(
-        report["bytes"]["total"].as_u64().unwrap(),
-        std::fs::metadata(d.join("sk/hair.czs")).unwrap().len()
-    );
+    assert!(sizes[1] < sizes[0], "dictionary sides {sizes:?} B");
 }
 
 fn fails_with(args: &[&std::ffi::OsStr], needle: &str) {

@@ -118,6 +118,9 @@ pub struct SketchOpts {
     pub curve_penalty: Option<f32>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub primitive_penalty: Option<f32>,
+    /// Side angles from the paper's dictionary alone (no refinement).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub dictionary_sides: bool,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub directions: Option<String>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -440,6 +443,7 @@ impl BatchJob {
                     let mut params = crate::sketch::run::SketchParams::default();
                     set(&mut params.pursuit.lambda_nc, o.curve_penalty);
                     set(&mut params.pursuit.lambda_b, o.primitive_penalty);
+                    params.pursuit.refine_sides = !o.dictionary_sides;
                     if let Some(d) = &o.directions {
                         params.method = d.parse().expect("checked");
                     }
