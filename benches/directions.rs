@@ -58,15 +58,7 @@ fn main() {
         for texture in TEXTURES {
             for &seed in &seeds {
                 let t: Texture = texture.parse().unwrap();
-                let c = synth_textured(
-                    &SynthParams {
-                        style,
-                        seed,
-                        width: SIZE,
-                        height: SIZE,
-                    },
-                    &t,
-                );
+                let c = synth_textured(&SynthParams::square(style, seed, SIZE), &t);
                 let mask: Vec<u8> = c.mask.pixels().map(|m| (m[0] > 127) as u8).collect();
                 let inner = erode(&c.mask, 5);
                 let mut row = [0.0f64; 3];

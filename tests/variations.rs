@@ -36,15 +36,7 @@ const VARIATIONS: [&str; 2] = ["curly", "photo"];
 
 fn case(style: Style, seed: u64, variation: &str) -> SynthCase {
     let t: Texture = variation.parse().unwrap();
-    synth_textured(
-        &SynthParams {
-            style,
-            seed,
-            width: SIZE,
-            height: SIZE,
-        },
-        &t,
-    )
+    synth_textured(&SynthParams::square(style, seed, SIZE), &t)
 }
 
 fn hair(case: &SynthCase) -> Vec<u8> {

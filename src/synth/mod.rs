@@ -115,11 +115,16 @@ impl SynthParams {
 
     /// `style` and `seed` at the default 512x512 size.
     pub fn new(style: Style, seed: u64) -> Self {
+        Self::square(style, seed, Self::DEFAULT_SIZE)
+    }
+
+    /// `style` and `seed` at `size`x`size`.
+    pub fn square(style: Style, seed: u64, size: u32) -> Self {
         SynthParams {
             style,
             seed,
-            width: Self::DEFAULT_SIZE,
-            height: Self::DEFAULT_SIZE,
+            width: size,
+            height: size,
         }
     }
 }
