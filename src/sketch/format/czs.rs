@@ -190,7 +190,7 @@ fn pack(c: &Codes, version: u8) -> (Vec<u8>, [usize; 5]) {
     if version < 3 {
         return (w.bytes, [header, curves, shading, colour, region]);
     }
-    // Version 3: the curves last, range coded from the next whole byte on.
+    // Versions 3 and 4: the curves last, range coded from the next whole byte on.
     let coded = rc_curves(c, refine, undecided, version >= 4);
     let pad = w.bytes.len() * 8 - w.bits;
     let mut bytes = w.bytes;
@@ -680,9 +680,9 @@ mod tests {
         assert!(m.contains("version 5"), "{m}");
     }
 
-    /// A sketch with every kind, turns, refined and plain sides, undecided labels: version 3
-    /// reads back what version 2 does, in fewer bytes, and damage past the curves' start is
-    /// caught.
+    /// A sketch with every kind, turns, refined and plain sides, undecided labels: versions 3
+    /// and 4 read back what version 2 does, version 3 in fewer bytes, and damage past the
+    /// curves' start is caught.
     #[test]
     fn version_3_reads_back_what_version_2_does() {
         use crate::sketch::{Curve, Kind, Primitive};

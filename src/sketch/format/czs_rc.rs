@@ -1,4 +1,4 @@
-//! The curve section of `.czs` version 3: the fields of version 2's curves, range coded
+//! The curve section of `.czs` versions 3 and 4: the fields of version 2's curves, range coded
 //! ([`rc`]) with adaptive contexts. Sequential (each symbol's context is the one before):
 //! CPU.
 
