@@ -335,6 +335,66 @@ fn the_command_writes_every_file_and_they_agree() {
     assert!(sizes[1] < sizes[0], "dictionary sides {sizes:?} B");
 }
 
+/// `--max-bytes` raises the primitive penalty until `hair.czs` fits, says how in
+/// `report.json`, and refuses a budget that not even a sketch without curves meets.
+#[test]
+fn a_byte_budget_is_met_or_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    write_case(&d.join("case"));
+    let run = |name: &str, budget: Option<u64>| {
+        let mut cmd = coif();
+        cmd.args(["sketch", "--backend", "cpu", "--image"])
+            .arg(d.join("case/image.png"))
+            .arg("--mask")
+            .arg(d.join("case/mask.png"))
+            .arg("--out")
+            .arg(d.join(name));
+        if let Some(b) = budget {
+            cmd.arg(format!("--max-bytes={b}"));
+        }
+        cmd.output().unwrap()
+    };
+    let czs = |name: &str| {
+        std::fs::metadata(d.join(name).join("hair.czs"))
+            .unwrap()
+            .len()
+    };
+    assert!(run("free", None).status.success());
+    let free = czs("free");
+    let budget = free * 3 / 4;
+    let out = run("fit", Some(budget));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let got = czs("fit");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("fit/report.json")).unwrap()).unwrap();
+    let b = &report["budget"];
+    println!("{free} B free, budget {budget} B: {got} B, {b}");
+    assert!(got <= budget, "{got} B over the budget of {budget} B");
+    assert_eq!(b["max_bytes"].as_u64(), Some(budget));
+    assert!(b["lambda_b"].as_f64().unwrap() > 0.0, "{b}");
+    let tries = b["tries"].as_array().unwrap();
+    assert_eq!(tries[0][1].as_u64(), Some(free), "{b}");
+    assert!(tries.iter().any(|t| t[1].as_u64() == Some(got)), "{b}");
+    // A budget the sketch already meets leaves it as it is.
+    assert!(run("roomy", Some(free)).status.success());
+    assert_eq!(
+        std::fs::read(d.join("roomy/hair.czs")).unwrap(),
+        std::fs::read(d.join("free/hair.czs")).unwrap()
+    );
+    // Too small for the region, shading and colour map alone; and no budget at all.
+    let out = run("tiny", Some(16));
+    assert_eq!(out.status.code(), Some(64));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("16 B cannot be met"), "{err}");
+    assert!(!d.join("tiny").exists());
+    assert_eq!(run("zero", Some(0)).status.code(), Some(64));
+}
+
 fn fails_with(args: &[&std::ffi::OsStr], needle: &str) {
     let out = coif().args(args).output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);

@@ -32,6 +32,9 @@ pub struct SketchParams {
     /// The stored outline of the hair region.
     pub outline: super::region::OutlineParams,
     pub seed: u64,
+    /// A budget for `hair.czs`, bytes: where the sketch comes out larger, λ_B is raised
+    /// until it fits (see [`Budget`]). None: the pursuit's λ_B as given.
+    pub max_bytes: Option<usize>,
 }
 
 impl Default for SketchParams {
@@ -45,6 +48,7 @@ impl Default for SketchParams {
             fill: Default::default(),
             outline: Default::default(),
             seed: 1,
+            max_bytes: None,
         }
     }
 }
@@ -76,7 +80,24 @@ pub struct SketchResult {
     /// The hair mask analysed.
     pub hair: Vec<bool>,
     pub seconds: Vec<(&'static str, f64)>,
+    /// How a byte budget was met, when one was given.
+    pub budget: Option<Budget>,
 }
+
+/// How `max_bytes` was met: λ_B doubled from 1 (or from the given λ_B) until the file fits,
+/// then the interval halved twice; the smallest λ_B tried that fits is kept. The file's size
+/// is not strictly monotonic in λ_B, so this finds a λ_B that fits, not the least one.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Budget {
+    pub max_bytes: usize,
+    /// The λ_B the kept sketch was pursued with.
+    pub lambda_b: f32,
+    /// Every (λ_B, `.czs` bytes) tried, in order.
+    pub tries: Vec<(f32, usize)>,
+}
+
+/// Largest λ_B the budget search tries before giving up.
+const BUDGET_MAX_LAMBDA_B: f32 = 1024.0;
 
 /// Runs the analysis.
 pub fn analyse(engine: &Engine, inp: &SketchInputs, p: &SketchParams) -> Result<SketchResult> {
@@ -96,53 +117,128 @@ pub fn analyse(engine: &Engine, inp: &SketchInputs, p: &SketchParams) -> Result<
     }
     let mut seconds = Vec::new();
     let mut t = Instant::now();
-    let mut lap = |name: &'static str, t: &mut Instant| {
+    let lap = |seconds: &mut Vec<(&'static str, f64)>, name: &'static str, t: &mut Instant| {
         seconds.push((name, t.elapsed().as_secs_f64()));
         *t = Instant::now();
     };
 
     let b = bands::bands(engine, inp.image, inp.hair, p.sigma_l)?;
     let colour = super::ColourMap::fit(&b, inp.hair);
-    lap("bands", &mut t);
+    lap(&mut seconds, "bands", &mut t);
 
     let gray = GrayImage::from_rgb(inp.image);
     let mask8: Vec<u8> = inp.hair.iter().map(|&m| m as u8).collect();
     let warm = orient(engine, &gray, Some(&mask8), &OrientParams::default())?;
-    lap("gabor", &mut t);
+    lap(&mut seconds, "gabor", &mut t);
 
     let high = GrayImage {
         width: w,
         height: h,
         data: b.high.clone(),
     };
-    let pu = pursuit::pursue(engine, &high, inp.hair, &warm.theta, &p.pursuit)?;
-    lap("pursuit", &mut t);
-
-    let clamps = match inp.strokes {
-        Some(s) => swc::stroke_clamps(&pu.curves, s, inp.hair, w, h),
-        None => Vec::new(),
-    };
-    let directed = swc::directions(
-        &pu.curves, &pu.theta, inp.hair, w, h, &clamps, &p.swc, p.method,
-    )?;
-    lap("directions", &mut t);
-
     let shading = shading::fit(&b.low, inp.hair, w, h, p.bases);
-    lap("shading", &mut t);
+    let region = super::region::outline(inp.hair, w, h, &p.outline);
+    lap(&mut seconds, "shading", &mut t);
 
-    let sketch = format::quantise(&Sketch {
-        width: w,
-        height: h,
-        seed: p.seed,
-        curves: directed.curves.clone(),
-        rho_off: pu.rho_off,
-        shading,
-        colour,
-        region: super::region::outline(inp.hair, w, h, &p.outline),
-    });
+    // Steps 1 and 2 and the stored sketch, for one λ_B; their times summed over attempts.
+    let times = std::cell::Cell::new([0.0f64; 2]);
+    let attempt = |lambda_b: f32| -> Result<(pursuit::Pursuit, swc::Directed, Sketch)> {
+        let pp = pursuit::PursuitParams {
+            lambda_b,
+            ..p.pursuit
+        };
+        let t0 = Instant::now();
+        let pu = pursuit::pursue(engine, &high, inp.hair, &warm.theta, &pp)?;
+        let t1 = Instant::now();
+        let clamps = match inp.strokes {
+            Some(s) => swc::stroke_clamps(&pu.curves, s, inp.hair, w, h),
+            None => Vec::new(),
+        };
+        let directed = swc::directions(
+            &pu.curves, &pu.theta, inp.hair, w, h, &clamps, &p.swc, p.method,
+        )?;
+        let [a, b] = times.get();
+        times.set([a + (t1 - t0).as_secs_f64(), b + t1.elapsed().as_secs_f64()]);
+        let sketch = format::quantise(&Sketch {
+            width: w,
+            height: h,
+            seed: p.seed,
+            curves: directed.curves.clone(),
+            rho_off: pu.rho_off,
+            shading: shading.clone(),
+            colour: colour.clone(),
+            region: region.clone(),
+        });
+        Ok((pu, directed, sketch))
+    };
+    let (mut pu, mut directed, mut sketch) = attempt(p.pursuit.lambda_b)?;
+    let mut budget = None;
+    if let Some(max) = p.max_bytes {
+        let bytes = |s: &Sketch| format::czs_sizes(s).total;
+        let mut tries = vec![(p.pursuit.lambda_b, bytes(&sketch))];
+        if tries[0].1 > max {
+            let bare = bytes(&Sketch {
+                curves: Vec::new(),
+                ..sketch.clone()
+            });
+            if bare > max {
+                return Err(Error::Invalid(format!(
+                    "a byte budget of {max} B cannot be met: without any curve the sketch \
+                     takes {bare} B (its region, shading and colour map)"
+                )));
+            }
+            // Double λ_B until the sketch fits, then halve the interval twice.
+            let (mut lo, mut hi) = (p.pursuit.lambda_b, None);
+            let mut next = (2.0 * lo).max(1.0);
+            while hi.is_none() && next <= BUDGET_MAX_LAMBDA_B {
+                let r = attempt(next)?;
+                let n = bytes(&r.2);
+                tries.push((next, n));
+                if n <= max {
+                    hi = Some((next, r));
+                } else {
+                    lo = next;
+                    next *= 2.0;
+                }
+            }
+            let Some((mut best, mut kept)) = hi else {
+                return Err(Error::Invalid(format!(
+                    "a byte budget of {max} B was not met with a primitive penalty up to \
+                     {BUDGET_MAX_LAMBDA_B} (tried: {tries:?})"
+                )));
+            };
+            for _ in 0..2 {
+                let mid = 0.5 * (lo + best);
+                let r = attempt(mid)?;
+                let n = bytes(&r.2);
+                tries.push((mid, n));
+                if n <= max {
+                    (best, kept) = (mid, r);
+                } else {
+                    lo = mid;
+                }
+            }
+            (pu, directed, sketch) = kept;
+            budget = Some(Budget {
+                max_bytes: max,
+                lambda_b: best,
+                tries,
+            });
+        } else {
+            budget = Some(Budget {
+                max_bytes: max,
+                lambda_b: p.pursuit.lambda_b,
+                tries,
+            });
+        }
+    }
+    let [t_pursuit, t_directions] = times.get();
+    seconds.push(("pursuit", t_pursuit));
+    seconds.push(("directions", t_directions));
+    t = Instant::now();
     let painted = super::prim::paint(&sketch.curves, w, h, Some(inp.hair));
     let field = fill::fill(engine, &painted, inp.hair, &sketch.rho_off, p.seed, &p.fill)?;
-    lap("fill", &mut t);
+    lap(&mut seconds, "fill", &mut t);
 
     Ok(SketchResult {
         sketch,
@@ -157,6 +253,7 @@ pub fn analyse(engine: &Engine, inp: &SketchInputs, p: &SketchParams) -> Result<
         bands: b,
         hair: inp.hair.to_vec(),
         seconds,
+        budget,
     })
 }
 
@@ -228,6 +325,7 @@ pub fn write(
         "energy": { "per_curve": r.energy, "directions": r.swc.energy },
         "seconds": crate::io::seconds(&r.seconds),
         "pursuit": pursuit_report(&r.pursuit),
+        "budget": r.budget,
     });
     if let (Some(o), Some(e)) = (report.as_object_mut(), extra.as_object()) {
         for (k, v) in e {

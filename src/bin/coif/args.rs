@@ -185,6 +185,10 @@ pub struct SketchArgs {
     /// CZ06 Eq. 3), without the 3.75° refinement: files 2-3x smaller, a coarser field.
     #[arg(long)]
     dictionary_sides: bool,
+    /// A budget for hair.czs in bytes: where the sketch comes out larger, the primitive
+    /// penalty is raised until it fits (the steps tried are in report.json).
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+    max_bytes: Option<u64>,
     /// How directions are chosen: swc (Swendsen-Wang cuts, CZ06 §4.2), icm, or prior (each
     /// curve by the direction prior alone; the ablation baselines).
     #[arg(long, default_value = "swc")]
@@ -678,6 +682,7 @@ impl Command {
                 params.pursuit.lambda_nc = a.curve_penalty;
                 params.pursuit.lambda_b = a.primitive_penalty;
                 params.pursuit.refine_sides = !a.dictionary_sides;
+                params.max_bytes = a.max_bytes.map(|b| b as usize);
                 params.method = a.directions.parse()?;
                 params.swc.sweeps = a.sweeps;
                 params.bases = a.bases;
