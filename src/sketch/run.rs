@@ -171,67 +171,14 @@ pub fn analyse(engine: &Engine, inp: &SketchInputs, p: &SketchParams) -> Result<
         });
         Ok((pu, directed, sketch))
     };
-    let (mut pu, mut directed, mut sketch) = attempt(p.pursuit.lambda_b)?;
-    let mut budget = None;
-    if let Some(max) = p.max_bytes {
-        let bytes = |s: &Sketch| format::czs_sizes(s).total;
-        let mut tries = vec![(p.pursuit.lambda_b, bytes(&sketch))];
-        if tries[0].1 > max {
-            let bare = bytes(&Sketch {
-                curves: Vec::new(),
-                ..sketch.clone()
-            });
-            if bare > max {
-                return Err(Error::Invalid(format!(
-                    "a byte budget of {max} B cannot be met: without any curve the sketch \
-                     takes {bare} B (its region, shading and colour map)"
-                )));
-            }
-            // Double λ_B until the sketch fits, then halve the interval twice.
-            let (mut lo, mut hi) = (p.pursuit.lambda_b, None);
-            let mut next = (2.0 * lo).max(1.0);
-            while hi.is_none() && next <= BUDGET_MAX_LAMBDA_B {
-                let r = attempt(next)?;
-                let n = bytes(&r.2);
-                tries.push((next, n));
-                if n <= max {
-                    hi = Some((next, r));
-                } else {
-                    lo = next;
-                    next *= 2.0;
-                }
-            }
-            let Some((mut best, mut kept)) = hi else {
-                return Err(Error::Invalid(format!(
-                    "a byte budget of {max} B was not met with a primitive penalty up to \
-                     {BUDGET_MAX_LAMBDA_B} (tried: {tries:?})"
-                )));
-            };
-            for _ in 0..2 {
-                let mid = 0.5 * (lo + best);
-                let r = attempt(mid)?;
-                let n = bytes(&r.2);
-                tries.push((mid, n));
-                if n <= max {
-                    (best, kept) = (mid, r);
-                } else {
-                    lo = mid;
-                }
-            }
-            (pu, directed, sketch) = kept;
-            budget = Some(Budget {
-                max_bytes: max,
-                lambda_b: best,
-                tries,
-            });
-        } else {
-            budget = Some(Budget {
-                max_bytes: max,
-                lambda_b: p.pursuit.lambda_b,
-                tries,
-            });
+    let first = attempt(p.pursuit.lambda_b)?;
+    let ((pu, directed, sketch), budget) = match p.max_bytes {
+        Some(max) => {
+            let (kept, b) = fit_budget(max, p.pursuit.lambda_b, first, attempt)?;
+            (kept, Some(b))
         }
-    }
+        None => (first, None),
+    };
     let [t_pursuit, t_directions] = times.get();
     seconds.push(("pursuit", t_pursuit));
     seconds.push(("directions", t_directions));
@@ -255,6 +202,73 @@ pub fn analyse(engine: &Engine, inp: &SketchInputs, p: &SketchParams) -> Result<
         seconds,
         budget,
     })
+}
+
+/// Meets a byte budget (see [`Budget`]) from the first attempt's result, calling `attempt`
+/// with larger λ_B as needed; returns the kept attempt.
+fn fit_budget<T>(
+    max: usize,
+    lambda0: f32,
+    first: (T, swc::Directed, Sketch),
+    attempt: impl Fn(f32) -> Result<(T, swc::Directed, Sketch)>,
+) -> Result<((T, swc::Directed, Sketch), Budget)> {
+    let bytes = |s: &Sketch| format::czs_sizes(s).total;
+    let mut tries = vec![(lambda0, bytes(&first.2))];
+    if tries[0].1 <= max {
+        let b = Budget {
+            max_bytes: max,
+            lambda_b: lambda0,
+            tries,
+        };
+        return Ok((first, b));
+    }
+    let bare = bytes(&Sketch {
+        curves: Vec::new(),
+        ..first.2.clone()
+    });
+    if bare > max {
+        return Err(Error::Invalid(format!(
+            "a byte budget of {max} B cannot be met: without any curve the sketch takes \
+             {bare} B (its region, shading and colour map)"
+        )));
+    }
+    // Double λ_B until the sketch fits, then halve the interval twice.
+    let (mut lo, mut hi) = (lambda0, None);
+    let mut next = (2.0 * lo).max(1.0);
+    while hi.is_none() && next <= BUDGET_MAX_LAMBDA_B {
+        let r = attempt(next)?;
+        let n = bytes(&r.2);
+        tries.push((next, n));
+        if n <= max {
+            hi = Some((next, r));
+        } else {
+            lo = next;
+            next *= 2.0;
+        }
+    }
+    let Some((mut best, mut kept)) = hi else {
+        return Err(Error::Invalid(format!(
+            "a byte budget of {max} B was not met with a primitive penalty up to \
+             {BUDGET_MAX_LAMBDA_B} (tried: {tries:?})"
+        )));
+    };
+    for _ in 0..2 {
+        let mid = 0.5 * (lo + best);
+        let r = attempt(mid)?;
+        let n = bytes(&r.2);
+        tries.push((mid, n));
+        if n <= max {
+            (best, kept) = (mid, r);
+        } else {
+            lo = mid;
+        }
+    }
+    let b = Budget {
+        max_bytes: max,
+        lambda_b: best,
+        tries,
+    };
+    Ok((kept, b))
 }
 
 /// The pursuit's counts, with its wall-clock times under "seconds" as everywhere in the
