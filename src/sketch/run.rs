@@ -1,10 +1,11 @@
 //! `coif sketch`: a hair image to its sketch, vector field and bands (CZ06 §4), and the
 //! files a user keeps and looks at.
 //!
-//! Order: bands and colour map → a warm Θ from coif's Gabor filters → sketch pursuit
-//! (Step 1: Θ and the undirected curves) → directions by Swendsen-Wang cuts (Step 2) →
-//! shading bases → the sketch quantised to what the files store → V filled in from that
-//! sketch alone (what synthesis will see) → files.
+//! Order: bands and colour map → a warm Θ from coif's Gabor filters → shading bases and
+//! the region's outline → sketch pursuit (Step 1: Θ and the undirected curves) →
+//! directions by Swendsen-Wang cuts (Step 2) → the sketch quantised to what the files store
+//! (again with a larger λ_B while over a byte budget) → V filled in from that sketch alone
+//! (what synthesis will see) → files.
 
 use super::{bands, fill, format, pursuit, shading, swc, vis};
 use super::{Sketch, VectorField};
