@@ -284,11 +284,7 @@ fn the_command_writes_every_file_and_they_agree() {
             .args(extra)
             .output()
             .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        succeeded(&out);
         println!("{}", String::from_utf8_lossy(&out.stdout));
         let dir = d.join(name);
         for f in [
@@ -364,11 +360,7 @@ fn a_byte_budget_is_met_or_refused() {
     let free = czs("free");
     let budget = free * 3 / 4;
     let out = run("fit", Some(budget));
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    succeeded(&out);
     let got = czs("fit");
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("fit/report.json")).unwrap()).unwrap();
@@ -393,6 +385,15 @@ fn a_byte_budget_is_met_or_refused() {
     assert!(err.contains("16 B cannot be met"), "{err}");
     assert!(!d.join("tiny").exists());
     assert_eq!(run("zero", Some(0)).status.code(), Some(64));
+}
+
+/// A run that must succeed; its error output is the failure's message.
+fn succeeded(out: &std::process::Output) {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 }
 
 fn fails_with(args: &[&std::ffi::OsStr], needle: &str) {
@@ -521,11 +522,7 @@ fn convert_round_trips_and_refuses_damaged_files() {
             .arg(d.join(to))
             .output()
             .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        succeeded(&out);
     }
     assert_eq!(
         std::fs::read(&czs).unwrap(),
