@@ -434,6 +434,35 @@ fn depth_test_hides_strands_behind_the_mesh() {
     }
 }
 
+/// Exact depth ties between strands go to the one drawn first, on both paths (the CPU path
+/// draws each tile front to back and breaks ties by draw rank, see `TileBuf::rank`), and a
+/// nearer strand drawn last still wins.
+#[test]
+fn depth_ties_between_strands_go_to_the_earlier_strand() {
+    let (w, h) = (32, 32);
+    let (red, green, blue) = (
+        [1.0, 0.0, 0.0, 1.0],
+        [0.0, 1.0, 0.0, 1.0],
+        [0.0, 0.0, 1.0, 1.0],
+    );
+    let s = strands(&[
+        (&[[2.0, 10.5, 5.0], [30.0, 10.5, 5.0]], red),
+        (&[[10.5, 2.0, 5.0], [10.5, 30.0, 5.0]], green),
+        (&[[2.0, 20.5, 5.0], [30.0, 20.5, 5.0]], blue),
+        (&[[20.5, 2.0, 9.0], [20.5, 30.0, 9.0]], [1.0, 1.0, 1.0, 1.0]),
+    ]);
+    for (path, img) in ["gpu", "cpu"]
+        .iter()
+        .zip(both(&frame(w, h), None, Some(&s)))
+    {
+        let at = |x: u32, y: u32| img[(y * w + x) as usize];
+        assert_eq!(at(10, 10), red, "{path}: red drawn before green");
+        assert_eq!(at(10, 20), green, "{path}: green drawn before blue");
+        assert_eq!(at(20, 10), [1.0; 4], "{path}: the nearer white strand");
+        assert_eq!(at(20, 20), [1.0; 4], "{path}");
+    }
+}
+
 #[test]
 fn back_faces_are_culled() {
     let (w, h) = (16, 16);

@@ -254,6 +254,11 @@ pub struct TileBuf<const N: usize> {
     pub h: i32,
     pub color: Vec<[[f32; 4]; N]>,
     pub depth: Vec<[f32; N]>,
+    /// Per sample, the draw rank of what it holds (0: background or mesh; a strand segment
+    /// its first vertex's index + 1): an exact depth tie goes to the lower rank, which is
+    /// what drawing in rank order with `Less` does, so primitives may be drawn in any order
+    /// (the CPU driver draws each tile's segments front to back) with the same result.
+    pub rank: Vec<[u32; N]>,
     /// Per [`ZBLOCK`]² block of pixels, a bound on the farthest depth of its samples (it only
     /// falls between refreshes, so a stale value is still a bound): a primitive no nearer
     /// than every block it touches cannot pass a depth test there and is skipped whole.
@@ -274,6 +279,8 @@ impl<const N: usize> TileBuf<N> {
         self.color.clear();
         self.depth.clear();
         self.depth.resize(npx, [1.0; N]);
+        self.rank.clear();
+        self.rank.resize(npx, [0; N]);
         self.zmax.clear();
         let nb = ((w + ZBLOCK - 1) / ZBLOCK) * ((h + ZBLOCK - 1) / ZBLOCK);
         self.zmax.resize(nb as usize, 1.0);
@@ -326,42 +333,55 @@ impl<const N: usize> TileBuf<N> {
         true
     }
 
-    /// Depth-tests and writes the samples in `mask` of tile pixel (lx, ly): `Less`
-    /// against the buffer, and outside [0, 1] nothing (the GPU clips the primitive).
-    /// Branch-free selects, for the same reason as `Tri::mask`.
+    /// Depth-tests and writes the samples in `mask` of tile pixel (lx, ly) for a primitive
+    /// of rank 0 (the mesh, drawn first and in order): `Less` against the buffer, and
+    /// outside [0, 1] nothing (the GPU clips the primitive). Branch-free selects, for the
+    /// same reason as `Tri::mask`.
     #[inline]
     pub fn write(&mut self, lx: i32, ly: i32, mask: u32, c: [f32; 4], z: [f32; N]) {
         let i = (ly * self.w + lx) as usize;
-        let pass = self.passing(i, mask, z);
-        self.write_passed(lx, ly, pass, c, z);
+        let pass = self.passing(i, mask, z, 0);
+        self.write_passed(lx, ly, pass, c, z, 0);
     }
 
-    /// The samples of `mask` at tile pixel index `i` that pass the depth test of
-    /// [`TileBuf::write`]. Testing before shading lets a fragment hidden in every sample
-    /// skip its colour (with heavy overdraw, most do).
+    /// The samples of `mask` at tile pixel index `i` that a primitive of draw rank `rank`
+    /// wins: nearer (`Less`), or as near with a lower rank than what the sample holds (see
+    /// [`TileBuf::rank`]); outside [0, 1] nothing. Testing before shading lets a fragment
+    /// hidden in every sample skip its colour (with heavy overdraw, most do).
     #[inline(always)]
-    pub fn passing(&self, i: usize, mask: u32, z: [f32; N]) -> u32 {
-        let depth = &self.depth[i];
+    pub fn passing(&self, i: usize, mask: u32, z: [f32; N], rank: u32) -> u32 {
+        let (depth, held) = (&self.depth[i], &self.rank[i]);
         let mut pass = 0;
         for s in 0..N {
             let zs = z[s];
-            let p = ((mask >> s) & 1 == 1) & (0.0..=1.0).contains(&zs) & (zs < depth[s]);
+            let wins = (zs < depth[s]) | ((zs == depth[s]) & (rank < held[s]));
+            let p = ((mask >> s) & 1 == 1) & (0.0..=1.0).contains(&zs) & wins;
             pass |= (p as u32) << s;
         }
         pass
     }
 
-    /// Writes colour `c` and depth `z` to the samples in `pass` (from [`TileBuf::passing`]) of
-    /// tile pixel (lx, ly). (Always inlined: called per fragment from the AVX2 tile loop.)
+    /// Writes colour `c`, depth `z` and draw rank `rank` to the samples in `pass` (from
+    /// [`TileBuf::passing`]) of tile pixel (lx, ly). (Always inlined: called per fragment
+    /// from the AVX2 tile loop.)
     #[inline(always)]
-    pub fn write_passed(&mut self, lx: i32, ly: i32, pass: u32, c: [f32; 4], z: [f32; N]) {
+    pub fn write_passed(
+        &mut self,
+        lx: i32,
+        ly: i32,
+        pass: u32,
+        c: [f32; 4],
+        z: [f32; N],
+        rank: u32,
+    ) {
         let i = (ly * self.w + lx) as usize;
         let bw = (self.w + ZBLOCK - 1) / ZBLOCK;
         self.zdirty[(ly / ZBLOCK * bw + lx / ZBLOCK) as usize] = true;
-        let (depth, color) = (&mut self.depth[i], &mut self.color[i]);
+        let (depth, held, color) = (&mut self.depth[i], &mut self.rank[i], &mut self.color[i]);
         for s in 0..N {
             let p = (pass >> s) & 1 == 1;
             depth[s] = if p { z[s] } else { depth[s] };
+            held[s] = if p { rank } else { held[s] };
             let m = 0u32.wrapping_sub(p as u32);
             for k in 0..4 {
                 color[s][k] = f32::from_bits((c[k].to_bits() & m) | (color[s][k].to_bits() & !m));
@@ -418,5 +438,39 @@ mod tests {
         assert!(!b.hidden(0, 0, 4, 3, 0.8));
         // Partial blocks at the tile's edge are sized to the tile.
         assert_eq!(b.zmax.len(), 3 * 3);
+    }
+
+    /// An exact depth tie goes to the lower draw rank, whichever is drawn first, so a tile
+    /// drawn in any order ends as the GPU's input order with `Less` leaves it; the mesh
+    /// (rank 0, drawn first) keeps its ties.
+    #[test]
+    fn depth_ties_go_to_the_lower_rank_in_any_order() {
+        let mut b = TileBuf::<4>::default();
+        b.reset(0, 0, 2, 1);
+        b.color.resize(2, [[0.0; 4]; 4]);
+        let (early, late) = ([1.0, 0.0, 0.0, 1.0], [0.0, 1.0, 0.0, 1.0]);
+        // Pixel 0: the later strand (rank 9) drawn first, then the earlier (rank 3).
+        let i = 0;
+        let p = b.passing(i, 0b1111, [0.5; 4], 9);
+        b.write_passed(0, 0, p, late, [0.5; 4], 9);
+        assert_eq!(
+            b.passing(i, 0b1111, [0.5; 4], 3),
+            0b1111,
+            "lower rank wins a tie"
+        );
+        b.write_passed(0, 0, 0b1111, early, [0.5; 4], 3);
+        assert_eq!(
+            b.passing(i, 0b1111, [0.5; 4], 9),
+            0,
+            "higher rank loses a tie"
+        );
+        assert_eq!(b.passing(i, 0b0110, [0.4, 0.5, 0.4, 0.6], 9), 0b0100);
+        assert_eq!(b.color[0], [early; 4]);
+        // Pixel 1: the mesh (rank 0) holds its ties against every strand.
+        b.write(1, 0, 0b1111, late, [0.5; 4]);
+        assert_eq!(b.passing(1, 0b1111, [0.5; 4], 1), 0);
+        assert_eq!(b.passing(1, 0b1111, [0.5, 0.5, 0.49, 0.5], 1), 0b0100);
+        // Outside [0, 1] nothing passes, whatever the rank.
+        assert_eq!(b.passing(1, 0b1111, [-0.1, 1.5, 0.2, 0.3], 1), 0b1100);
     }
 }

@@ -50,7 +50,7 @@ pub fn seg_bounds(p0: [f32; 2], p1: [f32; 2], half: f32) -> [f32; 4] {
     ]
 }
 
-/// Draws segment `s` into the tile: the corners `vs_main` builds, snapped as the rasteriser
+/// Draws segment `s`, of draw rank `rank` (see [`TileBuf::rank`]), into the tile: the corners `vs_main` builds, snapped as the rasteriser
 /// does, the quad's coverage, and every covered pixel shaded as `fs_main` ([`Shade`] below).
 /// (Inlined into the tile loop, which has an AVX2 build.)
 #[inline(always)]
@@ -61,6 +61,7 @@ pub fn strand_quad<const N: usize>(
     photo: Option<&Texture>,
     fb: &Fb,
     offs: &Offsets<N>,
+    rank: u32,
 ) {
     // The vertex shader's corner construction, operation for operation.
     let h = cfg.half_width;
@@ -137,6 +138,7 @@ pub fn strand_quad<const N: usize>(
         c0: s.c0,
         c1: s.c1,
         strand: s.strand,
+        rank,
         zp,
         z_off,
         photo: photo.map(|tex| {
@@ -300,6 +302,7 @@ struct Shade<'a, const N: usize> {
     c0: [f32; 4],
     c1: [f32; 4],
     strand: u32,
+    rank: u32,
     zp: Plane,
     z_off: [f64; N],
     /// Photo colour: the photo, o0, o1 - o0, n_o, the screen normal n / h² (so that
@@ -341,7 +344,7 @@ impl<const N: usize> Shade<'_, N> {
         }
         let z = self.zp.samples(px, py, &self.z_off);
         let i = (ly * buf.w + lx) as usize;
-        let pass = buf.passing(i, mask, z);
+        let pass = buf.passing(i, mask, z, self.rank);
         if pass == 0 {
             return;
         }
@@ -359,7 +362,7 @@ impl<const N: usize> Shade<'_, N> {
                 col[k] = (p[k] + col[k]).clamp(0.0, 1.0);
             }
         }
-        buf.write_passed(lx, ly, pass, [col[0], col[1], col[2], 1.0], z);
+        buf.write_passed(lx, ly, pass, [col[0], col[1], col[2], 1.0], z, self.rank);
     }
 }
 

@@ -6,6 +6,13 @@
 //! Segments are binned straight from the strands' points and prepared
 //! ([`super::SegSource::seg`]) in each tile that draws them: a segment rarely straddles two
 //! tiles, so this costs less than materialising every prepared segment first.
+//!
+//! Each tile draws its segments front to back (by their nearer end), not in input order:
+//! with heavy overdraw most later fragments then fail the depth test before they are
+//! shaded, and whole segments behind what is drawn are skipped by the depth bounds (0.97 ->
+//! 0.75-0.8 CPU-s per render on the raster bench). The image is the same as in input order,
+//! to the bit: an exact depth tie goes to the lower draw rank ([`TileBuf::rank`]), which is
+//! what `Less` in input order gives.
 
 #![allow(clippy::needless_range_loop)]
 
@@ -121,18 +128,19 @@ fn raster_n<const N: usize>(s: &Scene) -> Vec<[f32; 4]> {
     let tiles: Vec<Vec<[f32; 4]>> = (0..tiles_x * tiles_y)
         .into_par_iter()
         .map_init(
-            // Sample storage reused across a worker's tiles (no page faults per tile).
-            TileBuf::<N>::default,
-            |buf, t| {
+            // Sample storage and the draw order reused across a worker's tiles (no page
+            // faults per tile).
+            || (TileBuf::<N>::default(), Vec::new()),
+            |(buf, order), t| {
                 let i = t as usize;
                 let segs = seg_bins.iter().map(|b| b[i].as_slice());
                 let (tx, ty, tris) = (t % tiles_x, t / tiles_x, &tri_bins[i]);
                 #[cfg(target_arch = "x86_64")]
                 if avx2() {
                     // SAFETY: the CPU has the features `tile_avx2` is compiled for.
-                    return unsafe { tile_avx2::<N>(s, buf, tx, ty, tris, segs) };
+                    return unsafe { tile_avx2::<N>(s, buf, order, tx, ty, tris, segs) };
                 }
-                tile::<N>(s, buf, tx, ty, tris, segs)
+                tile::<N>(s, buf, order, tx, ty, tris, segs)
             },
         )
         .collect();
@@ -168,18 +176,20 @@ fn avx2() -> bool {
 unsafe fn tile_avx2<'b, const N: usize>(
     s: &Scene,
     buf: &mut TileBuf<N>,
+    order: &mut Vec<(f32, [u32; 2])>,
     tx: u32,
     ty: u32,
     tris: &[u32],
     segs: impl Iterator<Item = &'b [[u32; 2]]>,
 ) -> Vec<[f32; 4]> {
-    tile::<N>(s, buf, tx, ty, tris, segs)
+    tile::<N>(s, buf, order, tx, ty, tris, segs)
 }
 
 #[inline(always)]
 fn tile<'b, const N: usize>(
     s: &Scene,
     buf: &mut TileBuf<N>,
+    order: &mut Vec<(f32, [u32; 2])>,
     tx: u32,
     ty: u32,
     tris: &[u32],
@@ -210,15 +220,25 @@ fn tile<'b, const N: usize>(
     }
     if let Some(src) = &s.src {
         let photo = s.photo.as_ref().filter(|_| cfg.photo != 0);
+        // Front to back: by the nearer end's depth (larger = nearer), from the raw points
+        // (the depth mapping is monotone and clipping only moves an end along its segment,
+        // so this orders the prepared segments well enough; any order gives the same image).
+        let pts = &src.s.points;
+        order.clear();
+        order.extend(segs.flatten().map(|&[i, k]| {
+            let (a, b) = (pts[i as usize][2], pts[i as usize + 1][2]);
+            (-(if b > a { b } else { a }), [i, k])
+        }));
+        order.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
         let mut since = ZMAX_EVERY;
-        for &[i, k] in segs.flatten() {
+        for &(_, [i, k]) in order.iter() {
             if since == ZMAX_EVERY {
                 buf.refresh_zmax();
                 since = 0;
             }
             since += 1;
             if let Some(seg) = src.seg(i as usize, k) {
-                strand_quad(buf, &seg, cfg, photo, &fb, &offs);
+                strand_quad(buf, &seg, cfg, photo, &fb, &offs, i + 1);
             }
         }
     }
