@@ -1,7 +1,8 @@
 // Strand rasteriser (C13 §4): every segment (p_k, p_k+1) of a strand is drawn as a
 // screen-aligned quad `strand_width` px across, extended by half a width past both ends so
 // that the quads of consecutive segments overlap at bends (no gaps, no joins needed).
-// Vertex pulling: 6 vertices per segment, segment = vertex_index / 6; the host has already
+// Vertex pulling: one instance per segment, drawn as a 4-vertex triangle strip (corners
+// A B C D: triangles ABC and BDC, the same two as CBD); the host has already
 // dropped non-finite, zero-length and invisible segments and clipped long ones to a guard
 // band, so nothing here needs a NaN test. Depth-tested (Less, written), no sorting.
 //
@@ -52,12 +53,12 @@ struct VsOut {
 }
 
 @vertex
-fn vs_main(@builtin(vertex_index) vi: u32) -> VsOut {
-    let s = segs[vi / 6u];
-    // Corners A = (start, +n), B = (start, -n), C = (end, +n), D = (end, -n); triangles ABC, CBD.
-    let k = vi % 6u;
-    let at_end = k == 2u || k == 3u || k == 5u;
-    let plus = k == 0u || k == 2u || k == 3u;
+fn vs_main(@builtin(vertex_index) k: u32, @builtin(instance_index) seg: u32) -> VsOut {
+    let s = segs[seg];
+    // Corners k = 0..3: A = (start, +n), B = (start, -n), C = (end, +n), D = (end, -n); the
+    // strip makes triangles ABC and BDC.
+    let at_end = k >= 2u;
+    let plus = (k & 1u) == 0u;
     let h = cfg.half_width;
     let d = s.p1 - s.p0;
     let len = sqrt(d.x * d.x + d.y * d.y);

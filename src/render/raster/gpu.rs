@@ -81,6 +81,7 @@ fn pipe(
     module: &wgpu::ShaderModule,
     (vs, fs): (&str, &str),
     entries: &[wgpu::BindGroupLayoutEntry],
+    topology: wgpu::PrimitiveTopology,
     cull: Option<wgpu::Face>,
     depth_write: bool,
     compare: wgpu::CompareFunction,
@@ -105,7 +106,7 @@ fn pipe(
             buffers: &[],
         },
         primitive: wgpu::PrimitiveState {
-            topology: wgpu::PrimitiveTopology::TriangleList,
+            topology,
             strip_index_format: None,
             front_face: wgpu::FrontFace::Ccw,
             cull_mode: cull,
@@ -338,6 +339,7 @@ pub fn raster(ctx: &GpuContext, s: &Scene, max_chunk_bytes: u64) -> Result<Vec<[
             &mesh_module,
             mesh_raster::BACKGROUND,
             &[texture_entry(2)],
+            wgpu::PrimitiveTopology::TriangleList,
             None,
             false,
             wgpu::CompareFunction::Always,
@@ -362,6 +364,7 @@ pub fn raster(ctx: &GpuContext, s: &Scene, max_chunk_bytes: u64) -> Result<Vec<[
                 &mesh_module,
                 mesh_raster::MESH,
                 &[uniform_entry(0), storage_entry(1), texture_entry(2)],
+                wgpu::PrimitiveTopology::TriangleList,
                 Some(wgpu::Face::Back),
                 true,
                 less,
@@ -388,6 +391,9 @@ pub fn raster(ctx: &GpuContext, s: &Scene, max_chunk_bytes: u64) -> Result<Vec<[
             &strand_module,
             strand_raster::STRANDS,
             &[uniform_entry(0), storage_entry(1), texture_entry(2)],
+            // One instance per segment, its corners A B C D as a strip: triangles ABC and
+            // BDC (= CBD), the two the CPU mirror rasterises, with 4 vertices instead of 6.
+            wgpu::PrimitiveTopology::TriangleStrip,
             None,
             true,
             less,
@@ -448,18 +454,20 @@ pub fn raster(ctx: &GpuContext, s: &Scene, max_chunk_bytes: u64) -> Result<Vec<[
             pass.set_bind_group(0, bg, &[]);
             pass.draw(0..3, 0..1);
         }
-        // Mesh before strands, chunks in input order: the draw order the CPU mirrors.
-        for (p, groups, per) in [
-            mesh.as_ref().map(|(p, g)| (p, g, 3u32)),
-            strands.as_ref().map(|(p, g)| (p, g, 6u32)),
-        ]
-        .into_iter()
-        .flatten()
-        {
+        // Mesh before strands, chunks in input order: the draw order the CPU mirrors (a
+        // triangle list of 3 vertices per triangle; a 4-vertex strip per segment instance).
+        if let Some((p, groups)) = &mesh {
             pass.set_pipeline(&p.pipeline);
             for (bg, count) in groups {
                 pass.set_bind_group(0, bg, &[]);
-                pass.draw(0..per * count, 0..1);
+                pass.draw(0..3 * count, 0..1);
+            }
+        }
+        if let Some((p, groups)) = &strands {
+            pass.set_pipeline(&p.pipeline);
+            for (bg, count) in groups {
+                pass.set_bind_group(0, bg, &[]);
+                pass.draw(0..4, 0..*count);
             }
         }
     }
