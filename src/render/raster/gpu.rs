@@ -215,7 +215,9 @@ fn chunks<T: bytemuck::Pod>(
     items: &[T],
     chunk_bytes: u64,
 ) -> Vec<(wgpu::Buffer, u32)> {
-    let per = (chunk_bytes / std::mem::size_of::<T>() as u64).clamp(1, u32::MAX as u64 / 6);
+    // A mesh chunk draws 3 vertices per item, a strand chunk one instance per item: both
+    // counts must fit a u32.
+    let per = (chunk_bytes / std::mem::size_of::<T>() as u64).clamp(1, u32::MAX as u64 / 3);
     items
         .chunks(per as usize)
         .map(|c| {
