@@ -32,9 +32,12 @@ use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 use std::path::Path;
 
+pub use rate::{rate_sides, side_sums};
+
 mod czs;
 mod czs_rc;
 mod json;
+mod rate;
 mod rc;
 mod svg;
 pub(crate) mod validate;

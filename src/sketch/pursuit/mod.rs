@@ -543,6 +543,51 @@ impl<'a> Search<'a> {
         }
     }
 
+    /// `curves` with their side refinements chosen again by rate and distortion
+    /// (`p.side_rate`, [`super::format::rate_sides`]), the field painted again where a side
+    /// changed and those primitives' ρ measured again, so that Θ, solved next, and the
+    /// stored codes agree. Ownership as the painting has it (the fill's).
+    fn rate_sides(&mut self, curves: Vec<Curve>) -> Vec<Curve> {
+        if self.p.side_rate <= 0.0 || !self.p.refine_sides {
+            return curves;
+        }
+        let f = self.f;
+        let (w, h) = (f.width, f.height);
+        let sums = super::format::side_sums(&curves, w, h, &f.data, &f.hair);
+        let mut rated = super::format::rate_sides(&curves, w, h, &sums, self.p.side_rate);
+        let mut on = vec![false; f.len()];
+        for (c, old) in rated.iter_mut().zip(&curves) {
+            let hs = c.kind.hair_sides();
+            for (p, q) in c.prims.iter_mut().zip(&old.prims) {
+                let changed = p.side != q.side;
+                let z = [0, 1].map(|s| theta::to_z(p.side_angle(s)));
+                let (mut rho, mut n) = (0.0f32, 0u32);
+                prim::window(c.kind, p, w, h, |i, side| {
+                    if std::mem::replace(&mut on[i], true) || !changed {
+                        return;
+                    }
+                    if let Some(k) = side.index() {
+                        if hs[k] && f.hair[i] && self.fixed[i] {
+                            self.z[i] = z[k];
+                            rho += f.rho(i, z[k]);
+                            n += 1;
+                        }
+                    }
+                });
+                if n > 0 {
+                    p.rho = rho / n as f32;
+                }
+            }
+        }
+        self.stats.sides_rated = rated
+            .iter()
+            .zip(&curves)
+            .flat_map(|(a, b)| a.prims.iter().zip(&b.prims))
+            .filter(|(p, q)| p.side != q.side)
+            .count();
+        rated
+    }
+
     /// Undoes every change after log position `to`.
     fn undo_to(&mut self, to: usize) {
         self.epoch += 1;
@@ -720,6 +765,7 @@ pub fn pursue(
     for pass in 0..passes {
         let mut s = Search::new(&f, p, empty.z.clone(), prior);
         let (curves, e0, energy) = s.run(engine)?;
+        let curves = s.rate_sides(curves);
         // The final Θ: diffused to convergence with the sketch clamped.
         let t = Instant::now();
         let fl = s.flags();

@@ -57,6 +57,12 @@ pub struct PursuitParams {
     /// by 21% / 23% / 28% against S = ∅ with both defaults; with the term on every kind by
     /// 3% / 1% / 0%.
     pub contrast_all: bool,
+    /// μ, the energy one bit of `.czs` is worth when the finished sketch's side refinements
+    /// are chosen again by rate and distortion (`format::rate_sides`: each code may follow
+    /// the coder's prediction where its window barely prefers another); 0 keeps the
+    /// pursuit's own. Default ln 2: E1 is a negative log-likelihood in nats and a bit is
+    /// ln 2 of them (minimum description length). See the README for what it measured.
+    pub side_rate: f32,
     /// The diffusion of Θ∅ and of the final Θ.
     pub theta: ThetaParams,
 }
@@ -79,6 +85,7 @@ impl Default for PursuitParams {
             refine_sides: true,
             birth_lookahead: true,
             contrast_all: false,
+            side_rate: std::f32::consts::LN_2,
             theta: ThetaParams::default(),
         }
     }
@@ -97,6 +104,12 @@ impl PursuitParams {
             return bad(format!(
                 "the primitive penalty λ_B {} must be a number ≥ 0",
                 self.lambda_b
+            ));
+        }
+        if !(self.side_rate.is_finite() && self.side_rate >= 0.0) {
+            return bad(format!(
+                "the side rate μ {} must be a number ≥ 0",
+                self.side_rate
             ));
         }
         if self.rebuild_every == 0 {
@@ -171,6 +184,8 @@ pub struct PursuitStats {
     /// Of the search: choosing births (the heap and the exact scores), and tracing curves.
     pub seconds_births: f64,
     pub seconds_traces: f64,
+    /// Primitives whose side codes the rate choice changed (`side_rate`; the last pass).
+    pub sides_rated: usize,
 }
 
 impl PursuitStats {
@@ -178,6 +193,7 @@ impl PursuitStats {
     pub(super) fn add(&mut self, o: &PursuitStats) {
         self.passes += o.passes;
         self.births += o.births;
+        self.sides_rated = o.sides_rated;
         self.dropped_short += o.dropped_short;
         self.dropped_snapped += o.dropped_snapped;
         self.rebuilds += o.rebuilds;

@@ -1,0 +1,346 @@
+//! The encoder's choice of side refinements by rate and distortion (as video encoders choose
+//! their quantised coefficients): a side's refinement code is what most of a sketch's bytes
+//! pay for, and the pursuit picks each one alone, nearest its window's best orientation, so
+//! consecutive primitives' codes wander by a step or two where the fit barely prefers one.
+//! Along each curve, the codes are chosen again to minimise
+//!
+//! ```text
+//! Σ_sides E1(code) + μ · bits(code | the coder's prediction)
+//! ```
+//!
+//! by dynamic programming (Viterbi over the 16 codes of the side the coder chains from
+//! primitive to primitive). E1 is the pursuit's data term over the pixels the side paints,
+//! linear in the double-angle vector (`Σ data·z`, so the sums per side are all it needs);
+//! the bits are −log2 of the step's frequency in the sketch's own codes, re-estimated over a
+//! few rounds as the codes settle (the range coder adapts to them the same way). The
+//! prediction is the coder's ([`super::czs_rc`]): a side follows itself on the previous
+//! primitive, its code moved by 4 steps per axis turn; a two-sided kind's second side
+//! mirrors its first. Dictionary indices, axes, positions and contrast are kept. Sequential
+//! and light (16 × 16 per primitive): CPU.
+
+use super::*;
+
+/// Rounds of re-estimating the step frequencies.
+const ROUNDS: usize = 3;
+/// Zigzag step codes the frequency tables hold (the coder's 5-bit tree).
+const STEPS: usize = 32;
+
+/// The two predictions the coder makes: from the previous primitive, from the mirror.
+#[derive(Clone, Copy)]
+enum Pred {
+    Chain = 0,
+    Mirror = 1,
+}
+
+/// Bits of a zigzag step, per prediction kind.
+struct Rate {
+    bits: [[f32; STEPS]; 2],
+}
+
+impl Rate {
+    fn of(counts: &[[u32; STEPS]; 2]) -> Rate {
+        let mut bits = [[0.0; STEPS]; 2];
+        for (b, c) in bits.iter_mut().zip(counts) {
+            // Add-half estimate: a step never seen costs a few bits more than one seen once.
+            let n: f32 = c.iter().map(|&v| v as f32 + 0.5).sum();
+            for (bb, &v) in b.iter_mut().zip(c) {
+                *bb = -((v as f32 + 0.5) / n).log2();
+            }
+        }
+        Rate { bits }
+    }
+
+    fn step(&self, pred: Pred, code: u8, predicted: i32) -> f32 {
+        let z = czs::zigzag(code as i64 - predicted.clamp(0, 15) as i64) as usize;
+        self.bits[pred as usize][z.min(STEPS - 1)]
+    }
+}
+
+/// The double-angle vector of the flow a side paints: the axis turned by −angle on the
+/// left, +angle on the right (as [`Primitive::side_angle`]).
+fn z_of(axis_idx: i64, s: usize, dict: u8, code: u8) -> [f32; 2] {
+    let axis = axis_idx as f64 * 15.0;
+    let side = side_deg(dict, code);
+    let deg = if s == 0 { axis - side } else { axis + side };
+    let t = 2.0 * deg.to_radians();
+    [t.cos() as f32, t.sin() as f32]
+}
+
+/// Σ data over the hair pixels each side of each primitive of `curves` paints on a w×h
+/// image, with the painting's ownership (a pixel belongs to the first primitive that reaches
+/// it, curve order then primitive order, as [`crate::sketch::prim::paint`]).
+pub fn side_sums(
+    curves: &[Curve],
+    w: u32,
+    h: u32,
+    data: &[[f32; 2]],
+    hair: &[bool],
+) -> Vec<Vec<[[f32; 2]; 2]>> {
+    let mut on = vec![false; w as usize * h as usize];
+    curves
+        .iter()
+        .map(|c| {
+            let hs = c.kind.hair_sides();
+            c.prims
+                .iter()
+                .map(|p| {
+                    let mut g = [[0.0f32; 2]; 2];
+                    crate::sketch::prim::window(c.kind, p, w, h, |k, side| {
+                        if std::mem::replace(&mut on[k], true) {
+                            return;
+                        }
+                        if let Some(si) = side.index() {
+                            if hs[si] && hair[k] {
+                                g[si][0] += data[k][0];
+                                g[si][1] += data[k][1];
+                            }
+                        }
+                    });
+                    g
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// `curves` (on the `.czs` lattice of a w×h sketch) with their side refinements chosen
+/// again by rate and distortion: `sums` from [`side_sums`], `mu` the energy one bit is worth
+/// (0: unchanged). Only the side angles change.
+pub fn rate_sides(
+    curves: &[Curve],
+    w: u32,
+    h: u32,
+    sums: &[Vec<[[f32; 2]; 2]>],
+    mu: f32,
+) -> Vec<Curve> {
+    let mut out = curves.to_vec();
+    if mu <= 0.0 {
+        return out;
+    }
+    let mut cc: Vec<Option<CurveCodes>> = curves.iter().map(|c| curve_codes(c, w, h)).collect();
+    for _ in 0..ROUNDS {
+        let rate = Rate::of(&step_counts(&cc));
+        for (c, g) in cc.iter_mut().zip(sums) {
+            if let Some(c) = c {
+                choose(c, g, &rate, mu);
+            }
+        }
+    }
+    for (curve, c) in out.iter_mut().zip(&cc) {
+        if let Some(c) = c {
+            for (p, q) in curve.prims.iter_mut().zip(&decode_curve(c).prims) {
+                p.side = q.side;
+            }
+        }
+    }
+    out
+}
+
+/// The coder's prediction for side `s` of primitive `k`: its kind and predicted code, or
+/// None where the side is coded without one (first primitive, another dictionary index).
+fn prediction(c: &CurveCodes, k: usize, s: usize) -> Option<(Pred, i32)> {
+    let hair = c.kind.hair_sides();
+    let p = &c.prims[k];
+    if s == 1 && hair[0] {
+        let (d, r) = p.side[0];
+        return (d == p.side[1].0).then_some((Pred::Mirror, 16 - r as i32));
+    }
+    let q = &c.prims[k.checked_sub(1)?];
+    (q.side[s].0 == p.side[s].0).then_some((Pred::Chain, q.side[s].1 as i32 + 4 * p.turn as i32))
+}
+
+fn step_counts(cc: &[Option<CurveCodes>]) -> [[u32; STEPS]; 2] {
+    let mut n = [[0u32; STEPS]; 2];
+    for c in cc.iter().flatten() {
+        let hair = c.kind.hair_sides();
+        for k in 0..c.prims.len() {
+            for s in (0..2).filter(|&s| hair[s]) {
+                if let Some((pk, r)) = prediction(c, k, s) {
+                    let z = czs::zigzag(c.prims[k].side[s].1 as i64 - r.clamp(0, 15) as i64);
+                    n[pk as usize][(z as usize).min(STEPS - 1)] += 1;
+                }
+            }
+        }
+    }
+    n
+}
+
+/// Viterbi along one curve over the codes of its chained side (the left where it is hair,
+/// else the right); a two-sided kind's other side is chosen given it.
+fn choose(c: &mut CurveCodes, g: &[[[f32; 2]; 2]], rate: &Rate, mu: f32) {
+    let hair = c.kind.hair_sides();
+    let chained = if hair[0] {
+        0
+    } else if hair[1] {
+        1
+    } else {
+        return;
+    };
+    let other = (chained == 0 && hair[1]).then_some(1);
+    let n = c.prims.len();
+    let mut axis = c.axis as i64;
+    // Per primitive: for each chained code, its unary cost and the other side's best code.
+    let mut unary = vec![[0.0f32; 16]; n];
+    let mut best_other = vec![[0u8; 16]; n];
+    for k in 0..n {
+        if k > 0 {
+            axis += c.prims[k].turn as i64;
+        }
+        let e1 = |s: usize, d: u8, r: u8| {
+            let z = z_of(axis, s, d, r);
+            -mu.recip() * (g[k][s][0] * z[0] + g[k][s][1] * z[1])
+        };
+        let dc = c.prims[k].side[chained].0;
+        for r in 0..16u8 {
+            let mut u = e1(chained, dc, r);
+            if let Some(o) = other {
+                let d_o = c.prims[k].side[o].0;
+                let mirror = (d_o == dc).then_some(16 - r as i32);
+                let (mut bc, mut bv) = (0u8, f32::INFINITY);
+                for r1 in 0..16u8 {
+                    let v = e1(o, d_o, r1) + mirror.map_or(0.0, |m| rate.step(Pred::Mirror, r1, m));
+                    if v < bv {
+                        (bc, bv) = (r1, v);
+                    }
+                }
+                u += bv;
+                best_other[k][r as usize] = bc;
+            }
+            unary[k][r as usize] = u;
+        }
+    }
+    // Costs in bits (E1 divided by μ); back pointers per primitive.
+    let mut cost = unary[0];
+    let mut back = vec![[0u8; 16]; n];
+    for k in 1..n {
+        let turn = c.prims[k].turn as i32;
+        let linked = c.prims[k - 1].side[chained].0 == c.prims[k].side[chained].0;
+        let mut next = [0.0f32; 16];
+        for r in 0..16u8 {
+            let (mut bp, mut bv) = (0u8, f32::INFINITY);
+            for q in 0..16u8 {
+                let step = if linked {
+                    rate.step(Pred::Chain, r, q as i32 + 4 * turn)
+                } else {
+                    0.0
+                };
+                let v = cost[q as usize] + step;
+                if v < bv {
+                    (bp, bv) = (q, v);
+                }
+            }
+            next[r as usize] = bv + unary[k][r as usize];
+            back[k][r as usize] = bp;
+        }
+        cost = next;
+    }
+    let mut r = (0..16u8)
+        .min_by(|&a, &b| cost[a as usize].total_cmp(&cost[b as usize]))
+        .expect("16 codes");
+    for k in (0..n).rev() {
+        c.prims[k].side[chained].1 = r;
+        if let Some(o) = other {
+            c.prims[k].side[o].1 = best_other[k][r as usize];
+        }
+        r = back[k][r as usize];
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sketch::{Kind, Primitive};
+
+    fn stream(codes: &[u8]) -> Sketch {
+        let prims = codes
+            .iter()
+            .enumerate()
+            .map(|(k, &r)| Primitive {
+                x: 20.0 + STEP * k as f32,
+                y: 20.0,
+                axis: 0.0,
+                rho: 1.0,
+                side: [side_radians(0, r), side_radians(0, 16 - r)],
+            })
+            .collect();
+        Sketch {
+            width: 64,
+            height: 64,
+            curves: vec![Curve {
+                kind: Kind::Stream,
+                prims,
+                dirs: [1, 1],
+            }],
+            seed: 1,
+            rho_off: crate::sketch::RhoPrior {
+                weight: [0.7, 0.3],
+                mean: [1.0, 5.0],
+                sigma: [0.5, 2.0],
+            },
+            shading: crate::sketch::Shading {
+                mean: 40.0,
+                bases: Vec::new(),
+            },
+            colour: crate::sketch::ColourMap {
+                uv: vec![[0.0; 2]; 8],
+            },
+            region: Vec::new(),
+        }
+    }
+
+    fn codes_of(s: &Sketch) -> Vec<u8> {
+        let c = curve_codes(&s.curves[0], s.width, s.height).unwrap();
+        c.prims.iter().map(|p| p.side[0].1).collect()
+    }
+
+    /// A weak window's code follows its neighbours; a strong one keeps its own; μ 0 keeps
+    /// every code; fewer bytes after.
+    #[test]
+    fn weak_windows_follow_their_neighbours() {
+        let codes = [8u8, 8, 10, 8, 8, 12, 8, 8];
+        let s = stream(&codes);
+        // The data each side's chosen code fits best, with a weight per primitive.
+        let weight = [20.0f32, 20.0, 0.05, 20.0, 20.0, 200.0, 20.0, 20.0];
+        let sums: Vec<Vec<[[f32; 2]; 2]>> = vec![codes
+            .iter()
+            .zip(weight)
+            .map(|(&r, wgt)| {
+                let z0 = z_of(0, 0, 0, r);
+                let z1 = z_of(0, 1, 0, 16 - r);
+                [z0.map(|v| v * wgt), z1.map(|v| v * wgt)]
+            })
+            .collect()];
+        let rated = |mu| Sketch {
+            curves: rate_sides(&s.curves, 64, 64, &sums, mu),
+            ..s.clone()
+        };
+        assert_eq!(codes_of(&rated(0.0)), codes);
+        let r = rated(1.0);
+        assert_eq!(codes_of(&r), [8, 8, 8, 8, 8, 12, 8, 8]);
+        // The mirrored side follows.
+        let c = curve_codes(&r.curves[0], 64, 64).unwrap();
+        assert!(c.prims.iter().all(|p| p.side[1].1 == 16 - p.side[0].1));
+        assert!(czs_sizes(&r).curves < czs_sizes(&s).curves);
+    }
+
+    /// A pixel counts for the first primitive that paints it only; the non-hair side and
+    /// non-hair pixels count for none.
+    #[test]
+    fn sums_follow_the_paintings_ownership() {
+        let s = stream(&[8, 8]);
+        let mut curves = s.curves.clone();
+        curves.push(curves[0].clone());
+        let data = vec![[1.0f32, 0.5]; 64 * 64];
+        let mut hair = vec![true; 64 * 64];
+        let g = side_sums(&curves, 64, 64, &data, &hair);
+        let painted = crate::sketch::prim::paint(&curves, 64, 64, Some(&hair));
+        let n_first: f32 = g[0].iter().map(|p| p[0][0] + p[1][0]).sum();
+        let n_painted = painted.theta.iter().filter(|t| t.is_finite()).count();
+        assert_eq!(n_first as usize, n_painted);
+        assert!(g[1].iter().all(|p| p == &[[0.0; 2]; 2]), "{:?}", g[1]);
+        // Off the hair, nothing.
+        hair.iter_mut().for_each(|h| *h = false);
+        let g = side_sums(&curves, 64, 64, &data, &hair);
+        assert!(g.iter().flatten().all(|p| p == &[[0.0; 2]; 2]));
+    }
+}
