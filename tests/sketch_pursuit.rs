@@ -768,13 +768,26 @@ fn assert_on_lattice(curves: &[Curve], w: u32, h: u32) {
 fn pursuit_energy_falls_with_each_curve() {
     let e = Engine::cpu();
     let c = synth_case(&e, Style::Long, 2, 256);
-    for side_rate in [0.0, PursuitParams::default().side_rate] {
+    let mu = PursuitParams::default().bit_cost;
+    for (bit_cost, rate_contrast) in [(0.0, false), (mu, false), (mu, true)] {
         let p = PursuitParams {
-            side_rate,
+            bit_cost,
+            rate_contrast,
             ..Default::default()
         };
         let (out, secs) = run_pursuit(&e, &c, &p);
-        println!("side rate {side_rate}: {}", summary(&c, &out, secs));
+        println!(
+            "bit cost {bit_cost}, contrasts rated {rate_contrast}: {}; {} contrasts rated",
+            summary(&c, &out, secs),
+            out.stats.rho_rated
+        );
+        assert_eq!(out.stats.rho_rated > 0, rate_contrast);
+        if rate_contrast {
+            // Rated contrasts sit on the stored levels.
+            for p in out.curves.iter().flat_map(|c| &c.prims) {
+                assert_eq!(coif::sketch::format::quantise_rho(p.rho), p.rho);
+            }
+        }
         let list: Vec<String> = std::iter::once(out.energy_empty)
             .chain(out.energy.iter().copied())
             .map(|v| format!("{v:.0}"))
@@ -790,14 +803,14 @@ fn pursuit_energy_falls_with_each_curve() {
             "E after the last curve {last:.1}, with the final Θ {:.1} ({} primitives' sides rated)",
             out.energy_final, out.stats.sides_rated
         );
-        if side_rate == 0.0 {
+        if bit_cost == 0.0 {
             assert_eq!(out.stats.sides_rated, 0);
             assert!(out.energy_final <= last + 1e-6 * last.abs());
         } else {
             // The rate choice gives up at most μ per bit it saves, and it saves a few bits
             // per primitive at most: far below the ~150 per curve the pursuit gained.
             let prims: usize = out.curves.iter().map(|c| c.prims.len()).sum();
-            let bound = side_rate as f64 * 4.0 * prims as f64;
+            let bound = bit_cost as f64 * 4.0 * prims as f64;
             assert!(
                 out.energy_final <= last + bound,
                 "{} > {last} + {bound}",

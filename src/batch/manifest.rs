@@ -121,9 +121,12 @@ pub struct SketchOpts {
     /// Side angles from the paper's dictionary alone (no refinement).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub dictionary_sides: bool,
-    /// μ of the side refinements' rate choice.
+    /// μ of the rate choice of side refinements and contrasts.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub side_rate: Option<f32>,
+    pub bit_cost: Option<f32>,
+    /// Contrasts chosen by rate too.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub rate_contrast: bool,
     /// A budget for `hair.czs`, bytes.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub max_bytes: Option<usize>,
@@ -450,7 +453,8 @@ impl BatchJob {
                     set(&mut params.pursuit.lambda_nc, o.curve_penalty);
                     set(&mut params.pursuit.lambda_b, o.primitive_penalty);
                     params.pursuit.refine_sides = !o.dictionary_sides;
-                    set(&mut params.pursuit.side_rate, o.side_rate);
+                    set(&mut params.pursuit.bit_cost, o.bit_cost);
+                    params.pursuit.rate_contrast = o.rate_contrast;
                     params.max_bytes = o.max_bytes;
                     if let Some(d) = &o.directions {
                         params.method = d.parse().expect("checked");

@@ -185,11 +185,14 @@ pub struct SketchArgs {
     /// CZ06 Eq. 3), without the 3.75° refinement: files 2-3x smaller, a coarser field.
     #[arg(long)]
     dictionary_sides: bool,
-    /// μ, the energy one bit of hair.czs is worth when the side refinements are chosen
-    /// again by rate and distortion (larger: smaller files, side angles that follow their
-    /// neighbours more); 0 keeps each primitive's own best.
-    #[arg(long, default_value_t = coif::sketch::pursuit::PursuitParams::default().side_rate)]
-    side_rate: f32,
+    /// μ, the energy one bit of hair.czs is worth when the side refinements and contrasts
+    /// are chosen again by rate and distortion (larger: smaller files, codes that follow
+    /// their neighbours more); 0 keeps each primitive's own best.
+    #[arg(long, default_value_t = coif::sketch::pursuit::PursuitParams::default().bit_cost)]
+    bit_cost: f32,
+    /// Choose the contrasts' codes by rate and distortion too (a few % smaller hair.czs).
+    #[arg(long)]
+    rate_contrast: bool,
     /// A budget for hair.czs in bytes: where the sketch comes out larger, the primitive
     /// penalty is raised until it fits (the steps tried are in report.json).
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
@@ -687,7 +690,8 @@ impl Command {
                 params.pursuit.lambda_nc = a.curve_penalty;
                 params.pursuit.lambda_b = a.primitive_penalty;
                 params.pursuit.refine_sides = !a.dictionary_sides;
-                params.pursuit.side_rate = a.side_rate;
+                params.pursuit.bit_cost = a.bit_cost;
+                params.pursuit.rate_contrast = a.rate_contrast;
                 params.max_bytes = a.max_bytes.map(|b| b as usize);
                 params.method = a.directions.parse()?;
                 params.swc.sweeps = a.sweeps;

@@ -32,7 +32,7 @@ use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 use std::path::Path;
 
-pub use rate::{rate_sides, side_sums};
+pub use rate::{rate_rho, rate_sides, side_sums, RhoStats};
 
 mod czs;
 mod czs_rc;
@@ -584,6 +584,11 @@ pub fn quantise_shading(s: &Shading, w: u32, h: u32) -> Shading {
             .map(|b| decode_base(&base_codes(b, w, h)))
             .collect(),
     }
+}
+
+/// A contrast as `.czs` stores it (the nearest of [`RHO_LEVELS`] in log scale).
+pub fn quantise_rho(rho: f32) -> f32 {
+    RHO_LEVELS[snap_rho(rho) as usize]
 }
 
 /// The colour map as the files store it.

@@ -136,6 +136,92 @@ pub fn rate_sides(
     out
 }
 
+/// The contrast each primitive paints: per primitive of `curves`, (pixels, mean, variance)
+/// of the per-pixel ρ it fixes, as [`rate_rho`] reads them.
+pub type RhoStats = Vec<Vec<[f32; 3]>>;
+
+/// `curves` with their contrasts' codes chosen again by rate and distortion: along each
+/// curve, Viterbi over the 16 ρ levels minimising Σ n(level − mean)²/2σ² (the Gaussian
+/// negative log-likelihood of the primitive's pixels about the stored level, less that about
+/// their own mean; σ² their variance) plus μ times the bits of the level given the previous
+/// one (the coder's context), from the sketch's own frequencies over a few rounds. A
+/// primitive that paints no pixel keeps its level.
+pub fn rate_rho(curves: &[Curve], stats: &RhoStats, mu: f32) -> Vec<Curve> {
+    let mut out = curves.to_vec();
+    if mu <= 0.0 {
+        return out;
+    }
+    let mut codes: Vec<Vec<u8>> = curves
+        .iter()
+        .map(|c| c.prims.iter().map(|p| snap_rho(p.rho)).collect())
+        .collect();
+    for _ in 0..ROUNDS {
+        // Bits of code r after code q (q = 16: a curve's first primitive).
+        let mut n = [[0u32; 16]; 17];
+        for c in &codes {
+            let mut q = 16;
+            for &r in c {
+                n[q][r as usize] += 1;
+                q = r as usize;
+            }
+        }
+        let mut bits = [[0.0f32; 16]; 17];
+        for (b, c) in bits.iter_mut().zip(&n) {
+            let t: f32 = c.iter().map(|&v| v as f32 + 0.5).sum();
+            for (bb, &v) in b.iter_mut().zip(c) {
+                *bb = -((v as f32 + 0.5) / t).log2();
+            }
+        }
+        for (c, st) in codes.iter_mut().zip(stats) {
+            if c.is_empty() {
+                continue;
+            }
+            let unary = |k: usize, r: usize| {
+                let [px, mean, var] = st[k];
+                if px == 0.0 {
+                    return if r == c[k] as usize {
+                        0.0
+                    } else {
+                        f32::INFINITY
+                    };
+                }
+                let d = RHO_LEVELS[r] - mean;
+                px * d * d / (2.0 * var.max(1e-6)) / mu
+            };
+            let mut cost: Vec<f32> = (0..16).map(|r| unary(0, r) + bits[16][r]).collect();
+            let mut back = vec![[0u8; 16]; c.len()];
+            for (k, back) in back.iter_mut().enumerate().skip(1) {
+                let mut next = vec![0.0f32; 16];
+                for r in 0..16 {
+                    let (mut bq, mut bv) = (0u8, f32::INFINITY);
+                    for q in 0..16 {
+                        let v = cost[q] + bits[q][r];
+                        if v < bv {
+                            (bq, bv) = (q as u8, v);
+                        }
+                    }
+                    next[r] = bv + unary(k, r);
+                    back[r] = bq;
+                }
+                cost = next;
+            }
+            let mut r = (0..16u8)
+                .min_by(|&a, &b| cost[a as usize].total_cmp(&cost[b as usize]))
+                .expect("16 levels");
+            for k in (0..c.len()).rev() {
+                c[k] = r;
+                r = back[k][r as usize];
+            }
+        }
+    }
+    for (curve, c) in out.iter_mut().zip(&codes) {
+        for (p, &r) in curve.prims.iter_mut().zip(c) {
+            p.rho = RHO_LEVELS[r as usize];
+        }
+    }
+    out
+}
+
 /// The coder's prediction for side `s` of primitive `k`: its kind and predicted code, or
 /// None where the side is coded without one (first primitive, another dictionary index).
 fn prediction(c: &CurveCodes, k: usize, s: usize) -> Option<(Pred, i32)> {
@@ -342,5 +428,36 @@ mod tests {
         hair.iter_mut().for_each(|h| *h = false);
         let g = side_sums(&curves, 64, 64, &data, &hair);
         assert!(g.iter().flatten().all(|p| p == &[[0.0; 2]; 2]));
+    }
+
+    /// A contrast measured from scattered pixels follows its neighbours' level; one from
+    /// many consistent pixels keeps its own; a primitive that paints nothing keeps its level.
+    #[test]
+    fn uncertain_contrasts_follow_their_neighbours() {
+        let mut s = stream(&[8; 20]);
+        let mut levels = [8usize; 20];
+        // The fifth scattered, the twelfth tight, the sixteenth paints nothing.
+        (levels[5], levels[12], levels[16]) = (9, 10, 11);
+        for (p, &l) in s.curves[0].prims.iter_mut().zip(&levels) {
+            p.rho = RHO_LEVELS[l];
+        }
+        let stats = vec![(0..20)
+            .map(|k| match k {
+                5 => [20.0, RHO_LEVELS[9], 400.0],
+                12 => [20.0, RHO_LEVELS[10], 0.01],
+                16 => [0.0; 3],
+                _ => [20.0, RHO_LEVELS[8], 4.0],
+            })
+            .collect()];
+        let codes = |c: &[Curve]| -> Vec<usize> {
+            c[0].prims
+                .iter()
+                .map(|p| snap_rho(p.rho) as usize)
+                .collect()
+        };
+        assert_eq!(codes(&rate_rho(&s.curves, &stats, 0.0)), levels);
+        let mut want = levels;
+        want[5] = 8;
+        assert_eq!(codes(&rate_rho(&s.curves, &stats, 1.0)), want);
     }
 }

@@ -543,47 +543,79 @@ impl<'a> Search<'a> {
         }
     }
 
-    /// `curves` with their side refinements chosen again by rate and distortion
-    /// (`p.side_rate`, [`super::format::rate_sides`]), the field painted again where a side
-    /// changed and those primitives' ρ measured again, so that Θ, solved next, and the
-    /// stored codes agree. Ownership as the painting has it (the fill's).
-    fn rate_sides(&mut self, curves: Vec<Curve>) -> Vec<Curve> {
-        if self.p.side_rate <= 0.0 || !self.p.refine_sides {
+    /// `curves` with their side refinements and contrasts chosen again by rate and
+    /// distortion (`p.bit_cost`, [`super::format::rate_sides`], [`super::format::rate_rho`]),
+    /// the field painted again where a side changed, so that Θ, solved next, and the stored
+    /// codes agree. Ownership as the painting has it (the fill's).
+    fn rate_codes(&mut self, curves: Vec<Curve>) -> Vec<Curve> {
+        if self.p.bit_cost <= 0.0 {
             return curves;
         }
         let f = self.f;
         let (w, h) = (f.width, f.height);
-        let sums = super::format::side_sums(&curves, w, h, &f.data, &f.hair);
-        let mut rated = super::format::rate_sides(&curves, w, h, &sums, self.p.side_rate);
+        let mut rated = if self.p.refine_sides {
+            let sums = super::format::side_sums(&curves, w, h, &f.data, &f.hair);
+            super::format::rate_sides(&curves, w, h, &sums, self.p.bit_cost)
+        } else {
+            curves.clone()
+        };
         let mut on = vec![false; f.len()];
+        let mut stats: super::format::RhoStats = Vec::with_capacity(rated.len());
         for (c, old) in rated.iter_mut().zip(&curves) {
             let hs = c.kind.hair_sides();
+            let mut cs = Vec::with_capacity(c.prims.len());
             for (p, q) in c.prims.iter_mut().zip(&old.prims) {
                 let changed = p.side != q.side;
                 let z = [0, 1].map(|s| theta::to_z(p.side_angle(s)));
-                let (mut rho, mut n) = (0.0f32, 0u32);
+                let (mut n, mut sum, mut sum2) = (0u32, 0.0f64, 0.0f64);
                 prim::window(c.kind, p, w, h, |i, side| {
-                    if std::mem::replace(&mut on[i], true) || !changed {
+                    if std::mem::replace(&mut on[i], true) {
                         return;
                     }
                     if let Some(k) = side.index() {
                         if hs[k] && f.hair[i] && self.fixed[i] {
-                            self.z[i] = z[k];
-                            rho += f.rho(i, z[k]);
+                            if changed {
+                                self.z[i] = z[k];
+                            }
+                            let r = f.rho(i, z[k]) as f64;
                             n += 1;
+                            sum += r;
+                            sum2 += r * r;
                         }
                     }
                 });
-                if n > 0 {
-                    p.rho = rho / n as f32;
+                let mean = if n > 0 { sum / n as f64 } else { 0.0 };
+                if changed && n > 0 {
+                    p.rho = mean as f32;
                 }
+                let var = if n > 0 {
+                    (sum2 / n as f64 - mean * mean).max(0.0)
+                } else {
+                    0.0
+                };
+                cs.push([n as f32, mean as f32, var as f32]);
             }
+            stats.push(cs);
         }
         self.stats.sides_rated = rated
             .iter()
             .zip(&curves)
             .flat_map(|(a, b)| a.prims.iter().zip(&b.prims))
             .filter(|(p, q)| p.side != q.side)
+            .count();
+        if !self.p.rate_contrast {
+            return rated;
+        }
+        let before: Vec<f32> = rated
+            .iter()
+            .flat_map(|c| c.prims.iter().map(|p| p.rho))
+            .collect();
+        rated = super::format::rate_rho(&rated, &stats, self.p.bit_cost);
+        self.stats.rho_rated = rated
+            .iter()
+            .flat_map(|c| &c.prims)
+            .zip(&before)
+            .filter(|(p, &r)| super::format::quantise_rho(r) != p.rho)
             .count();
         rated
     }
@@ -765,7 +797,7 @@ pub fn pursue(
     for pass in 0..passes {
         let mut s = Search::new(&f, p, empty.z.clone(), prior);
         let (curves, e0, energy) = s.run(engine)?;
-        let curves = s.rate_sides(curves);
+        let curves = s.rate_codes(curves);
         // The final Θ: diffused to convergence with the sketch clamped.
         let t = Instant::now();
         let fl = s.flags();
