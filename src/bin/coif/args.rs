@@ -185,9 +185,9 @@ pub struct SketchArgs {
     /// CZ06 Eq. 3), without the 3.75° refinement: files 2-3x smaller, a coarser field.
     #[arg(long)]
     dictionary_sides: bool,
-    /// μ, the energy one bit of hair.czs is worth when the side refinements and contrasts
-    /// are chosen again by rate and distortion (larger: smaller files, codes that follow
-    /// their neighbours more); 0 keeps each primitive's own best.
+    /// μ, the energy one bit of hair.czs is worth when the side refinements (and, with
+    /// --rate-contrast, the contrasts) are chosen again by rate and distortion (larger:
+    /// smaller files, codes that follow their neighbours more); 0 keeps each primitive's own.
     #[arg(long, default_value_t = coif::sketch::pursuit::PursuitParams::default().bit_cost)]
     bit_cost: f32,
     /// Choose the contrasts' codes by rate and distortion too (a few % smaller hair.czs).
