@@ -15,8 +15,8 @@
 //! few rounds as the codes settle (the range coder adapts to them the same way). The
 //! prediction is the coder's ([`super::czs_rc`]): a side follows itself on the previous
 //! primitive, its code moved by 4 steps per axis turn; a two-sided kind's second side
-//! mirrors its first. Dictionary indices, axes, positions and contrast are kept. Sequential
-//! and light (16 × 16 per primitive): CPU.
+//! mirrors its first. Dictionary indices, axes and positions are kept. [`rate_rho`] does the
+//! same for the contrasts' levels. Sequential and light (16 × 16 per primitive): CPU.
 
 use super::*;
 
@@ -39,21 +39,60 @@ struct Rate {
 
 impl Rate {
     fn of(counts: &[[u32; STEPS]; 2]) -> Rate {
-        let mut bits = [[0.0; STEPS]; 2];
-        for (b, c) in bits.iter_mut().zip(counts) {
-            // Add-half estimate: a step never seen costs a few bits more than one seen once.
-            let n: f32 = c.iter().map(|&v| v as f32 + 0.5).sum();
-            for (bb, &v) in b.iter_mut().zip(c) {
-                *bb = -((v as f32 + 0.5) / n).log2();
-            }
+        Rate {
+            bits: counts.map(|c| bits_of(&c)),
         }
-        Rate { bits }
     }
 
     fn step(&self, pred: Pred, code: u8, predicted: i32) -> f32 {
         let z = czs::zigzag(code as i64 - predicted.clamp(0, 15) as i64) as usize;
         self.bits[pred as usize][z.min(STEPS - 1)]
     }
+}
+
+/// Code lengths from counts by the add-half estimate: a symbol never seen costs a few bits
+/// more than one seen once.
+fn bits_of<const N: usize>(counts: &[u32; N]) -> [f32; N] {
+    let n: f32 = counts.iter().map(|&v| v as f32 + 0.5).sum();
+    counts.map(|v| -((v as f32 + 0.5) / n).log2())
+}
+
+/// The 16-state path minimising Σ_k unary(k, r_k) + Σ_{k>0} pair(k, r_{k−1}, r_k) over `n`
+/// steps (Viterbi; ties to the lower code).
+fn viterbi(
+    n: usize,
+    unary: impl Fn(usize, usize) -> f32,
+    pair: impl Fn(usize, usize, usize) -> f32,
+) -> Vec<u8> {
+    if n == 0 {
+        return Vec::new();
+    }
+    let mut cost: [f32; 16] = std::array::from_fn(|r| unary(0, r));
+    let mut back = vec![[0u8; 16]; n];
+    for (k, back) in back.iter_mut().enumerate().skip(1) {
+        let mut next = [0.0f32; 16];
+        for r in 0..16 {
+            let (mut bq, mut bv) = (0u8, f32::INFINITY);
+            for (q, &c) in cost.iter().enumerate() {
+                let v = c + pair(k, q, r);
+                if v < bv {
+                    (bq, bv) = (q as u8, v);
+                }
+            }
+            next[r] = bv + unary(k, r);
+            back[r] = bq;
+        }
+        cost = next;
+    }
+    let mut r = (0..16u8)
+        .min_by(|&a, &b| cost[a as usize].total_cmp(&cost[b as usize]))
+        .expect("16 states");
+    let mut path = vec![0u8; n];
+    for k in (0..n).rev() {
+        path[k] = r;
+        r = back[k][r as usize];
+    }
+    path
 }
 
 /// The double-angle vector of the flow a side paints: the axis turned by −angle on the
@@ -165,53 +204,27 @@ pub fn rate_rho(curves: &[Curve], stats: &RhoStats, mu: f32) -> Vec<Curve> {
                 q = r as usize;
             }
         }
-        let mut bits = [[0.0f32; 16]; 17];
-        for (b, c) in bits.iter_mut().zip(&n) {
-            let t: f32 = c.iter().map(|&v| v as f32 + 0.5).sum();
-            for (bb, &v) in b.iter_mut().zip(c) {
-                *bb = -((v as f32 + 0.5) / t).log2();
-            }
-        }
+        let bits = n.map(|c| bits_of(&c));
         for (c, st) in codes.iter_mut().zip(stats) {
-            if c.is_empty() {
-                continue;
-            }
             let unary = |k: usize, r: usize| {
                 let [px, mean, var] = st[k];
-                if px == 0.0 {
-                    return if r == c[k] as usize {
+                let d = if px == 0.0 {
+                    if r == c[k] as usize {
                         0.0
                     } else {
                         f32::INFINITY
-                    };
-                }
-                let d = RHO_LEVELS[r] - mean;
-                px * d * d / (2.0 * var.max(1e-6)) / mu
-            };
-            let mut cost: Vec<f32> = (0..16).map(|r| unary(0, r) + bits[16][r]).collect();
-            let mut back = vec![[0u8; 16]; c.len()];
-            for (k, back) in back.iter_mut().enumerate().skip(1) {
-                let mut next = vec![0.0f32; 16];
-                for r in 0..16 {
-                    let (mut bq, mut bv) = (0u8, f32::INFINITY);
-                    for q in 0..16 {
-                        let v = cost[q] + bits[q][r];
-                        if v < bv {
-                            (bq, bv) = (q as u8, v);
-                        }
                     }
-                    next[r] = bv + unary(k, r);
-                    back[r] = bq;
+                } else {
+                    let d = RHO_LEVELS[r] - mean;
+                    px * d * d / (2.0 * var.max(1e-6)) / mu
+                };
+                if k == 0 {
+                    d + bits[16][r]
+                } else {
+                    d
                 }
-                cost = next;
-            }
-            let mut r = (0..16u8)
-                .min_by(|&a, &b| cost[a as usize].total_cmp(&cost[b as usize]))
-                .expect("16 levels");
-            for k in (0..c.len()).rev() {
-                c[k] = r;
-                r = back[k][r as usize];
-            }
+            };
+            *c = viterbi(c.len(), unary, |_, q, r| bits[q][r]);
         }
     }
     for (curve, c) in out.iter_mut().zip(&codes) {
@@ -295,40 +308,24 @@ fn choose(c: &mut CurveCodes, g: &[[[f32; 2]; 2]], rate: &Rate, mu: f32) {
             unary[k][r as usize] = u;
         }
     }
-    // Costs in bits (E1 divided by μ); back pointers per primitive.
-    let mut cost = unary[0];
-    let mut back = vec![[0u8; 16]; n];
-    for k in 1..n {
-        let turn = c.prims[k].turn as i32;
-        let linked = c.prims[k - 1].side[chained].0 == c.prims[k].side[chained].0;
-        let mut next = [0.0f32; 16];
-        for r in 0..16u8 {
-            let (mut bp, mut bv) = (0u8, f32::INFINITY);
-            for q in 0..16u8 {
-                let step = if linked {
-                    rate.step(Pred::Chain, r, q as i32 + 4 * turn)
-                } else {
-                    0.0
-                };
-                let v = cost[q as usize] + step;
-                if v < bv {
-                    (bp, bv) = (q, v);
-                }
+    // Costs in bits (E1 divided by μ).
+    let path = viterbi(
+        n,
+        |k, r| unary[k][r],
+        |k, q, r| {
+            let linked = c.prims[k - 1].side[chained].0 == c.prims[k].side[chained].0;
+            if linked {
+                rate.step(Pred::Chain, r as u8, q as i32 + 4 * c.prims[k].turn as i32)
+            } else {
+                0.0
             }
-            next[r as usize] = bv + unary[k][r as usize];
-            back[k][r as usize] = bp;
-        }
-        cost = next;
-    }
-    let mut r = (0..16u8)
-        .min_by(|&a, &b| cost[a as usize].total_cmp(&cost[b as usize]))
-        .expect("16 codes");
-    for k in (0..n).rev() {
+        },
+    );
+    for (k, &r) in path.iter().enumerate() {
         c.prims[k].side[chained].1 = r;
         if let Some(o) = other {
             c.prims[k].side[o].1 = best_other[k][r as usize];
         }
-        r = back[k][r as usize];
     }
 }
 
