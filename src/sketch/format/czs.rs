@@ -1,6 +1,7 @@
 //! `hair.czs`: the sketch's codes bit-packed, with its length and a CRC-32. Version 3 range
-//! codes the curves ([`rc`], adaptive contexts), version 4 with richer contexts; versions 1
-//! and 2 (fixed-width fields) are still read, as is 3.
+//! codes the curves ([`rc`], adaptive contexts), version 4 with richer contexts, version 5
+//! the region too and starts as gaps where they come in order; versions 1 and 2 (fixed-width fields) are still read,
+//! as are 3 and 4.
 
 use super::czs_rc::{rc_curves, un_rc_curves};
 use super::*;
@@ -172,11 +173,15 @@ fn pack(c: &Codes, version: u8) -> (Vec<u8>, [usize; 5]) {
     }
     let colour = w.bits - header - curves - shading;
 
-    // Region: polygons, each a vertex count, its first vertex and the steps to the next
-    // ones (zigzag, Elias-γ: short steps are short).
+    // Region (before version 5; then it is range coded with the curves): polygons, each a
+    // vertex count, its first vertex and the steps to the next ones (zigzag, Elias-γ: short
+    // steps are short).
     let (xb, yb) = (bits_for(c.width), bits_for(c.height));
-    w.gamma(c.region.len() as u64 + 1);
-    for poly in &c.region {
+    let region = if version >= 5 { &[][..] } else { &c.region[..] };
+    if version < 5 {
+        w.gamma(c.region.len() as u64 + 1);
+    }
+    for poly in region {
         w.gamma(poly.len() as u64 - 2);
         w.put(poly[0][0] as u64, xb);
         w.put(poly[0][1] as u64, yb);
@@ -190,14 +195,16 @@ fn pack(c: &Codes, version: u8) -> (Vec<u8>, [usize; 5]) {
     if version < 3 {
         return (w.bytes, [header, curves, shading, colour, region]);
     }
-    // Versions 3 and 4: the curves last, range coded from the next whole byte on.
-    let coded = rc_curves(c, refine, undecided, version >= 4);
+    // Versions 3 to 5: the curves last (from 5, the region and the curves), range coded
+    // from the next whole byte on.
+    let (coded, rc_region) = rc_curves(c, refine, undecided, version);
     let pad = w.bytes.len() * 8 - w.bits;
     let mut bytes = w.bytes;
     bytes.extend(&coded);
+    let rc_curves = (coded.len() - rc_region) * 8 + pad;
     (
         bytes,
-        [header, coded.len() * 8 + pad, shading, colour, region],
+        [header, rc_curves, shading, colour, region + rc_region * 8],
     )
 }
 
@@ -339,7 +346,7 @@ fn unpack(data: &[u8], version: u8) -> std::result::Result<Codes, String> {
         ]);
     }
     let mut region = Vec::new();
-    if version >= 2 {
+    if (2..5).contains(&version) {
         let n = r.gamma("the region")? - 1;
         for pi in 0..n {
             let at = format!("region polygon {pi}");
@@ -368,14 +375,18 @@ fn unpack(data: &[u8], version: u8) -> std::result::Result<Codes, String> {
         if pad > 0 && r.get(pad as u32, "the padding")? != 0 {
             return Err("corrupted: the padding bits are not zero".into());
         }
-        curves = un_rc_curves(
+        let rc_region;
+        (curves, rc_region) = un_rc_curves(
             &data[r.pos / 8..],
             width,
             height,
             refine,
             undecided,
-            version >= 4,
+            version,
         )?;
+        if let Some(rc_region) = rc_region {
+            region = rc_region;
+        }
     } else {
         if r.left() >= 8 {
             return Err(format!(
@@ -674,14 +685,14 @@ mod tests {
         v1.extend(crc.to_le_bytes());
         let back = from_czs(&v1, Path::new("old.czs")).unwrap();
         assert_eq!(back, quantise(&s));
-        let mut v5 = to_czs(&s);
-        v5[3] = 5;
-        let m = from_czs(&v5, Path::new("new.czs")).unwrap_err().to_string();
-        assert!(m.contains("version 5"), "{m}");
+        let mut v6 = to_czs(&s);
+        v6[3] = CZS_VERSION + 1;
+        let m = from_czs(&v6, Path::new("new.czs")).unwrap_err().to_string();
+        assert!(m.contains(&format!("version {}", CZS_VERSION + 1)), "{m}");
     }
 
     /// A sketch with every kind, turns, refined and plain sides, undecided labels: versions 3
-    /// and 4 read back what version 2 does, version 3 in fewer bytes, and damage past the
+    /// to 5 read back what version 2 does, version 3 in fewer bytes, and damage past the
     /// curves' start is caught.
     #[test]
     fn version_3_reads_back_what_version_2_does() {
@@ -704,12 +715,13 @@ mod tests {
         for k in 0..40 {
             let n = 1 + (rnd() * 20.0) as usize;
             let mut axis = rnd() * 3.0;
+            let x0 = 130.0 + rnd() * 120.0;
             let prims = (0..n)
                 .map(|j| {
                     axis += (rnd() - 0.5) * 0.6;
                     let a = (rnd() - 0.5) * 0.9;
                     Primitive {
-                        x: 150.0 + 3.0 * j as f32,
+                        x: x0 + 3.0 * j as f32,
                         y: 100.0 + rnd() * 100.0,
                         axis,
                         rho: rnd() * 30.0,
@@ -753,6 +765,47 @@ mod tests {
         // Every single-byte change is refused (the checksum), never a panic.
         for k in 0..v3.len() {
             let mut bad = v3.clone();
+            bad[k] ^= 0x10;
+            assert!(from_czs(&bad, Path::new("bad.czs")).is_err(), "byte {k}");
+        }
+
+        // Version 5, with a region (two polygons, one a hole): curves in any order read back
+        // as versions 2 and 4 read them; ordered by start, in fewer bytes than version 4.
+        let mut s = s;
+        s.region = vec![
+            vec![
+                [20, 10],
+                [380, 14],
+                [395, 290],
+                [160, 299],
+                [0, 300],
+                [3, 150],
+            ],
+            vec![[100, 100], [100, 140], [190, 141], [191, 99]],
+        ];
+        let c = codes(&s);
+        let (v4, _) = assemble(&c, 4);
+        let (v5, bits) = assemble(&c, 5);
+        let a = from_czs(&v4, Path::new("v4.czs")).unwrap();
+        assert_eq!(a, quantise(&s));
+        assert_eq!(from_czs(&v5, Path::new("v5.czs")).unwrap(), a);
+        let frame = 4 + leb128(v5.len() as u64).len() + 4;
+        assert_eq!(
+            bits.iter().sum::<usize>(),
+            8 * (v5.len() - frame),
+            "{bits:?}"
+        );
+        s.curves
+            .sort_by_key(|c| curve_start(c, 400, 300).map(|[x, y]| (y, x)));
+        let c = codes(&s);
+        let ((v4, b4), (v5, b5)) = (assemble(&c, 4), assemble(&c, 5));
+        let a = from_czs(&v4, Path::new("v4.czs")).unwrap();
+        assert_eq!(a, quantise(&s));
+        assert_eq!(from_czs(&v5, Path::new("v5.czs")).unwrap(), a);
+        assert!(v5.len() < v4.len(), "{} vs {} bytes", v5.len(), v4.len());
+        assert!(b5[1] < b4[1] && b5[4] < b4[4], "{b5:?} vs {b4:?}");
+        for k in 0..v5.len() {
+            let mut bad = v5.clone();
             bad[k] ^= 0x10;
             assert!(from_czs(&bad, Path::new("bad.czs")).is_err(), "byte {k}");
         }

@@ -1,18 +1,23 @@
-//! The curve section of `.czs` versions 3 and 4: the fields of version 2's curves, range coded
-//! ([`rc`]) with adaptive contexts. Sequential (each symbol's context is the one before):
-//! CPU.
+//! The range-coded tail of `.czs` ([`rc`], adaptive contexts): in versions 3 and 4 the fields
+//! of version 2's curves; version 5 puts the region first (its outline's steps as signed
+//! exponent-Golomb codes, the sign in the context of the step before) and codes a curve's
+//! start, when it comes after the last such start by row then column, as the gap to that
+//! start's row and the column (the gap to its column on the same row), and otherwise as
+//! both coordinates. Sequential (each symbol's context is the one before): CPU.
 
 use super::czs::{
     bits_for, check_placement, fixed_dirs, kind_of, signed_code, signed_of, unzigzag, zigzag,
 };
 use super::rc;
 use super::*;
+use crate::sketch::Region;
 
 /// The adaptive contexts of the version-3 curve section: each field's probabilities are
 /// conditioned on what precedes it on the curve (the previous primitive's turn, side codes
 /// and contrast; on a two-sided kind the first side's codes for the second side's).
 struct CurveModel {
-    count_exp: [[rc::Prob; 48]; 2],
+    /// Exponent-Golomb counts, by what they count ([`Count`]).
+    count_exp: [[rc::Prob; 48]; Count::N],
     count_mant: Vec<rc::Prob>,
     kind: [rc::Prob; 8],
     label: [[rc::Prob; 4]; 16],
@@ -27,14 +32,38 @@ struct CurveModel {
     step: [[rc::Prob; 32]; 5],
     refine: [[rc::Prob; 16]; 5],
     rho: [[rc::Prob; 16]; 17],
+    /// Version 5: whether a curve's start comes after the last ordered one (by row, then
+    /// column); a region step's sign, by coordinate and the previous step's sign (−, 0, +)
+    /// there.
+    ordered: rc::Prob,
+    step_sign: [[rc::Prob; 3]; 2],
+}
+
+/// What an exponent-Golomb count of [`rc_count`] counts: each has its own contexts.
+#[derive(Clone, Copy)]
+enum Count {
+    Curves,
+    Prims,
+    /// Version 5: a start's row gap, its column gap on the same row.
+    RowGap,
+    ColGap,
+    /// Version 5: the region's polygons and vertices, and the size of its steps in x and y.
+    Polygons,
+    Vertices,
+    StepX,
+    StepY,
+}
+
+impl Count {
+    const N: usize = 8;
 }
 
 impl CurveModel {
     fn new() -> Box<Self> {
         let h = rc::HALF;
         Box::new(CurveModel {
-            count_exp: [[h; 48]; 2],
-            count_mant: vec![h; 2 * 48 * 48],
+            count_exp: [[h; 48]; Count::N],
+            count_mant: vec![h; Count::N * 48 * 48],
             kind: [h; 8],
             label: [[h; 4]; 16],
             start: [[h; 32]; 2],
@@ -45,6 +74,8 @@ impl CurveModel {
             step: [[h; 32]; 5],
             refine: [[h; 16]; 5],
             rho: [[h; 16]; 17],
+            ordered: h,
+            step_sign: [[h; 3]; 2],
         })
     }
 }
@@ -130,7 +161,8 @@ fn un_rc_side(
     Ok((dict, r))
 }
 
-fn rc_count(e: &mut rc::Encoder, m: &mut CurveModel, which: usize, v: u64) {
+fn rc_count(e: &mut rc::Encoder, m: &mut CurveModel, which: Count, v: u64) {
+    let which = which as usize;
     let n = 64 - v.leading_zeros() as usize;
     for i in 0..n - 1 {
         e.bit(&mut m.count_exp[which][i.min(47)], false);
@@ -145,9 +177,10 @@ fn rc_count(e: &mut rc::Encoder, m: &mut CurveModel, which: usize, v: u64) {
 fn un_rc_count(
     d: &mut rc::Decoder,
     m: &mut CurveModel,
-    which: usize,
+    which: Count,
     what: &str,
 ) -> std::result::Result<u64, String> {
+    let which = which as usize;
     let mut n = 1usize;
     while !d.bit(&mut m.count_exp[which][(n - 1).min(47)]) {
         n += 1;
@@ -163,16 +196,35 @@ fn un_rc_count(
     Ok(v)
 }
 
-/// The version-3 curve section: the fields of version 2, range coded with [`CurveModel`];
-/// `warm`, version 4's (the same contexts, probabilities that learn fast at first: on the
-/// synthetic styles, the fur crops and the astronaut 6% fewer bytes in all, while finer
-/// contexts, turns by the side's drift or the second side by its offset from the mirror,
-/// cost more to learn than they saved).
-pub(super) fn rc_curves(c: &Codes, refine: bool, undecided: bool, warm: bool) -> Vec<u8> {
-    let (xb, yb) = (bits_for(c.width), bits_for(c.height));
+/// The range-coded tail for `.czs` `version` 3 to 5 and the bytes of it the region takes
+/// (version 5; 0 before, where the region is bit-packed): version 3's curve fields, range
+/// coded with [`CurveModel`]; version 4 the same with probabilities that learn fast at first
+/// (on the synthetic styles, the fur crops and the astronaut 6% fewer bytes in all, while
+/// finer contexts, turns by the side's drift or the second side by its offset from the
+/// mirror, cost more to learn than they saved); version 5 as 4 with the region first and
+/// ordered starts (see the module docs).
+pub(super) fn rc_curves(c: &Codes, refine: bool, undecided: bool, version: u8) -> (Vec<u8>, usize) {
+    let tail = rc_tail(c, refine, undecided, version, true);
+    // The region's share: what leaving it out saves (its contexts are its own).
+    let region = if version >= 5 {
+        tail.len()
+            .saturating_sub(rc_tail(c, refine, undecided, version, false).len())
+    } else {
+        0
+    };
+    (tail, region)
+}
+
+fn rc_tail(c: &Codes, refine: bool, undecided: bool, version: u8, region: bool) -> Vec<u8> {
+    let v5 = version >= 5;
     let mut m = CurveModel::new();
-    let mut e = rc::Encoder::new(warm);
-    rc_count(&mut e, &mut m, 0, c.curves.len() as u64 + 1);
+    let mut e = rc::Encoder::new(version >= 4);
+    if v5 && region {
+        rc_region(&mut e, &mut m, &c.region, c.width, c.height);
+    }
+    rc_count(&mut e, &mut m, Count::Curves, c.curves.len() as u64 + 1);
+    let (xb, yb) = (bits_for(c.width), bits_for(c.height));
+    let mut last = [0u32; 2];
     for cv in &c.curves {
         let kc = cv.kind.code() as usize;
         e.tree(&mut m.kind, 3, kc as u32);
@@ -184,13 +236,36 @@ pub(super) fn rc_curves(c: &Codes, refine: bool, undecided: bool, warm: bool) ->
                 e.bit(&mut ctx[1], cv.dirs[i] > 0);
             }
         }
-        rc_count(&mut e, &mut m, 1, cv.prims.len() as u64);
-        for (k, (v, n)) in [(cv.start[0], xb), (cv.start[1], yb)]
-            .into_iter()
-            .enumerate()
-        {
-            for i in (0..n).rev() {
-                e.bit(&mut m.start[k][i as usize], (v >> i) & 1 == 1);
+        rc_count(&mut e, &mut m, Count::Prims, cv.prims.len() as u64);
+        let ordered = (cv.start[1], cv.start[0]) >= (last[1], last[0]);
+        if v5 {
+            e.bit(&mut m.ordered, ordered);
+        }
+        if v5 && ordered {
+            let gap = cv.start[1] - last[1];
+            rc_count(&mut e, &mut m, Count::RowGap, gap as u64 + 1);
+            if gap == 0 {
+                rc_count(
+                    &mut e,
+                    &mut m,
+                    Count::ColGap,
+                    (cv.start[0] - last[0]) as u64 + 1,
+                );
+            } else {
+                e.uniform(cv.start[0], c.width + 1);
+            }
+            last = cv.start;
+        } else if v5 {
+            e.uniform(cv.start[0], c.width + 1);
+            e.uniform(cv.start[1], c.height + 1);
+        } else {
+            for (k, (v, n)) in [(cv.start[0], xb), (cv.start[1], yb)]
+                .into_iter()
+                .enumerate()
+            {
+                for i in (0..n).rev() {
+                    e.bit(&mut m.start[k][i as usize], (v >> i) & 1 == 1);
+                }
             }
         }
         e.tree(&mut m.axis, 5, cv.axis as u32);
@@ -218,28 +293,114 @@ pub(super) fn rc_curves(c: &Codes, refine: bool, undecided: bool, warm: bool) ->
     e.finish()
 }
 
-/// Reads [`rc_curves`]' section, with the checks of version 2's reader.
+/// Version 5's region: the polygon count, and per polygon its vertex count, its first
+/// vertex (uniform over the image) and the steps to the next ones.
+fn rc_region(e: &mut rc::Encoder, m: &mut CurveModel, region: &Region, w: u32, h: u32) {
+    rc_count(e, m, Count::Polygons, region.len() as u64 + 1);
+    for poly in region {
+        rc_count(e, m, Count::Vertices, poly.len() as u64 - 2);
+        e.uniform(poly[0][0], w + 1);
+        e.uniform(poly[0][1], h + 1);
+        let mut prev = [1usize; 2];
+        for pair in poly.windows(2) {
+            for a in 0..2 {
+                let d = pair[1][a] as i64 - pair[0][a] as i64;
+                let count = [Count::StepX, Count::StepY][a];
+                rc_count(e, m, count, d.unsigned_abs() + 1);
+                if d != 0 {
+                    e.bit(&mut m.step_sign[a][prev[a]], d > 0);
+                }
+                prev[a] = (d.signum() + 1) as usize;
+            }
+        }
+    }
+}
+
+/// [`rc_region`] read back, with the checks of version 2's reader.
+fn un_rc_region(
+    d: &mut rc::Decoder,
+    m: &mut CurveModel,
+    w: u32,
+    h: u32,
+) -> std::result::Result<Region, String> {
+    // A bound on the vertices a damaged file could claim: far more than an outline of the
+    // whole image's pixel corners has.
+    let max_vertices = 4 * (w as u64 + 1) * (h as u64 + 1);
+    let n = un_rc_count(d, m, Count::Polygons, "the region")? - 1;
+    let mut region = Vec::new();
+    let mut total = 0u64;
+    for pi in 0..n {
+        let at = format!("region polygon {pi}");
+        let nv = un_rc_count(d, m, Count::Vertices, &at)? + 2;
+        total += nv;
+        if total > max_vertices {
+            return Err(format!(
+                "corrupted: {at} takes the region past {max_vertices} vertices"
+            ));
+        }
+        let mut poly = vec![[d.uniform(w + 1), d.uniform(h + 1)]];
+        let mut prev = [1usize; 2];
+        for _ in 1..nv {
+            let last = *poly.last().expect("one vertex");
+            let mut q = [0u32; 2];
+            for a in 0..2 {
+                let count = [Count::StepX, Count::StepY][a];
+                let mag = un_rc_count(d, m, count, &at)? - 1;
+                let up = mag != 0 && d.bit(&mut m.step_sign[a][prev[a]]);
+                let v = if up {
+                    last[a] as i64 + mag as i64
+                } else {
+                    last[a] as i64 - mag as i64
+                };
+                if v < 0 || v > [w, h][a] as i64 {
+                    return Err(format!("corrupted: {at} leaves the {w}x{h} image"));
+                }
+                prev[a] = if mag == 0 {
+                    1
+                } else if up {
+                    2
+                } else {
+                    0
+                };
+                q[a] = v as u32;
+            }
+            poly.push(q);
+        }
+        region.push(poly);
+    }
+    Ok(region)
+}
+
+/// Reads [`rc_curves`]' tail, with the checks of version 2's reader: the curves and, in
+/// version 5, the region.
 pub(super) fn un_rc_curves(
     data: &[u8],
     width: u32,
     height: u32,
     refine: bool,
     undecided: bool,
-    warm: bool,
-) -> std::result::Result<Vec<CurveCodes>, String> {
+    version: u8,
+) -> std::result::Result<(Vec<CurveCodes>, Option<Region>), String> {
     // Bounds on counts a damaged file could claim (the coder can code many symbols in few
     // bytes, so the data's length bounds nothing).
     const MAX_CURVES: u64 = 1 << 16;
     const MAX_PRIMS: usize = 1 << 20;
+    let v5 = version >= 5;
     let (xb, yb) = (bits_for(width), bits_for(height));
     let mut m = CurveModel::new();
-    let mut d = rc::Decoder::new(data, warm);
-    let n_curves = un_rc_count(&mut d, &mut m, 0, "the curve count")? - 1;
+    let mut d = rc::Decoder::new(data, version >= 4);
+    let region = if v5 {
+        Some(un_rc_region(&mut d, &mut m, width, height)?)
+    } else {
+        None
+    };
+    let n_curves = un_rc_count(&mut d, &mut m, Count::Curves, "the curve count")? - 1;
     if n_curves > MAX_CURVES {
         return Err(format!("corrupted: {n_curves} curves"));
     }
     let mut curves = Vec::new();
     let mut total = 0usize;
+    let mut last = [0u32; 2];
     for ci in 0..n_curves {
         let at = format!("curve {ci}");
         let code = d.tree(&mut m.kind, 3) as u8;
@@ -257,15 +418,35 @@ pub(super) fn un_rc_curves(
             };
         }
         let dirs = fixed_dirs(kind, dirs);
-        let n = un_rc_count(&mut d, &mut m, 1, &at)? as usize;
+        let n = un_rc_count(&mut d, &mut m, Count::Prims, &at)? as usize;
         total += n;
         if total > MAX_PRIMS {
             return Err(format!("corrupted: over {MAX_PRIMS} primitives"));
         }
         let mut start = [0u32; 2];
-        for (k, nb) in [xb, yb].into_iter().enumerate() {
-            for i in (0..nb).rev() {
-                start[k] |= (d.bit(&mut m.start[k][i as usize]) as u32) << i;
+        let ordered = v5 && d.bit(&mut m.ordered);
+        if ordered {
+            let gap = un_rc_count(&mut d, &mut m, Count::RowGap, &at)? - 1;
+            let y = last[1] as u64 + gap;
+            let x = if gap == 0 {
+                last[0] as u64 + un_rc_count(&mut d, &mut m, Count::ColGap, &at)? - 1
+            } else {
+                d.uniform(width + 1) as u64
+            };
+            if x > width as u64 || y > height as u64 {
+                return Err(format!(
+                    "corrupted: {at} starts outside the {width}x{height} image"
+                ));
+            }
+            start = [x as u32, y as u32];
+            last = start;
+        } else if v5 {
+            start = [d.uniform(width + 1), d.uniform(height + 1)];
+        } else {
+            for (k, nb) in [xb, yb].into_iter().enumerate() {
+                for i in (0..nb).rev() {
+                    start[k] |= (d.bit(&mut m.start[k][i as usize]) as u32) << i;
+                }
             }
         }
         let axis = d.tree(&mut m.axis, 5) as u8;
@@ -302,5 +483,5 @@ pub(super) fn un_rc_curves(
     if d.overrun() > 8 {
         return Err("corrupted: the curves run past the end of the data".into());
     }
-    Ok(curves)
+    Ok((curves, region))
 }

@@ -52,8 +52,9 @@ pub const MAGIC: &[u8; 3] = b"CZS";
 /// region: the whole image) are still read.
 pub const VERSION: u8 = 2;
 /// `.czs` container version: 3 range codes the curves (the sketch is that of [`VERSION`]),
-/// 4 with richer contexts (the same fields); versions 1 to 3 are still read.
-pub const CZS_VERSION: u8 = 4;
+/// 4 with richer contexts (the same fields), 5 the region too, and the curves' starts as
+/// gaps where they come by row then column; versions 1 to 4 are still read.
+pub const CZS_VERSION: u8 = 5;
 /// The JSON Schema `sketch.json` is checked against.
 pub const SCHEMA: &str = include_str!("../../../schemas/sketch.v1.schema.json");
 const SCHEMA_URL: &str = "urn:coif:sketch.v1.schema.json";
@@ -332,8 +333,17 @@ fn blocks(n: u32) -> u32 {
     n.div_ceil(COARSE)
 }
 
+/// The start `.czs` stores for curve `c` on a w×h image (its first centre rounded to whole
+/// pixels, clamped to [0, W]×[0, H]); None without primitives.
+pub fn curve_start(c: &Curve, w: u32, h: u32) -> Option<[u32; 2]> {
+    let first = c.prims.first()?;
+    let r = |v: f32, n: u32| finite_or(v, 0.0).round().clamp(0.0, n as f32) as u32;
+    Some([r(first.x, w), r(first.y, h)])
+}
+
 fn curve_codes(c: &Curve, w: u32, h: u32) -> Option<CurveCodes> {
     let first = c.prims.first()?;
+    let start = curve_start(c, w, h)?;
     let q = AXIS_QUANTUM as f64;
     let mut idx = (finite_or(first.axis, 0.0) as f64 / q).round() as i64;
     let axis = idx.rem_euclid(AXIS_STEPS as i64) as u8;
@@ -369,11 +379,10 @@ fn curve_codes(c: &Curve, w: u32, h: u32) -> Option<CurveCodes> {
             }
         })
         .collect();
-    let r = |v: f32, n: u32| finite_or(v, 0.0).round().clamp(0.0, n as f32) as u32;
     Some(CurveCodes {
         kind: c.kind,
         dirs: canonical_dirs(c.kind, c.dirs),
-        start: [r(first.x, w), r(first.y, h)],
+        start,
         axis,
         prims,
     })

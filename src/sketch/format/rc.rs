@@ -9,6 +9,8 @@ const TOP: u32 = 1 << 24;
 const PROB_BITS: u32 = 11;
 const ONE: u16 = 1 << PROB_BITS;
 const MOVE: u32 = 5;
+/// Widest range [`Encoder::uniform`] codes in one step (wider ones take two).
+const UNIFORM_MAX: u32 = 1 << 16;
 
 /// A probability of a 0 bit, in units of 2⁻¹¹, and how many bits it has seen (up to 255).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -121,6 +123,23 @@ impl Encoder {
         }
     }
 
+    /// `v` in 0..n, every value equally likely: log2 n bits, no probability to learn.
+    pub fn uniform(&mut self, v: u32, n: u32) {
+        debug_assert!(v < n);
+        if n > UNIFORM_MAX {
+            // Wide ranges in two parts, so that range / n keeps enough precision.
+            self.uniform(v % UNIFORM_MAX, UNIFORM_MAX);
+            return self.uniform(v / UNIFORM_MAX, (n - 1) / UNIFORM_MAX + 1);
+        }
+        let r = self.range / n;
+        self.low += v as u64 * r as u64;
+        self.range = r;
+        while self.range < TOP {
+            self.range <<= 8;
+            self.shift_low();
+        }
+    }
+
     pub fn finish(mut self) -> Vec<u8> {
         for _ in 0..5 {
             self.shift_low();
@@ -185,6 +204,23 @@ impl<'a> Decoder<'a> {
             self.code = (self.code << 8) | self.next() as u32;
         }
         bit
+    }
+
+    /// [`Encoder::uniform`] read back; a damaged stream may give any value in 0..n.
+    pub fn uniform(&mut self, n: u32) -> u32 {
+        if n > UNIFORM_MAX {
+            let lo = self.uniform(UNIFORM_MAX);
+            return lo + UNIFORM_MAX * self.uniform((n - 1) / UNIFORM_MAX + 1);
+        }
+        let r = self.range / n;
+        let v = (self.code / r).min(n - 1);
+        self.code -= v * r;
+        self.range = r;
+        while self.range < TOP {
+            self.range <<= 8;
+            self.code = (self.code << 8) | self.next() as u32;
+        }
+        v
     }
 
     pub fn tree(&mut self, probs: &mut [Prob], n: u32) -> u32 {
@@ -258,6 +294,40 @@ mod tests {
         };
         assert_eq!(read(&warm, true), bits);
         assert_ne!(read(&warm, false), bits);
+    }
+
+    /// Uniform values of every width round trip between adaptive bits, and cost their
+    /// log2 n bits.
+    #[test]
+    fn uniform_values_round_trip_and_cost_log2_n() {
+        let ns = [1u32, 2, 3, 7, 513, 65_536, 65_537, 1 << 20, u32::MAX];
+        let vals: Vec<(u32, u32)> = (0..600u32)
+            .map(|k| {
+                let n = ns[k as usize % ns.len()];
+                (k.wrapping_mul(2_654_435_761) % n, n)
+            })
+            .collect();
+        let mut e = Encoder::new(true);
+        let mut p = HALF;
+        for (k, &(v, n)) in vals.iter().enumerate() {
+            e.uniform(v, n);
+            e.bit(&mut p, k % 5 == 0);
+        }
+        let out = e.finish();
+        let mut d = Decoder::new(&out, true);
+        let mut q = HALF;
+        for (k, &(v, n)) in vals.iter().enumerate() {
+            assert_eq!(d.uniform(n), v, "value {k}");
+            assert_eq!(d.bit(&mut q), k % 5 == 0, "bit {k}");
+        }
+        let bits: f64 = vals.iter().map(|&(_, n)| (n as f64).log2()).sum();
+        let skewed = 600.0 * 0.722; // the bits' entropy, 1 in 5
+        let got = out.len() as f64 * 8.0;
+        assert!(
+            got < bits + skewed + 100.0,
+            "{got} bits for {bits} + {skewed}"
+        );
+        assert!(got > bits, "{got} bits for {bits}");
     }
 
     #[test]
