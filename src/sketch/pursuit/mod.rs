@@ -620,66 +620,6 @@ impl<'a> Search<'a> {
         rated
     }
 
-    /// `curves` (in birth order) reordered to code compactly: by start, row then column
-    /// ([`super::format::curve_start`]), where that keeps every pixel's owner. The fill
-    /// paints a pixel that two curves' windows cover with the first curve in file order
-    /// ([`prim::paint`]), and the pursuit scored each curve on the pixels left to it, so a
-    /// curve stays after every earlier-born curve whose windows overlap its own (a
-    /// topological sort that takes the smallest start available). The painting, Θ and E
-    /// are the same as in birth order; most starts come sorted, which `.czs` codes in a
-    /// quarter fewer bits (the row gap and the column instead of both coordinates).
-    fn canonical_order(&self, curves: Vec<Curve>) -> Vec<Curve> {
-        let f = self.f;
-        let (w, h) = (f.width, f.height);
-        let n = curves.len();
-        // after[a]: the later-born curves that must follow a; blocked[b]: how many must
-        // precede b.
-        let mut owner = vec![u32::MAX; f.len()];
-        let mut after: Vec<Vec<u32>> = vec![Vec::new(); n];
-        let mut blocked = vec![0u32; n];
-        for (ci, c) in curves.iter().enumerate() {
-            let ci = ci as u32;
-            for p in &c.prims {
-                prim::window(c.kind, p, w, h, |k, _| {
-                    let o = owner[k];
-                    if o == u32::MAX {
-                        owner[k] = ci;
-                    } else if o != ci && after[o as usize].last() != Some(&ci) {
-                        after[o as usize].push(ci);
-                    }
-                });
-            }
-        }
-        for a in &mut after {
-            a.sort_unstable();
-            a.dedup();
-            for &b in a.iter() {
-                blocked[b as usize] += 1;
-            }
-        }
-        let key = |i: usize| {
-            let [x, y] = super::format::curve_start(&curves[i], w, h).unwrap_or([0, 0]);
-            std::cmp::Reverse((y, x, i))
-        };
-        let mut ready: BinaryHeap<_> = (0..n).filter(|&i| blocked[i] == 0).map(key).collect();
-        let mut order = Vec::with_capacity(n);
-        while let Some(std::cmp::Reverse((_, _, i))) = ready.pop() {
-            order.push(i);
-            for &b in &after[i] {
-                blocked[b as usize] -= 1;
-                if blocked[b as usize] == 0 {
-                    ready.push(key(b as usize));
-                }
-            }
-        }
-        debug_assert_eq!(order.len(), n, "birth order is a topological order");
-        let mut slots: Vec<Option<Curve>> = curves.into_iter().map(Some).collect();
-        order
-            .into_iter()
-            .map(|i| slots[i].take().expect("each curve once"))
-            .collect()
-    }
-
     /// Undoes every change after log position `to`.
     fn undo_to(&mut self, to: usize) {
         self.epoch += 1;
@@ -857,7 +797,9 @@ pub fn pursue(
     for pass in 0..passes {
         let mut s = Search::new(&f, p, empty.z.clone(), prior);
         let (curves, e0, energy) = s.run(engine)?;
-        let curves = s.canonical_order(curves);
+        // Birth order reordered as `.czs` stores it best, with the same painting (every
+        // pair of overlapping curves keeps its order).
+        let curves = super::format::paint_order(curves, width, height);
         let curves = s.rate_codes(curves);
         // The final Θ: diffused to convergence with the sketch clamped.
         let t = Instant::now();
