@@ -822,5 +822,17 @@ mod tests {
             bad[k] ^= 0x10;
             assert!(from_czs(&bad, Path::new("bad.czs")).is_err(), "byte {k}");
         }
+        // Damage under a valid checksum (what a fuzzer cannot reach through the CRC): read
+        // as some sketch or refused, never a panic or a hang.
+        let body = v5.len() - 4;
+        for k in frame - 4..body {
+            for flip in [0x01u8, 0x80, 0xff] {
+                let mut bad = v5.clone();
+                bad[k] ^= flip;
+                let crc = crc32(&bad[..body]);
+                bad[body..].copy_from_slice(&crc.to_le_bytes());
+                let _ = from_czs(&bad, Path::new("bad.czs"));
+            }
+        }
     }
 }

@@ -346,6 +346,10 @@ fn un_rc_region(
         let mut poly = vec![[d.uniform(w + 1), d.uniform(h + 1)]];
         let mut prev = [1usize; 2];
         for _ in 1..nv {
+            // Past the data the decoder reads zeros, which may code steps of 0 for ever.
+            if d.overrun() > 8 {
+                return Err(format!("corrupted: {at} runs past the end of the data"));
+            }
             let last = *poly.last().expect("one vertex");
             let mut q = [0u32; 2];
             for a in 0..2 {
@@ -407,6 +411,9 @@ pub(super) fn un_rc_curves(
     let mut total = 0usize;
     let mut last = [0u32; 2];
     for ci in 0..n_curves {
+        if d.overrun() > 8 {
+            return Err("corrupted: the curves run past the end of the data".into());
+        }
         let at = format!("curve {ci}");
         let code = d.tree(&mut m.kind, 3) as u8;
         let kind = kind_of(code, &at)?;

@@ -26,33 +26,20 @@ fn overlap_pairs_of<'a>(
     w: u32,
     h: u32,
 ) -> Vec<[u32; 2]> {
-    // The first curve on each pixel, and (pixel, curve) for every later one there.
-    let mut first = vec![u32::MAX; w as usize * h as usize];
-    let mut more: Vec<(u32, u32)> = Vec::new();
+    // (pixel, curve) for every window pixel, grouped by pixel: memory in proportion to the
+    // windows, not to the image (a damaged file may claim any size).
+    let mut on: Vec<(usize, u32)> = Vec::new();
     for (ci, (kind, prims)) in curves.enumerate() {
-        let ci = ci as u32;
         for p in prims {
-            prim::window(kind, p, w, h, |k, _| {
-                let f = first[k];
-                if f == u32::MAX {
-                    first[k] = ci;
-                } else if f != ci {
-                    more.push((k as u32, ci));
-                }
-            });
+            prim::window(kind, p, w, h, |k, _| on.push((k, ci as u32)));
         }
     }
-    more.sort_unstable();
-    more.dedup();
+    on.sort_unstable();
+    on.dedup();
     let mut pairs = Vec::new();
-    for group in more.chunk_by(|a, b| a.0 == b.0) {
-        // Curves are visited in order, so the pixel's first curve is below the others and
-        // the group is sorted by curve.
-        let on: Vec<u32> = std::iter::once(first[group[0].0 as usize])
-            .chain(group.iter().map(|g| g.1))
-            .collect();
-        for (i, &a) in on.iter().enumerate() {
-            pairs.extend(on[i + 1..].iter().map(|&b| [a, b]));
+    for group in on.chunk_by(|a, b| a.0 == b.0) {
+        for (i, &(_, a)) in group.iter().enumerate() {
+            pairs.extend(group[i + 1..].iter().map(|&(_, b)| [a, b]));
         }
     }
     pairs.sort_unstable();
