@@ -1,7 +1,7 @@
 //! `hair.czs`: the sketch's codes bit-packed, with its length and a CRC-32. Version 3 range
 //! codes the curves ([`rc`], adaptive contexts), version 4 with richer contexts, version 5
-//! the region too and starts as gaps where they come in order; versions 1 and 2 (fixed-width fields) are still read,
-//! as are 3 and 4.
+//! the colour map and the region too, and the curves sorted by start with their paint
+//! order; versions 1 and 2 (fixed-width fields) are still read, as are 3 and 4.
 
 use super::czs_rc::{rc_curves, un_rc_curves};
 use super::*;
@@ -167,7 +167,8 @@ fn pack(c: &Codes, version: u8) -> (Vec<u8>, [usize; 5]) {
     }
     let shading = w.bits - header - curves;
 
-    for k in &c.colour.k {
+    // The colour map (before version 5; then it is range coded with the curves).
+    for k in c.colour.k.iter().filter(|_| version < 5) {
         w.put(k[0] as u64, 6);
         w.put(k[1] as u64, 6);
     }
@@ -197,14 +198,20 @@ fn pack(c: &Codes, version: u8) -> (Vec<u8>, [usize; 5]) {
     }
     // Versions 3 to 5: the curves last (from 5, the region and the curves), range coded
     // from the next whole byte on.
-    let (coded, rc_region) = rc_curves(c, refine, undecided, version);
+    let (coded, [rc_colour, rc_region]) = rc_curves(c, refine, undecided, version);
     let pad = w.bytes.len() * 8 - w.bits;
     let mut bytes = w.bytes;
     bytes.extend(&coded);
-    let rc_curves = (coded.len() - rc_region) * 8 + pad;
+    let rc_curves = (coded.len() - rc_region - rc_colour) * 8 + pad;
     (
         bytes,
-        [header, rc_curves, shading, colour, region + rc_region * 8],
+        [
+            header,
+            rc_curves,
+            shading,
+            colour + rc_colour * 8,
+            region + rc_region * 8,
+        ],
     )
 }
 
@@ -339,7 +346,7 @@ fn unpack(data: &[u8], version: u8) -> std::result::Result<Codes, String> {
     }
 
     let mut k = Vec::new();
-    for _ in 0..COLOUR_BINS {
+    for _ in (0..COLOUR_BINS).filter(|_| version < 5) {
         k.push([
             r.get(6, "the colour map")? as u8,
             r.get(6, "the colour map")? as u8,
@@ -375,8 +382,7 @@ fn unpack(data: &[u8], version: u8) -> std::result::Result<Codes, String> {
         if pad > 0 && r.get(pad as u32, "the padding")? != 0 {
             return Err("corrupted: the padding bits are not zero".into());
         }
-        let rc_region;
-        (curves, rc_region) = un_rc_curves(
+        let tail = un_rc_curves(
             &data[r.pos / 8..],
             width,
             height,
@@ -384,7 +390,11 @@ fn unpack(data: &[u8], version: u8) -> std::result::Result<Codes, String> {
             undecided,
             version,
         )?;
-        if let Some(rc_region) = rc_region {
+        curves = tail.curves;
+        if let Some(c) = tail.colour {
+            k = c.k;
+        }
+        if let Some(rc_region) = tail.region {
             region = rc_region;
         }
     } else {
@@ -784,6 +794,10 @@ mod tests {
             ],
             vec![[100, 100], [100, 140], [190, 141], [191, 99]],
         ];
+        // A colour map with the codes' extremes and uneven steps.
+        s.colour.uv = (0..COLOUR_BINS)
+            .map(|k| [-32.0 + 8.5 * k as f32, 94.0 - (k * k) as f32 / 2.0])
+            .collect();
         let c = codes(&s);
         let (v4, _) = assemble(&c, 4);
         let (v5, bits) = assemble(&c, 5);

@@ -54,11 +54,17 @@ enum Count {
     Vertices,
     StepX,
     StepY,
+    /// Version 5: the colour map's steps from bin to bin in u and v.
+    ColourU,
+    ColourV,
 }
 
 impl Count {
-    const N: usize = 8;
+    const N: usize = 10;
 }
+
+/// Codes of a colour map coordinate (6 bits).
+const COLOUR_CODES: u32 = 64;
 
 impl CurveModel {
     fn new() -> Box<Self> {
@@ -204,25 +210,40 @@ fn un_rc_count(
 /// coded with [`CurveModel`]; version 4 the same with probabilities that learn fast at first
 /// (on the synthetic styles, the fur crops and the astronaut 6% fewer bytes in all, while
 /// finer contexts, turns by the side's drift or the second side by its offset from the
-/// mirror, cost more to learn than they saved); version 5 as 4 with the region first and
-/// the curves sorted by start and their paint order (see the module docs).
-pub(super) fn rc_curves(c: &Codes, refine: bool, undecided: bool, version: u8) -> (Vec<u8>, usize) {
-    let tail = rc_tail(c, refine, undecided, version, true);
-    // The region's share: what leaving it out saves (its contexts are its own).
-    let region = if version >= 5 {
+/// mirror, cost more to learn than they saved); version 5 as 4 with the colour map and the
+/// region first and the curves sorted by start and their paint order (see the module
+/// docs). Returns the tail and the bytes of it the colour map and the region take (0 before
+/// version 5, where they are bit-packed).
+pub(super) fn rc_curves(
+    c: &Codes,
+    refine: bool,
+    undecided: bool,
+    version: u8,
+) -> (Vec<u8>, [usize; 2]) {
+    let tail = rc_tail(c, refine, undecided, version, [true; 2]);
+    // A part's share: what leaving it out saves (its contexts are its own).
+    let share = |keep: [bool; 2]| {
         tail.len()
-            .saturating_sub(rc_tail(c, refine, undecided, version, false).len())
-    } else {
-        0
+            .saturating_sub(rc_tail(c, refine, undecided, version, keep).len())
     };
-    (tail, region)
+    let shares = if version >= 5 {
+        [share([false, true]), share([true, false])]
+    } else {
+        [0; 2]
+    };
+    (tail, shares)
 }
 
-fn rc_tail(c: &Codes, refine: bool, undecided: bool, version: u8, region: bool) -> Vec<u8> {
+/// `parts`: whether to code the colour map and the region (version 5; left out only to
+/// measure their shares).
+fn rc_tail(c: &Codes, refine: bool, undecided: bool, version: u8, parts: [bool; 2]) -> Vec<u8> {
     let v5 = version >= 5;
     let mut m = CurveModel::new();
     let mut e = rc::Encoder::new(version >= 4);
-    if v5 && region {
+    if v5 && parts[0] {
+        rc_colour(&mut e, &mut m, &c.colour);
+    }
+    if v5 && parts[1] {
         rc_region(&mut e, &mut m, &c.region, c.width, c.height);
     }
     rc_count(&mut e, &mut m, Count::Curves, c.curves.len() as u64 + 1);
@@ -296,6 +317,48 @@ fn rc_tail(c: &Codes, refine: bool, undecided: bool, version: u8, region: bool) 
         rc_paint_order(&mut e, &mut m, c, &stored);
     }
     e.finish()
+}
+
+/// Version 5's colour map: each bin's (u, v) codes as the step from the bin before, signed
+/// exponent-Golomb (the map is smooth in L*: most steps are 0 to 3 codes), the first bin's
+/// as they are.
+fn rc_colour(e: &mut rc::Encoder, m: &mut CurveModel, colour: &ColourCodes) {
+    for (k, bin) in colour.k.iter().enumerate() {
+        for a in 0..2 {
+            if k == 0 {
+                e.uniform(bin[a] as u32, COLOUR_CODES);
+            } else {
+                let d = bin[a] as i64 - colour.k[k - 1][a] as i64;
+                rc_count(e, m, [Count::ColourU, Count::ColourV][a], zigzag(d) + 1);
+            }
+        }
+    }
+}
+
+/// [`rc_colour`] read back.
+fn un_rc_colour(
+    d: &mut rc::Decoder,
+    m: &mut CurveModel,
+) -> std::result::Result<ColourCodes, String> {
+    let mut k: Vec<[u8; 2]> = Vec::with_capacity(COLOUR_BINS);
+    for bin in 0..COLOUR_BINS {
+        let mut v = [0u8; 2];
+        for a in 0..2 {
+            let code = if bin == 0 {
+                d.uniform(COLOUR_CODES) as i64
+            } else {
+                let step =
+                    un_rc_count(d, m, [Count::ColourU, Count::ColourV][a], "the colour map")?;
+                k[bin - 1][a] as i64 + unzigzag(step - 1)
+            };
+            if !(0..COLOUR_CODES as i64).contains(&code) {
+                return Err(format!("corrupted: colour map bin {bin} has code {code}"));
+            }
+            v[a] = code as u8;
+        }
+        k.push(v);
+    }
+    Ok(ColourCodes { k })
 }
 
 /// Version 5's region: the polygon count, and per polygon its vertex count, its first
@@ -380,8 +443,15 @@ fn un_rc_region(
     Ok(region)
 }
 
+/// What [`un_rc_curves`] reads: the curves, and in version 5 the colour map and the region.
+pub(super) struct Tail {
+    pub curves: Vec<CurveCodes>,
+    pub colour: Option<ColourCodes>,
+    pub region: Option<Region>,
+}
+
 /// Reads [`rc_curves`]' tail, with the checks of version 2's reader: the curves and, in
-/// version 5, the region.
+/// version 5, the colour map and the region.
 pub(super) fn un_rc_curves(
     data: &[u8],
     width: u32,
@@ -389,7 +459,7 @@ pub(super) fn un_rc_curves(
     refine: bool,
     undecided: bool,
     version: u8,
-) -> std::result::Result<(Vec<CurveCodes>, Option<Region>), String> {
+) -> std::result::Result<Tail, String> {
     // Bounds on counts a damaged file could claim (the coder can code many symbols in few
     // bytes, so the data's length bounds nothing).
     const MAX_CURVES: u64 = 1 << 16;
@@ -398,10 +468,14 @@ pub(super) fn un_rc_curves(
     let (xb, yb) = (bits_for(width), bits_for(height));
     let mut m = CurveModel::new();
     let mut d = rc::Decoder::new(data, version >= 4);
-    let region = if v5 {
-        Some(un_rc_region(&mut d, &mut m, width, height)?)
+    let (colour, region) = if v5 {
+        let colour = un_rc_colour(&mut d, &mut m)?;
+        (
+            Some(colour),
+            Some(un_rc_region(&mut d, &mut m, width, height)?),
+        )
     } else {
-        None
+        (None, None)
     };
     let n_curves = un_rc_count(&mut d, &mut m, Count::Curves, "the curve count")? - 1;
     if n_curves > MAX_CURVES {
@@ -495,7 +569,11 @@ pub(super) fn un_rc_curves(
     if d.overrun() > 8 {
         return Err("corrupted: the curves run past the end of the data".into());
     }
-    Ok((curves, region))
+    Ok(Tail {
+        curves,
+        colour,
+        region,
+    })
 }
 
 /// Version 5's paint order of `c`'s curves, stored in `stored` order: a flag, then either a

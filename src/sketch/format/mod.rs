@@ -54,9 +54,9 @@ pub const MAGIC: &[u8; 3] = b"CZS";
 /// region: the whole image) are still read.
 pub const VERSION: u8 = 2;
 /// `.czs` container version: 3 range codes the curves (the sketch is that of [`VERSION`]),
-/// 4 with richer contexts (the same fields), 5 the region too, and the curves sorted by
-/// start with their paint order as a bit per overlapping pair ([`order`]); versions 1 to 4
-/// are still read.
+/// 4 with richer contexts (the same fields), 5 the colour map and the region too, and the
+/// curves sorted by start with their paint order as a bit per overlapping pair
+/// ([`order`]); versions 1 to 4 are still read.
 pub const CZS_VERSION: u8 = 5;
 /// The JSON Schema `sketch.json` is checked against.
 pub const SCHEMA: &str = include_str!("../../../schemas/sketch.v1.schema.json");
