@@ -828,6 +828,11 @@ fn pursuit_energy_falls_with_each_curve() {
         }
         println!("Θ against the painted curves: worst {worst:.4}°");
         assert!(worst < 0.01, "{worst}°");
+        // The curves come in the order `.czs` stores as a bit per overlapping pair.
+        assert_eq!(
+            coif::sketch::format::paint_order(out.curves.clone(), c.w, c.h),
+            out.curves
+        );
     }
 }
 

@@ -12,26 +12,18 @@
 //! A graph over a few hundred curves: sequential, CPU.
 
 use super::super::prim;
-use super::super::{Curve, Kind, Primitive};
+use super::super::Curve;
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 
 /// Pairs [a, b], a < b, of `curves` whose windows share a pixel of the w×h image, sorted.
 pub(super) fn overlap_pairs(curves: &[Curve], w: u32, h: u32) -> Vec<[u32; 2]> {
-    overlap_pairs_of(curves.iter().map(|c| (c.kind, c.prims.as_slice())), w, h)
-}
-
-fn overlap_pairs_of<'a>(
-    curves: impl Iterator<Item = (Kind, &'a [Primitive])>,
-    w: u32,
-    h: u32,
-) -> Vec<[u32; 2]> {
     // (pixel, curve) for every window pixel, grouped by pixel: memory in proportion to the
     // windows, not to the image (a damaged file may claim any size).
     let mut on: Vec<(usize, u32)> = Vec::new();
-    for (ci, (kind, prims)) in curves.enumerate() {
-        for p in prims {
-            prim::window(kind, p, w, h, |k, _| on.push((k, ci as u32)));
+    for (ci, c) in curves.iter().enumerate() {
+        for p in &c.prims {
+            prim::window(c.kind, p, w, h, |k, _| on.push((k, ci as u32)));
         }
     }
     on.sort_unstable();
@@ -102,14 +94,22 @@ pub fn paint_order(curves: Vec<Curve>, w: u32, h: u32) -> Vec<Curve> {
         .map(|c| super::curve_start(c, w, h).unwrap_or([0, 0]))
         .collect();
     let stored = stored_order(&starts);
-    let pairs = overlap_pairs_of(
-        stored.iter().map(|&i| {
+    // The overlaps of the curves as the file stores them (on the lattice), as the writer
+    // and the reader find them.
+    let lattice: Vec<Curve> = stored
+        .iter()
+        .map(|&i| {
             let c = &curves[i as usize];
-            (c.kind, c.prims.as_slice())
-        }),
-        w,
-        h,
-    );
+            super::curve_codes(c, w, h).map_or_else(
+                || Curve {
+                    prims: Vec::new(),
+                    ..c.clone()
+                },
+                |cc| super::decode_curve(&cc),
+            )
+        })
+        .collect();
+    let pairs = overlap_pairs(&lattice, w, h);
     let order = from_precedence(curves.len(), &pairs, &precedence(&stored, &pairs))
         .expect("a paint order's precedences have no cycle");
     let mut slots: Vec<Option<Curve>> = curves.into_iter().map(Some).collect();
@@ -190,6 +190,7 @@ impl Ranks {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sketch::{Kind, Primitive};
 
     fn curve(x: f32, y: f32, axis: f32, n: usize) -> Curve {
         let (c, s) = (axis.cos(), axis.sin());
