@@ -120,8 +120,9 @@ pub(super) fn unzigzag(u: u64) -> i64 {
 }
 
 /// Packs the payload; returns it and the bit counts of (header, curves, shading, colour,
-/// region).
-fn pack(c: &Codes, version: u8) -> (Vec<u8>, [usize; 5]) {
+/// region). `measure`: split the range-coded tail's bits between its parts (two more
+/// encodings of it; without, the tail counts as curves).
+fn pack(c: &Codes, version: u8, measure: bool) -> (Vec<u8>, [usize; 5]) {
     let mut w = BitWriter::new();
     w.gamma(c.width as u64 + 1);
     w.gamma(c.height as u64 + 1);
@@ -198,7 +199,7 @@ fn pack(c: &Codes, version: u8) -> (Vec<u8>, [usize; 5]) {
     }
     // Versions 3 to 5: the curves last (from 5, the region and the curves), range coded
     // from the next whole byte on.
-    let (coded, [rc_colour, rc_region]) = rc_curves(c, refine, undecided, version);
+    let (coded, [rc_colour, rc_region]) = rc_curves(c, refine, undecided, version, measure);
     let pad = w.bytes.len() * 8 - w.bits;
     let mut bytes = w.bytes;
     bytes.extend(&coded);
@@ -249,8 +250,8 @@ fn put_curves_v2(w: &mut BitWriter, c: &Codes, refine: bool, undecided: bool) {
     }
 }
 
-fn assemble(c: &Codes, version: u8) -> (Vec<u8>, [usize; 5]) {
-    let (payload, bits) = pack(c, version);
+fn assemble(c: &Codes, version: u8, measure: bool) -> (Vec<u8>, [usize; 5]) {
+    let (payload, bits) = pack(c, version, measure);
     // The total length includes its own varint: find the fixed point.
     let mut total = 4 + payload.len() + 4 + 1;
     loop {
@@ -272,12 +273,12 @@ fn assemble(c: &Codes, version: u8) -> (Vec<u8>, [usize; 5]) {
 
 /// The `.czs` bytes of the quantised sketch.
 pub fn to_czs(s: &Sketch) -> Vec<u8> {
-    assemble(&codes(s), CZS_VERSION).0
+    assemble(&codes(s), CZS_VERSION, false).0
 }
 
 /// Bytes per part of `s`'s `.czs`.
 pub fn czs_sizes(s: &Sketch) -> CzsSizes {
-    let (bytes, bits) = assemble(&codes(s), CZS_VERSION);
+    let (bytes, bits) = assemble(&codes(s), CZS_VERSION, true);
     let part = |b: usize| b.div_ceil(8);
     let (curves, shading, colour, region) =
         (part(bits[1]), part(bits[2]), part(bits[3]), part(bits[4]));
@@ -679,7 +680,7 @@ mod tests {
     #[test]
     fn version_1_files_still_read() {
         let s = bare_sketch(40, 30, 5, Vec::new());
-        let (mut payload, bits) = pack(&codes(&s), 2);
+        let (mut payload, bits) = pack(&codes(&s), 2, true);
         assert_eq!(bits[4], 1);
         let at: usize = bits[..4].iter().sum();
         payload[at / 8] &= !(0x80u8 >> (at % 8));
@@ -757,9 +758,9 @@ mod tests {
         }
         let s = bare_sketch(400, 300, 9, curves);
         let c = codes(&s);
-        let (v2, _) = assemble(&c, 2);
-        let (v3, bits) = assemble(&c, 3);
-        let (v4, _) = assemble(&c, 4);
+        let (v2, _) = assemble(&c, 2, true);
+        let (v3, bits) = assemble(&c, 3, true);
+        let (v4, _) = assemble(&c, 4, true);
         let a = from_czs(&v2, Path::new("v2.czs")).unwrap();
         let b = from_czs(&v3, Path::new("v3.czs")).unwrap();
         assert_eq!(a, quantise(&s));
@@ -799,8 +800,8 @@ mod tests {
             .map(|k| [-32.0 + 8.5 * k as f32, 94.0 - (k * k) as f32 / 2.0])
             .collect();
         let c = codes(&s);
-        let (v4, _) = assemble(&c, 4);
-        let (v5, bits) = assemble(&c, 5);
+        let (v4, _) = assemble(&c, 4, true);
+        let (v5, bits) = assemble(&c, 5, true);
         let a = from_czs(&v4, Path::new("v4.czs")).unwrap();
         assert_eq!(a, quantise(&s));
         assert_eq!(from_czs(&v5, Path::new("v5.czs")).unwrap(), a);
@@ -824,7 +825,7 @@ mod tests {
             .zip(&b.theta)
             .all(|(x, y)| x.to_bits() == y.to_bits()));
         let c = codes(&s);
-        let ((v4, b4), (v5, b5)) = (assemble(&c, 4), assemble(&c, 5));
+        let ((v4, b4), (v5, b5)) = (assemble(&c, 4, true), assemble(&c, 5, true));
         let a = from_czs(&v4, Path::new("v4.czs")).unwrap();
         assert_eq!(a, quantise(&s));
         assert_eq!(from_czs(&v5, Path::new("v5.czs")).unwrap(), a);

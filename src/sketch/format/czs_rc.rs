@@ -1,6 +1,7 @@
 //! The range-coded tail of `.czs` ([`rc`], adaptive contexts): in versions 3 and 4 the fields
-//! of version 2's curves; version 5 puts the region first (its outline's steps as signed
-//! exponent-Golomb codes, the sign in the context of the step before), stores the curves
+//! of version 2's curves; version 5 puts the colour map (each bin's step from the last) and
+//! the region first (its outline's steps as signed exponent-Golomb codes, the sign in the
+//! context of the step before), stores the curves
 //! sorted by start, each start as the gap to the previous one's row and its column (the
 //! gap to the previous column on the same row), and then their paint order ([`order`]).
 //! Sequential (each symbol's context is the one before): CPU.
@@ -205,20 +206,20 @@ fn un_rc_count(
     Ok(v)
 }
 
-/// The range-coded tail for `.czs` `version` 3 to 5 and the bytes of it the region takes
-/// (version 5; 0 before, where the region is bit-packed): version 3's curve fields, range
-/// coded with [`CurveModel`]; version 4 the same with probabilities that learn fast at first
-/// (on the synthetic styles, the fur crops and the astronaut 6% fewer bytes in all, while
-/// finer contexts, turns by the side's drift or the second side by its offset from the
-/// mirror, cost more to learn than they saved); version 5 as 4 with the colour map and the
+/// The range-coded tail for `.czs` `version` 3 to 5: version 3's curve fields, range coded
+/// with [`CurveModel`]; version 4 the same with probabilities that learn fast at first (on
+/// the synthetic styles, the fur crops and the astronaut 6% fewer bytes in all, while finer
+/// contexts, turns by the side's drift or the second side by its offset from the mirror,
+/// cost more to learn than they saved); version 5 as 4 with the colour map and the
 /// region first and the curves sorted by start and their paint order (see the module
-/// docs). Returns the tail and the bytes of it the colour map and the region take (0 before
-/// version 5, where they are bit-packed).
+/// docs). Returns the tail and, when `measure`, the bytes of it the colour map and the
+/// region take (0 otherwise, and before version 5, where they are bit-packed).
 pub(super) fn rc_curves(
     c: &Codes,
     refine: bool,
     undecided: bool,
     version: u8,
+    measure: bool,
 ) -> (Vec<u8>, [usize; 2]) {
     let tail = rc_tail(c, refine, undecided, version, [true; 2]);
     // A part's share: what leaving it out saves (its contexts are its own).
@@ -226,7 +227,7 @@ pub(super) fn rc_curves(
         tail.len()
             .saturating_sub(rc_tail(c, refine, undecided, version, keep).len())
     };
-    let shares = if version >= 5 {
+    let shares = if measure && version >= 5 {
         [share([false, true]), share([true, false])]
     } else {
         [0; 2]
