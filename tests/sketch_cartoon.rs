@@ -42,6 +42,7 @@ fn synth_sketch(size: u32) -> (Sketch, image::RgbImage) {
             uv: vec![[8.0, 12.0]; COLOUR_BINS],
         },
         region: Vec::new(),
+        along_across: None,
     };
     (format::quantise(&s), case.image)
 }

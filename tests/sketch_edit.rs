@@ -97,6 +97,7 @@ fn small() -> Sketch {
         },
         colour: colour(),
         region: Vec::new(),
+        along_across: None,
     })
 }
 
@@ -630,6 +631,7 @@ fn oracle_case() -> Case {
         shading: Shading::default(),
         colour: colour(),
         region: Vec::new(),
+        along_across: None,
     });
     Case { sketch, hair }
 }

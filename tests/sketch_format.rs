@@ -100,6 +100,8 @@ fn random_sketch(
         },
         colour,
         region: random_region(&mut r, w, h),
+        // None one time in four; else from 3e-4 to 1.6 (over 1 is stored as 1).
+        along_across: (r.below(4) != 0).then(|| r.range_f32(-8.0, 0.5).exp()),
     }
 }
 
@@ -422,8 +424,14 @@ fn bad_json_and_svg_are_refused() {
     v["colour"]["uv"].as_array_mut().unwrap().pop();
     cases.push((v, "/colour/uv"));
     let mut v = good.clone();
-    v["version"] = 3.into();
+    v["version"] = 4.into();
     cases.push((v, "/version"));
+    let mut v = good.clone();
+    v["along_across"] = (-0.1).into();
+    cases.push((v, "/along_across"));
+    let mut v = good.clone();
+    v["along_across"] = "0.1".into();
+    cases.push((v, "/along_across"));
     let mut v = good.clone();
     v["region"] = serde_json::json!([[[0, 0], [4, 0]]]);
     cases.push((v, "/region/0"));
@@ -475,6 +483,20 @@ fn bad_json_and_svg_are_refused() {
         p,
     ));
     assert!(m.contains("data-rho") && m.contains("expected"), "{m}");
+    let mut with = s.clone();
+    with.along_across = Some(0.1);
+    let svg = to_svg(&with);
+    assert_eq!(from_svg(&svg, p).unwrap(), quantise(&with));
+    let key = "data-along-across=\"";
+    let at = svg.find(key).expect("the ratio is written") + key.len();
+    let end = at + svg[at..].find('"').unwrap();
+    for bad in ["NaN", "-0.5", "0", "x"] {
+        let m = err(from_svg(&format!("{}{bad}{}", &svg[..at], &svg[end..]), p));
+        assert!(
+            m.contains("data-along-across") && m.contains("not a positive number"),
+            "{bad}: {m}"
+        );
+    }
 }
 
 #[test]

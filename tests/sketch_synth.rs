@@ -233,20 +233,30 @@ fn synthesis_follows_the_sketch_and_round_trips() {
         );
         rows.push((*name, err, st.contrast_ratio, st.along_across, within));
     }
+    // Without the grain (the band as LIC leaves it) short hair's round trip was 75%: LIC
+    // leaves the band an order of magnitude more coherent along Θ than the photo (0.009
+    // against 0.105), so the second analysis's E1 weighs every orientation cue more and a
+    // 3-curve sketch gains a curve where a streak ends. The grain restores the photo's ratio
+    // (stored in the sketch); the comparison is printed here (README, "coif synth-hair").
+    {
+        let (name, img, hair) = &inputs[1];
+        assert_eq!(*name, "short");
+        let first = analysis_of(img, hair);
+        let s = through_czs(&first.sketch);
+        let off = SynthParams {
+            grain: false,
+            ..Default::default()
+        };
+        let r = synthesise(&engine, &s, None, &off).unwrap();
+        let again = analysis_of(&r.image, &r.hair).sketch;
+        println!(
+            "short without grain: {:.1}% of the second sketch within 3 px of the first ({} curves)",
+            100.0 * length_within(&again.curves, &s.curves, 3.0),
+            again.curves.len()
+        );
+    }
     // Targets of the issue: orientation ≤ 5°, contrast within 10%, along/across ≤ 0.2, and
-    // the second sketch's curves within 3 px of the first's on ≥ 90% of their length. The
-    // last is measured short on short hair (75%; 72% before the side rate, 66% before the
-    // contrast pass measured with the analysis's derivative) and reported, not asserted at
-    // the target.
-    // Measured cause: the first sketch is 3 curves of 3 primitives (at 256² each barely
-    // pays its λ_NC of 40: E falls by 62, 7 and 1), so one added curve is a fifth of the
-    // second's length; the second adds an occluding line where a synthesised streak ends in a dark
-    // patch (11 of 50 px) and lengthens two curves by a primitive (6 px). The synthesis is an
-    // order of magnitude more coherent along Θ than the photo (a/x columns: 0.008 against
-    // 0.105), so the second E1 weighs every orientation cue more. At 512² short hair round-
-    // trips at 91% / 94% (seeds 1, 2); shorter streaks (LIC 4 px), λ_NC 20 or 10, or noise
-    // added to match the photo's a/x did not hold ≥ 90% on both seeds and long hair (README,
-    // "coif synth-hair"). It gets a sanity bound that a broken synthesis misses.
+    // the second sketch's curves within 3 px of the first's on ≥ 90% of their length.
     for (name, err, ratio, along, within) in rows {
         assert!(
             err <= 5.0,
@@ -257,9 +267,8 @@ fn synthesis_follows_the_sketch_and_round_trips() {
             "{name}: contrast ratio {ratio:.3}"
         );
         assert!(along <= 0.2, "{name}: along/across {along:.3}");
-        let bound = if name == "short" { 0.5 } else { 0.9 };
         assert!(
-            within >= bound,
+            within >= 0.9,
             "{name}: {:.1}% of the second sketch's length within 3 px of the first",
             100.0 * within
         );

@@ -617,3 +617,65 @@ fn texture_follows_a_real_field() {
         }
     );
 }
+
+/// The grain brings a band's along/across ratio to the target exactly, keeps its mean
+/// contrast across Θ, is seeded, and leaves a band already at the target alone.
+#[test]
+fn grain_reaches_the_along_across_target_and_keeps_the_contrast() {
+    let e = Engine::cpu();
+    let f = fixture(96, 96);
+    let band = texture::synthesise(&e, &f.field, &f.hair, 4, &TextureParams::default()).unwrap();
+    let s0 = texture_stats(&band, &f.field, &f.hair);
+    for target in [0.05f32, 0.105, 0.18] {
+        let mut g = band.clone();
+        let r = texture::add_grain(&mut g, &f.field, &f.hair, 4, target).expect("grain added");
+        let s1 = texture_stats(&g, &f.field, &f.hair);
+        println!(
+            "target {target}: along/across {:.4} -> {:.4} (reported {:.4}), mean across {:.4} -> {:.4}, amplitude {:.3}",
+            s0.along_across, s1.along_across, r.after, s0.mean_across, s1.mean_across, r.amplitude
+        );
+        assert!(
+            (s1.along_across - target as f64).abs() < 1e-3 * target as f64,
+            "{s1:?}"
+        );
+        assert!((r.after - target).abs() < 1e-3 * target);
+        assert!(
+            (s1.mean_across / s0.mean_across - 1.0).abs() < 1e-4,
+            "{s1:?}"
+        );
+        // Zero mean over the domain, nothing off it.
+        let dom: Vec<usize> = (0..g.len()).filter(|&k| f.hair[k]).collect();
+        let mean = dom.iter().map(|&k| g[k] as f64).sum::<f64>() / dom.len() as f64;
+        assert!(mean.abs() < 1e-4, "{mean}");
+        assert!((0..g.len()).all(|k| f.hair[k] || g[k] == 0.0));
+        // Seeded: the same seed the same grain, another seed another.
+        let mut again = band.clone();
+        texture::add_grain(&mut again, &f.field, &f.hair, 4, target).unwrap();
+        assert_eq!(g, again);
+        let mut other = band.clone();
+        texture::add_grain(&mut other, &f.field, &f.hair, 5, target).unwrap();
+        assert_ne!(g, other);
+    }
+    // At or below the band's own ratio, or not a positive number: nothing to add.
+    for t in [
+        s0.along_across as f32 * 0.5,
+        0.0,
+        -1.0,
+        f32::NAN,
+        f32::INFINITY,
+    ] {
+        let mut g = band.clone();
+        assert!(
+            texture::add_grain(&mut g, &f.field, &f.hair, 4, t).is_none(),
+            "{t}"
+        );
+        assert_eq!(g, band);
+    }
+    // The analysis's measure agrees with the stats' on the same Θ.
+    let a = texture::along_across(&band, &f.field.theta, &f.hair, 96, 96).unwrap();
+    assert!(
+        (a as f64 - s0.along_across).abs() < 1e-4 * s0.along_across.max(1e-3),
+        "{a} vs {}",
+        s0.along_across
+    );
+}

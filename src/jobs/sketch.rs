@@ -287,8 +287,30 @@ pub(super) fn run_synth_hair(engine: &Engine, j: &SynthHairJob) -> anyhow::Resul
             t0.elapsed().as_secs_f64(),
             engine.describe()
         ),
-        details: stage_lines(&r.seconds),
+        details: stage_lines(&r.seconds)
+            .into_iter()
+            .chain(grain_line(&s, j.params.grain, r.grain.as_ref()))
+            .collect(),
         warnings: Vec::new(),
+    })
+}
+
+/// What the grain did, for the report.
+fn grain_line(
+    s: &crate::sketch::Sketch,
+    on: bool,
+    g: Option<&crate::sketch::texture::Grain>,
+) -> Option<String> {
+    Some(match (s.along_across, g) {
+        (_, Some(g)) => format!(
+            "grain: along/across {:.4} -> {:.4} (the sketch's {:.4})",
+            g.before, g.after, g.target
+        ),
+        (Some(t), None) if on => format!(
+            "grain: none needed (the band's along/across already reaches the sketch's {t:.4})"
+        ),
+        (Some(_), None) => "grain: off (--no-grain)".into(),
+        (None, _) => "grain: none (the sketch stores no along/across ratio)".into(),
     })
 }
 

@@ -222,6 +222,12 @@ pub struct Sketch {
     /// empty = the whole image.
     #[serde(default)]
     pub region: Region,
+    /// Σ(∇_θ I_H)²/Σ(∇⊥ I_H)² of the analysed image under its Θ (Eq. 12's along-Θ variance
+    /// relative to the contrast across, [`texture::along_across`]): synthesis adds grain
+    /// up to it ([`texture::add_grain`]). None: not measured (a hand-drawn sketch, or a
+    /// file written before it was stored), and synthesis adds none.
+    #[serde(default)]
+    pub along_across: Option<f32>,
 }
 
 /// Closed polygons of pixel-corner points (x in 0..=W, y in 0..=H), filled by the even-odd

@@ -160,6 +160,8 @@ pub fn analyse(engine: &Engine, inp: &SketchInputs, p: &SketchParams) -> Result<
         )?;
         let [a, b] = times.get();
         times.set([a + (t1 - t0).as_secs_f64(), b + t1.elapsed().as_secs_f64()]);
+        // Eq. 12's along/across ratio of the high band under Step 1's Θ.
+        let along_across = super::texture::along_across(&high.data, &pu.theta, inp.hair, w, h);
         let sketch = format::quantise(&Sketch {
             width: w,
             height: h,
@@ -169,6 +171,7 @@ pub fn analyse(engine: &Engine, inp: &SketchInputs, p: &SketchParams) -> Result<
             shading: shading.clone(),
             colour: colour.clone(),
             region: region.clone(),
+            along_across,
         });
         Ok((pu, directed, sketch))
     };

@@ -1,7 +1,8 @@
 //! `coif synth-hair`: a sketch back to a hair image (CZ06 §3), from the sketch file alone.
 //!
 //! Order: the hair region from the sketch's outline → V = (Θ, ρ, d) filled in from the
-//! curves (Eq. 14-17, `fill`) → the high band synthesised along V (§3.2, `texture`) → the
+//! curves (Eq. 14-17, `fill`) → the high band synthesised along V (§3.2, `texture`), with
+//! grain up to the sketch's along/across ratio when it stores one (`texture::add_grain`) → the
 //! low band from the shading bases (Eq. 1) → I_Y = I_L + I_H → the colour map from gray to
 //! (u, v) → sRGB, composited over a photo when one is given.
 //!
@@ -16,12 +17,26 @@ use image::RgbImage;
 use std::time::Instant;
 
 /// Every setting of the synthesis.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct SynthParams {
     pub fill: fill::FillParams,
     pub texture: texture::TextureParams,
     /// Seed of the draws (ρ off the sketch, texture noise); None = the sketch's own.
     pub seed: Option<u64>,
+    /// Add grain up to the sketch's along/across ratio (`texture::add_grain`); false: the
+    /// band as line-integral convolution leaves it.
+    pub grain: bool,
+}
+
+impl Default for SynthParams {
+    fn default() -> Self {
+        SynthParams {
+            fill: Default::default(),
+            texture: Default::default(),
+            seed: None,
+            grain: true,
+        }
+    }
 }
 
 /// What the synthesis made.
@@ -38,6 +53,8 @@ pub struct Synthesis {
     /// The coloured image: hair through the colour map, the rest from `over` or, without
     /// one, the hair's mean colour.
     pub image: RgbImage,
+    /// The grain added to the high band, if any.
+    pub grain: Option<texture::Grain>,
     pub seconds: Vec<(&'static str, f64)>,
 }
 
@@ -84,7 +101,11 @@ pub fn synthesise(
     }
     let field = fill::fill(engine, &painted, &hair, &s.rho_off, seed, &p.fill)?;
     lap("fill", &mut t);
-    let high = texture::synthesise(engine, &field, &hair, seed, &p.texture)?;
+    let mut high = texture::synthesise(engine, &field, &hair, seed, &p.texture)?;
+    let grain = match (p.grain, s.along_across) {
+        (true, Some(t)) => texture::add_grain(&mut high, &field, &hair, seed, t),
+        _ => None,
+    };
     lap("texture", &mut t);
     let low = s.shading.render(w, h);
     let gray: Vec<f32> = (0..hair.len())
@@ -118,6 +139,7 @@ pub fn synthesise(
         high,
         gray,
         image,
+        grain,
         seconds,
     })
 }

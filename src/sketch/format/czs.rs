@@ -143,6 +143,9 @@ fn pack(c: &Codes, version: u8, measure: bool) -> (Vec<u8>, [usize; 5]) {
     for &r in &c.rho_off {
         w.put(r as u64, 8);
     }
+    if version >= 6 {
+        w.put(c.along_across as u64, 8);
+    }
     let header = w.bits;
 
     let curves = if version >= 3 {
@@ -314,6 +317,11 @@ fn unpack(data: &[u8], version: u8) -> std::result::Result<Codes, String> {
     for v in &mut rho_off {
         *v = r.get(8, "the contrast prior")? as u8;
     }
+    let along_across = if version >= 6 {
+        r.get(8, "the along/across ratio")? as u8
+    } else {
+        0
+    };
 
     let (xb, yb) = (bits_for(width), bits_for(height));
     let mut curves = if version >= 3 {
@@ -419,6 +427,7 @@ fn unpack(data: &[u8], version: u8) -> std::result::Result<Codes, String> {
         bases,
         colour: ColourCodes { k },
         region,
+        along_across,
     })
 }
 
@@ -672,6 +681,7 @@ mod tests {
                 uv: vec![[0.0, 0.0]; COLOUR_BINS],
             },
             region: Vec::new(),
+            along_across: None,
         }
     }
 
@@ -849,5 +859,27 @@ mod tests {
                 let _ = from_czs(&bad, Path::new("bad.czs"));
             }
         }
+
+        // Version 6 adds the along/across ratio in one byte; version 5 of the same sketch
+        // reads back without it, everything else equal.
+        s.along_across = Some(0.105);
+        let c = codes(&s);
+        let ((v5, _), (v6, b6)) = (assemble(&c, 5, true), assemble(&c, 6, true));
+        let q = quantise(&s);
+        let six = from_czs(&v6, Path::new("v6.czs")).unwrap();
+        assert_eq!(six, q);
+        let t = six.along_across.unwrap();
+        assert!((t / 0.105 - 1.0).abs() < 0.023, "{t}");
+        let five = from_czs(&v5, Path::new("v5.czs")).unwrap();
+        assert_eq!(five.along_across, None);
+        assert_eq!(
+            crate::sketch::Sketch {
+                along_across: t.into(),
+                ..five
+            },
+            q
+        );
+        assert_eq!(v6.len(), v5.len() + 1);
+        assert_eq!(b6[0], b5[0] + 8);
     }
 }

@@ -50,6 +50,9 @@ pub(super) struct JsonSketch {
     /// The hair region's polygons (absent: the whole image).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub(super) region: super::super::Region,
+    /// The high band's along/across ratio (absent: none, no grain in synthesis).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub(super) along_across: Option<f32>,
 }
 
 pub(super) const FORMAT_NAME: &str = "coif-sketch";
@@ -116,6 +119,7 @@ pub(super) fn json_of(c: &Codes) -> JsonSketch {
         },
         colour: s.colour,
         region: c.region.clone(),
+        along_across: s.along_across,
     }
 }
 
@@ -264,6 +268,7 @@ pub fn from_json(text: &str, path: &Path) -> Result<Sketch> {
         },
         colour: j.colour,
         region: j.region,
+        along_across: j.along_across,
     };
     let q = quantise(&sketch);
     validate(&q, path)?;

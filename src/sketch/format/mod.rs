@@ -50,14 +50,15 @@ pub use validate::{require_curves, validate, MARGIN};
 
 /// File magic of `.czs`.
 pub const MAGIC: &[u8; 3] = b"CZS";
-/// `.czs` and `sketch.json` format version: 2 adds the hair region; version 1 files (no
-/// region: the whole image) are still read.
-pub const VERSION: u8 = 2;
+/// `.czs` and `sketch.json` format version: 2 adds the hair region, 3 the high band's
+/// along/across ratio (`Sketch::along_across`); version 1 and 2 files (no region: the whole
+/// image; no ratio: no grain) are still read.
+pub const VERSION: u8 = 3;
 /// `.czs` container version: 3 range codes the curves (the sketch is that of [`VERSION`]),
 /// 4 with richer contexts (the same fields), 5 the colour map and the region too, and the
 /// curves sorted by start with their paint order as a bit per overlapping pair
-/// ([`order`]); versions 1 to 4 are still read.
-pub const CZS_VERSION: u8 = 5;
+/// ([`order`]), 6 the along/across ratio (one byte); versions 1 to 5 are still read.
+pub const CZS_VERSION: u8 = 6;
 /// The JSON Schema `sketch.json` is checked against.
 pub const SCHEMA: &str = include_str!("../../../schemas/sketch.v1.schema.json");
 const SCHEMA_URL: &str = "urn:coif:sketch.v1.schema.json";
@@ -304,6 +305,8 @@ struct Codes {
     bases: Vec<BaseCodes>,
     colour: ColourCodes,
     region: super::Region,
+    /// [`along_across_code`].
+    along_across: u8,
 }
 
 fn sign(d: i8) -> i8 {
@@ -460,7 +463,24 @@ fn codes(s: &Sketch) -> Codes {
             .collect(),
         colour: colour_codes(&s.colour),
         region: region_codes(&s.region, w, h),
+        along_across: along_across_code(s.along_across),
     }
+}
+
+/// `Sketch::along_across` as the files store it: 0 for none; q in 1..=255 stands for
+/// 2^(−(q − 1)/16), from 1 down to 1.7e-5 in steps of 4.4% (a ratio over 1 is stored as
+/// 1; a value that is not a positive finite number as none).
+fn along_across_code(v: Option<f32>) -> u8 {
+    match v {
+        Some(t) if t.is_finite() && t > 0.0 => {
+            (1.0 - 16.0 * t.log2()).round().clamp(1.0, 255.0) as u8
+        }
+        _ => 0,
+    }
+}
+
+fn along_across_value(q: u8) -> Option<f32> {
+    (q > 0).then(|| (-(q as f32 - 1.0) / 16.0).exp2())
 }
 
 /// The region as the files store it: vertices clamped to the image's corners, repeats
@@ -563,6 +583,7 @@ fn decode(c: &Codes) -> Sketch {
         },
         colour: decode_colour(&c.colour),
         region: c.region.clone(),
+        along_across: along_across_value(c.along_across),
     }
 }
 
@@ -581,7 +602,8 @@ fn decode(c: &Codes) -> Sketch {
 ///   (amplitudes beyond ±64 are clamped); a map of other than 16 bins is cut or padded
 ///   with gray; non-finite numbers become 0;
 /// - region: vertices clamped to [0, W]×[0, H], repeated vertices dropped, polygons of
-///   fewer than 3 vertices dropped.
+///   fewer than 3 vertices dropped;
+/// - the along/across ratio to the nearest 2^(−k/16), at most 1 (see `along_across_code`).
 pub fn quantise(s: &Sketch) -> Sketch {
     decode(&codes(s))
 }

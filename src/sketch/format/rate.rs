@@ -368,6 +368,7 @@ mod tests {
                 uv: vec![[0.0; 2]; 8],
             },
             region: Vec::new(),
+            along_across: None,
         }
     }
 

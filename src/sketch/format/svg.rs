@@ -38,7 +38,7 @@ pub fn to_svg(s: &Sketch) -> String {
         "<svg xmlns=\"http://www.w3.org/2000/svg\" version=\"1.1\" width=\"{w}\" \
          height=\"{h}\" viewBox=\"0 0 {w} {h}\"\n     data-cz-format=\"{FORMAT_NAME}\" \
          data-cz-version=\"{VERSION}\" data-seed=\"{}\"\n     data-rho-off=\"{}\"\n     \
-         data-shading-mean=\"{}\"\n     data-colour=\"{}\">\n",
+         data-shading-mean=\"{}\"\n     data-colour=\"{}\"{}>\n",
         q.seed,
         fmt_list(
             q.rho_off
@@ -49,6 +49,9 @@ pub fn to_svg(s: &Sketch) -> String {
         ),
         q.shading.mean,
         fmt_list(q.colour.uv.iter().flatten()),
+        q.along_across
+            .map(|t| format!("\n     data-along-across=\"{t}\""))
+            .unwrap_or_default(),
     ));
     out.push_str(
         "  <title>coif sketch (Chen and Zhu 2006): curves a-e, shading ellipses</title>\n  \
@@ -275,6 +278,18 @@ fn parse_svg(text: &str) -> std::result::Result<Sketch, String> {
         "data-colour",
         2 * COLOUR_BINS,
     )?;
+    // Optional (version 3): absent, no grain.
+    let along_across = match root.attribute("data-along-across") {
+        None => None,
+        Some(t) => match t.trim().parse::<f64>() {
+            Ok(v) if v.is_finite() && v > 0.0 => Some(v as f32),
+            _ => {
+                return Err(format!(
+                    "<svg> data-along-across=\"{t}\" is not a positive number"
+                ))
+            }
+        },
+    };
     let mut curves = Vec::new();
     let mut bases = Vec::new();
     let mut region = Vec::new();
@@ -412,6 +427,7 @@ fn parse_svg(text: &str) -> std::result::Result<Sketch, String> {
             uv: col.chunks(2).map(|c| [c[0] as f32, c[1] as f32]).collect(),
         },
         region,
+        along_across,
     };
     Ok(quantise(&sketch))
 }

@@ -202,6 +202,7 @@ mod tests {
                 uv: vec![[10.0, 20.0]; COLOUR_BINS],
             },
             region: Vec::new(),
+            along_across: None,
         }
     }
 

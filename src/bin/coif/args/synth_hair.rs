@@ -25,6 +25,10 @@ pub struct SynthHairArgs {
     /// Half-length of the streamline average, px each way (longer: longer streaks).
     #[arg(long, default_value_t = coif::sketch::texture::TextureParams::default().half_len)]
     half_length: f32,
+    /// No grain: the high band as streamline averaging leaves it (by default grain is added
+    /// up to the along/across gradient ratio the sketch stores from its photo).
+    #[arg(long)]
+    no_grain: bool,
     /// A photo of the sketch's size to put the hair over.
     #[arg(long)]
     over: Option<PathBuf>,
@@ -40,6 +44,7 @@ impl SynthHairArgs {
     pub fn request(self) -> Request {
         let mut params = SynthParams {
             seed: self.seed,
+            grain: !self.no_grain,
             ..Default::default()
         };
         params.texture.rounds = self.rounds;
