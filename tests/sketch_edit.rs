@@ -275,6 +275,22 @@ fn each_edit_does_what_it_says_through_the_files() {
         .to_string();
     assert!(m.contains("shading base 3: sx is inf"), "{m}");
 
+    // The along/across ratio: set (snapped as the files store it), removed, refused when
+    // not a positive number.
+    let q = apply(&s, &[Edit::AlongAcross(Some(0.1))]).unwrap();
+    let t = q.along_across.unwrap();
+    assert!((t / 0.1 - 1.0).abs() < 0.023, "{t}");
+    assert_eq!(
+        apply(&q, &[Edit::AlongAcross(None)]).unwrap().along_across,
+        None
+    );
+    for bad in [0.0, -0.1, f32::NAN, f32::INFINITY] {
+        let m = apply(&s, &[Edit::AlongAcross(Some(bad))])
+            .unwrap_err()
+            .to_string();
+        assert!(m.contains("must be a positive number"), "{m}");
+    }
+
     // Edits run in order: a deletion renumbers the curves after it.
     let (q, log) = apply_logged(&s, &[Edit::Delete(0), Edit::Flip(0, Side::Left)]).unwrap();
     assert_eq!(q.curves[0].dirs, [-1, -1]);
@@ -593,6 +609,23 @@ fn bad_sketches_and_bad_edits_are_refused() {
         &["--contrast 1:x", "not a finite number"],
     );
     fails(with(&["--base", "0:size=3"]), &["unknown field \"size\""]);
+    for bad in ["x", "0", "nan"] {
+        fails(
+            with(&["--along-across", bad]),
+            &["--along-across", "not a positive number or \"none\""],
+        );
+    }
+    // The ratio alone is an edit; "none" removes it.
+    let set = with(&["--along-across", "0.2"]);
+    let set: Vec<&str> = set.iter().map(|x| x.as_str()).collect();
+    run_ok(&set);
+    let t = load(&out).unwrap().along_across.unwrap();
+    assert!((t / 0.2 - 1.0).abs() < 0.023, "{t}");
+    let none = with(&["--along-across", "none"]);
+    let none: Vec<&str> = none.iter().map(|x| x.as_str()).collect();
+    run_ok(&none);
+    assert_eq!(load(&out).unwrap().along_across, None);
+    std::fs::remove_file(&out).unwrap();
     fails(
         with(&["--add", s(&d.join("missing.svg"))]),
         &["missing.svg"],

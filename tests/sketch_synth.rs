@@ -361,8 +361,25 @@ fn the_command_writes_the_image_and_refuses_bad_input() {
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let said = |o: &std::process::Output| {
+        String::from_utf8_lossy(&o.stdout).into_owned() + &String::from_utf8_lossy(&o.stderr)
+    };
+    assert!(said(&o).contains("grain: along/across"), "{}", said(&o));
     let out = image::open(d.join("hair.png")).unwrap().to_rgb8();
     assert_eq!(out.dimensions(), (128, 128));
+    // Without grain: another image, and the report says so.
+    let o = coif()
+        .args(["synth-hair", "--backend", "cpu", "--no-grain", "--sketch"])
+        .arg(d.join("hair.czs"))
+        .arg("--out")
+        .arg(d.join("plain.png"))
+        .arg("--over")
+        .arg(d.join("photo.png"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", said(&o));
+    assert!(said(&o).contains("grain: off"), "{}", said(&o));
+    assert_ne!(image::open(d.join("plain.png")).unwrap().to_rgb8(), out);
     // Off the hair the photo shows through.
     let off = (0..128 * 128)
         .find(|&i| !region::fill(&s.region, 128, 128)[i])

@@ -79,6 +79,8 @@ pub enum Edit {
     DeleteBase(usize),
     /// Appends a shading base.
     AddBase(Base),
+    /// Sets the high band's along/across ratio (`Sketch::along_across`; None: no grain).
+    AlongAcross(Option<f32>),
 }
 
 impl fmt::Display for Edit {
@@ -98,6 +100,8 @@ impl fmt::Display for Edit {
             Edit::Base(i, _) => write!(f, "edit shading base {i}"),
             Edit::DeleteBase(i) => write!(f, "delete shading base {i}"),
             Edit::AddBase(b) => write!(f, "add a shading base at ({}, {})", b.x, b.y),
+            Edit::AlongAcross(Some(v)) => write!(f, "set the along/across ratio to {v}"),
+            Edit::AlongAcross(None) => write!(f, "remove the along/across ratio"),
         }
     }
 }
@@ -337,6 +341,26 @@ fn step(t: &mut Sketch, e: &Edit) -> std::result::Result<String, String> {
             Ok(format!(
                 "added shading base {i} ({})",
                 base_text(&quantised_base(t, i))
+            ))
+        }
+        Edit::AlongAcross(v) => {
+            if let Some(x) = v {
+                if !(x.is_finite() && *x > 0.0) {
+                    return Err(format!(
+                        "the along/across ratio must be a positive number, got {x}"
+                    ));
+                }
+            }
+            let old = t.along_across;
+            t.along_across = *v;
+            let text = |v: Option<f32>| match format::quantise_along_across(v) {
+                Some(x) => format!("{x:.4}"),
+                None => "none".into(),
+            };
+            Ok(format!(
+                "along/across ratio: {} -> {}",
+                text(old),
+                text(t.along_across)
             ))
         }
     }

@@ -58,6 +58,11 @@ pub struct SketchEditArgs {
         allow_hyphen_values = true
     )]
     add_base: Vec<String>,
+    /// Sets the along/across gradient ratio synthesis adds grain up to (what `coif sketch`
+    /// measures on the photo; larger: grainier, shorter-looking strands), or `none` for no
+    /// grain.
+    #[arg(long = "along-across", value_name = "X|none")]
+    along_across: Option<String>,
 }
 
 fn invalid(m: String) -> anyhow::Error {
@@ -198,6 +203,21 @@ impl SketchEditArgs {
                 sy: x[4],
                 amp: x[5],
             })));
+        }
+        if let Some(v) = &self.along_across {
+            let x = if v.trim() == "none" {
+                None
+            } else {
+                match v.trim().parse::<f32>() {
+                    Ok(x) if x.is_finite() && x > 0.0 => Some(x),
+                    _ => {
+                        return Err(invalid(format!(
+                            "--along-across {v}: not a positive number or \"none\""
+                        )))
+                    }
+                }
+            };
+            steps.push(EditStep::Edit(Edit::AlongAcross(x)));
         }
         Ok(Request::Jobs {
             jobs: vec![Job::SketchEdit(SketchEditJob {

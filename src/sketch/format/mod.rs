@@ -483,6 +483,11 @@ fn along_across_value(q: u8) -> Option<f32> {
     (q > 0).then(|| (-(q as f32 - 1.0) / 16.0).exp2())
 }
 
+/// An along/across ratio as the files store it.
+pub fn quantise_along_across(v: Option<f32>) -> Option<f32> {
+    along_across_value(along_across_code(v))
+}
+
 /// The region as the files store it: vertices clamped to the image's corners, repeats
 /// dropped, polygons of fewer than 3 vertices dropped.
 fn region_codes(r: &super::Region, w: u32, h: u32) -> super::Region {
