@@ -152,6 +152,9 @@ pub struct SynthHairOpts {
     pub rounds: Option<u32>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub half_length: Option<f32>,
+    /// Grain up to the sketch's along/across ratio (default true).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub grain: Option<bool>,
     /// Put the hair over the job's image.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub over: bool,
@@ -479,6 +482,7 @@ impl BatchJob {
                     };
                     set(&mut params.texture.rounds, o.rounds);
                     set(&mut params.texture.half_len, o.half_length);
+                    set(&mut params.grain, o.grain);
                     Job::SynthHair(SynthHairJob {
                         sketch: out.join("sketch").join("hair.czs"),
                         out: out.join("synth-hair.png"),
