@@ -532,9 +532,12 @@ pub fn add_grain(
             (-gx[k] * s + gy[k] * c) as f64,
         )
     };
+    // The across components, kept for the rescaling below.
+    let mut across = Vec::with_capacity(inp.pixels);
     for k in (0..n).filter(|&k| dom[k]) {
         let (ab, xb) = comp(k, &bx, &by);
         let (ag, xg) = comp(k, &nx, &ny);
+        across.push((xb, xg));
         a_bb += ab * ab;
         a_bg += ab * ag;
         a_gg += ag * ag;
@@ -562,9 +565,7 @@ pub fn add_grain(
     }
     // Mean |∇⊥| before and after, to keep the contrast the band was matched to.
     let (mut m0, mut m1) = (0.0f64, 0.0f64);
-    for kk in (0..n).filter(|&k| dom[k]) {
-        let (_, xb) = comp(kk, &bx, &by);
-        let (_, xg) = comp(kk, &nx, &ny);
+    for &(xb, xg) in &across {
         m0 += xb.abs();
         m1 += (xb + k * xg).abs();
     }
