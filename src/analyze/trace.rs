@@ -17,6 +17,8 @@
 //! Coordinates: pixel (i, j) has its centre at (i + 0.5, j + 0.5), x right, y down; angles
 //! are measured from +x towards +y, as in the orientation map.
 
+use crate::base::filter::box_mean;
+
 /// Tracing parameters. Lengths are in pixels.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct TraceParams {
@@ -405,27 +407,6 @@ fn arc_score(f: &Field, p: [f32; 2], phi: f32, kappa: f32, len: f32) -> f32 {
         }
     }
     score
-}
-
-/// Mean over a (2r+1)^2 window, clipped at the borders (separable running sums).
-fn box_mean(v: &[f32], w: usize, h: usize, r: usize) -> Vec<f32> {
-    let mut tmp = vec![0.0f32; w * h];
-    for y in 0..h {
-        let row = &v[y * w..(y + 1) * w];
-        for x in 0..w {
-            let (a, b) = (x.saturating_sub(r), (x + r).min(w - 1));
-            tmp[y * w + x] = row[a..=b].iter().sum::<f32>() / (b - a + 1) as f32;
-        }
-    }
-    let mut out = vec![0.0f32; w * h];
-    for y in 0..h {
-        let (a, b) = (y.saturating_sub(r), (y + r).min(h - 1));
-        for x in 0..w {
-            let s: f32 = (a..=b).map(|yy| tmp[yy * w + x]).sum();
-            out[y * w + x] = s / (b - a + 1) as f32;
-        }
-    }
-    out
 }
 
 /// Raises `grid` to at least `level` on the pixels whose centres lie within `r` of `c`.

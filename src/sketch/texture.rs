@@ -510,7 +510,7 @@ pub fn add_grain(
         })
         .collect();
     for _ in 0..2 {
-        let b = box3(&g, wu, hu);
+        let b = crate::base::filter::box_mean(&g, wu, hu, 1);
         for (v, m) in g.iter_mut().zip(b) {
             *v -= m;
         }
@@ -592,23 +592,4 @@ pub fn add_grain(
         amplitude: kf,
         rescale,
     })
-}
-
-/// Mean over the 3x3 window clamped to the image.
-fn box3(v: &[f32], w: usize, h: usize) -> Vec<f32> {
-    let mut rows = vec![0.0f32; v.len()];
-    for y in 0..h {
-        for x in 0..w {
-            let (a, b) = (x.saturating_sub(1), (x + 1).min(w - 1));
-            rows[y * w + x] = v[y * w + a..=y * w + b].iter().sum::<f32>() / (b - a + 1) as f32;
-        }
-    }
-    let mut out = vec![0.0f32; v.len()];
-    for y in 0..h {
-        let (a, b) = (y.saturating_sub(1), (y + 1).min(h - 1));
-        for x in 0..w {
-            out[y * w + x] = (a..=b).map(|k| rows[k * w + x]).sum::<f32>() / (b - a + 1) as f32;
-        }
-    }
-    out
 }

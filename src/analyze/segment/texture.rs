@@ -9,6 +9,8 @@
 //! its bin's share. When the feature does not tell the two apart, the histograms agree and
 //! the term is near zero for every pixel.
 
+use crate::base::filter::box_mean;
+
 /// Histogram bins over the feature's range.
 const BINS: usize = 24;
 /// Upper end of the feature (ln(1 + RMS in 8-bit levels)); stronger texture shares the
@@ -34,28 +36,6 @@ pub(super) fn texture_bins(rgb: &[[f32; 3]], w: usize, h: usize) -> Vec<u8> {
             ((f / F_MAX * BINS as f32) as usize).min(BINS - 1) as u8
         })
         .collect()
-}
-
-/// Mean over the (2r+1)^2 window clamped to the image (separable running sums).
-fn box_mean(v: &[f32], w: usize, h: usize, r: usize) -> Vec<f32> {
-    let mut tmp = vec![0f32; v.len()];
-    for y in 0..h {
-        let row = &v[y * w..(y + 1) * w];
-        for x in 0..w {
-            let (a, b) = (x.saturating_sub(r), (x + r).min(w - 1));
-            let s: f32 = row[a..=b].iter().sum();
-            tmp[y * w + x] = s / (b - a + 1) as f32;
-        }
-    }
-    let mut out = vec![0f32; v.len()];
-    for x in 0..w {
-        for y in 0..h {
-            let (a, b) = (y.saturating_sub(r), (y + r).min(h - 1));
-            let s: f32 = (a..=b).map(|k| tmp[k * w + x]).sum();
-            out[y * w + x] = s / (b - a + 1) as f32;
-        }
-    }
-    out
 }
 
 /// Negative log shares of each bin among `idx`'s pixels, smoothed (one count per bin plus
