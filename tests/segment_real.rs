@@ -139,10 +139,11 @@ fn score(r: &Reference, got: &GrayImage) -> (f64, u64, u64) {
 #[test]
 fn masks_from_strokes_match_hand_drawn_masks_on_real_portraits() {
     let p = AnalyzeParams::default().segment;
-    // Colour alone: the GMM graph cut without the texture and geodesic terms.
+    // Colour alone: the GMM graph cut without the texture, geodesic and agreement terms.
     let colour = coif::analyze::segment::SegmentParams {
         texture: 0.0,
         geodesic: 0.0,
+        agreement: 0.0,
         ..p
     };
     let mut reached = 0;

@@ -11,6 +11,7 @@
 //! Everything is deterministic: sampling uses a fixed-seed [`Rng`], parallel work is
 //! per-pixel and reductions run sequentially.
 
+mod agree;
 mod flow;
 mod geodesic;
 mod gmm;
@@ -22,7 +23,7 @@ use crate::io::annot::{StrokeKind, Strokes};
 use flow::{smoothness_weights, GridFlow};
 use gmm::{data_terms, Gmm};
 use image::{GrayImage, RgbImage};
-use texture::{texture_bins, texture_nll};
+use texture::{bin_nll, texture_bins};
 
 /// Tuning of [`segment`].
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
@@ -53,6 +54,11 @@ pub struct SegmentParams {
     /// pixel nearer (in colour-weighted path length) to a background stroke than to a
     /// direction stroke leans to background, by up to this much. 0 turns it off.
     pub geodesic: f32,
+    /// Weight of the term for agreement with the strokes' flow (see `agree.rs`): a pixel
+    /// whose local orientation runs across the direction strokes near it leans to
+    /// background, by up to this many times the log-ratio of the two learned histograms
+    /// (never toward hair); 0 turns it off.
+    pub agreement: f32,
 }
 
 impl Default for SegmentParams {
@@ -67,6 +73,7 @@ impl Default for SegmentParams {
             max_hole: 500,
             texture: 1.0,
             geodesic: 3.0,
+            agreement: 3.0,
         }
     }
 }
@@ -96,6 +103,12 @@ impl SegmentParams {
             return bad(format!(
                 "texture must be a finite number >= 0, got {}",
                 self.texture
+            ));
+        }
+        if !(self.agreement.is_finite() && self.agreement >= 0.0) {
+            return bad(format!(
+                "agreement must be a finite number >= 0, got {}",
+                self.agreement
             ));
         }
         if self.components == 0 || self.components > 64 {
@@ -219,8 +232,15 @@ pub fn segment(image: &RgbImage, strokes: &Strokes, p: &SegmentParams) -> Result
     );
 
     let tex = texture_bins(&rgb, wu, hu);
-    let mut tex_fg = texture_nll(&tex, &hair_init);
-    let mut tex_bg = texture_nll(&tex, &back_init);
+    let mut tex_fg: [f32; texture::BINS] = bin_nll(&tex, &hair_init);
+    let mut tex_bg: [f32; texture::BINS] = bin_nll(&tex, &back_init);
+    let agr = if p.agreement > 0.0 {
+        agree::agreement_bins(&rgb, strokes, wu, hu)
+    } else {
+        vec![0; n]
+    };
+    let mut agr_fg: [f32; agree::BINS] = bin_nll(&agr, &hair_init);
+    let mut agr_bg: [f32; agree::BINS] = bin_nll(&agr, &back_init);
 
     // Only background strokes say where the background is; the border is no such evidence.
     let geo: Vec<f32> = if p.geodesic > 0.0 && !marked.is_empty() {
@@ -255,11 +275,13 @@ pub fn segment(image: &RgbImage, strokes: &Strokes, p: &SegmentParams) -> Result
             let back_px: Vec<usize> = (0..n).filter(|&i| !label[i]).collect();
             if !hair_px.is_empty() {
                 fg.refine(&sample(&rgb, &hair_px, &mut rng));
-                tex_fg = texture_nll(&tex, &hair_px);
+                tex_fg = bin_nll(&tex, &hair_px);
+                agr_fg = bin_nll(&agr, &hair_px);
             }
             if !back_px.is_empty() {
                 bg.refine(&sample(&rgb, &back_px, &mut rng));
-                tex_bg = texture_nll(&tex, &back_px);
+                tex_bg = bin_nll(&tex, &back_px);
+                agr_bg = bin_nll(&agr, &back_px);
             }
         }
         let (dfg, dbg) = data_terms(&rgb, &fg, &bg);
@@ -268,8 +290,12 @@ pub fn segment(image: &RgbImage, strokes: &Strokes, p: &SegmentParams) -> Result
             BACK => f32::NEG_INFINITY,
             // Source = hair: the source link is paid when the pixel ends up background.
             _ => {
-                let t = tex[i] as usize;
-                dbg[i] - dfg[i] + p.texture * (tex_bg[t] - tex_fg[t]) + geo[i]
+                let (t, a) = (tex[i] as usize, agr[i] as usize);
+                dbg[i] - dfg[i]
+                    + p.texture * (tex_bg[t] - tex_fg[t])
+                    // One-sided: only evidence against hair (see `agree.rs`).
+                    + p.agreement * (agr_bg[a] - agr_fg[a]).min(0.0)
+                    + geo[i]
             }
         });
         flow.max_flow();

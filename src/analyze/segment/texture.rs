@@ -12,7 +12,7 @@
 use crate::base::filter::box_mean;
 
 /// Histogram bins over the feature's range.
-const BINS: usize = 24;
+pub(super) const BINS: usize = 24;
 /// Upper end of the feature (ln(1 + RMS in 8-bit levels)); stronger texture shares the
 /// last bin.
 const F_MAX: f32 = 4.5;
@@ -40,15 +40,16 @@ pub(super) fn texture_bins(rgb: &[[f32; 3]], w: usize, h: usize) -> Vec<u8> {
 
 /// Negative log shares of each bin among `idx`'s pixels, smoothed (one count per bin plus
 /// a 5% uniform floor) so that an empty bin is unlikely rather than impossible.
-pub(super) fn texture_nll(bins: &[u8], idx: &[usize]) -> [f32; BINS] {
-    let mut count = [1.0f64; BINS];
+/// `B` is the feature's bin count (texture and agreement share this).
+pub(super) fn bin_nll<const B: usize>(bins: &[u8], idx: &[usize]) -> [f32; B] {
+    let mut count = [1.0f64; B];
     for &i in idx {
         count[bins[i] as usize] += 1.0;
     }
     let total: f64 = count.iter().sum();
-    let mut out = [0f32; BINS];
+    let mut out = [0f32; B];
     for (o, c) in out.iter_mut().zip(count) {
-        let p = 0.95 * c / total + 0.05 / BINS as f64;
+        let p = 0.95 * c / total + 0.05 / B as f64;
         *o = -(p.ln()) as f32;
     }
     out
@@ -82,7 +83,7 @@ mod tests {
         println!("strand bin {strand}, smooth bin {smooth}");
         assert!(strand > smooth + 10, "strand {strand}, smooth {smooth}");
         let hair: Vec<usize> = (0..w * h).filter(|i| i % w < 10).collect();
-        let nll = texture_nll(&b, &hair);
+        let nll: [f32; BINS] = bin_nll(&b, &hair);
         assert!(nll[strand as usize] < nll[smooth as usize]);
     }
 }
