@@ -66,11 +66,19 @@ pub(super) fn agreement_bins(rgb: &[[f32; 3]], strokes: &Strokes, w: usize, h: u
         .collect()
 }
 
+/// A direction stroke's segment: start, direction (end − start), squared length and the
+/// doubled-angle unit vector of its orientation.
+struct Segment {
+    a: [f32; 2],
+    d: [f32; 2],
+    l2: f32,
+    doubled: [f32; 2],
+}
+
 /// The strokes' predicted orientation at every pixel as a doubled-angle vector
 /// (cos 2θ, sin 2θ) scaled by how much the nearby segments agree (1 when they are parallel).
 fn stroke_orientation(strokes: &Strokes, w: usize, h: usize) -> Vec<[f32; 2]> {
-    // Segments as (start, direction, squared length, doubled-angle unit vector).
-    let segs: Vec<([f32; 2], [f32; 2], f32, [f32; 2])> = strokes
+    let segs: Vec<Segment> = strokes
         .strokes
         .iter()
         .filter(|s| s.kind == StrokeKind::Direction)
@@ -81,7 +89,12 @@ fn stroke_orientation(strokes: &Strokes, w: usize, h: usize) -> Vec<[f32; 2]> {
             let l2 = d[0] * d[0] + d[1] * d[1];
             (l2 > 0.0).then(|| {
                 let (c, s) = (d[0] / l2.sqrt(), d[1] / l2.sqrt());
-                (a, d, l2, [c * c - s * s, 2.0 * c * s])
+                Segment {
+                    a,
+                    d,
+                    l2,
+                    doubled: [c * c - s * s, 2.0 * c * s],
+                }
             })
         })
         .collect();
@@ -89,18 +102,19 @@ fn stroke_orientation(strokes: &Strokes, w: usize, h: usize) -> Vec<[f32; 2]> {
     (0..w * h)
         .map(|i| {
             let (px, py) = ((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
-            for (k, (a, d, l2, _)) in segs.iter().enumerate() {
-                let t = (((px - a[0]) * d[0] + (py - a[1]) * d[1]) / l2).clamp(0.0, 1.0);
+            for (k, g) in segs.iter().enumerate() {
+                let (a, d) = (g.a, g.d);
+                let t = (((px - a[0]) * d[0] + (py - a[1]) * d[1]) / g.l2).clamp(0.0, 1.0);
                 let (ex, ey) = (px - a[0] - t * d[0], py - a[1] - t * d[1]);
                 d2[k] = ex * ex + ey * ey;
             }
             let nearest = d2.iter().copied().fold(f32::INFINITY, f32::min);
             let (mut c, mut s, mut sum) = (0f32, 0f32, 0f32);
-            for (k, (_, _, l2, u)) in segs.iter().enumerate() {
+            for (k, g) in segs.iter().enumerate() {
                 // Longer segments carry more of the stroke; distances from the nearest one.
-                let wt = l2.sqrt() * (-(d2[k] - nearest) / (2.0 * SIGMA * SIGMA)).exp();
-                c += wt * u[0];
-                s += wt * u[1];
+                let wt = g.l2.sqrt() * (-(d2[k] - nearest) / (2.0 * SIGMA * SIGMA)).exp();
+                c += wt * g.doubled[0];
+                s += wt * g.doubled[1];
                 sum += wt;
             }
             if sum > 0.0 {
