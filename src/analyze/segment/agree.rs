@@ -20,6 +20,7 @@
 
 use crate::base::filter::box_mean;
 use crate::io::annot::{StrokeKind, Strokes};
+use rayon::prelude::*;
 
 /// Histogram bins over [−1, 1].
 pub(super) const BINS: usize = 16;
@@ -98,31 +99,35 @@ fn stroke_orientation(strokes: &Strokes, w: usize, h: usize) -> Vec<[f32; 2]> {
             })
         })
         .collect();
-    let mut d2 = vec![0f32; segs.len()];
+    // Per pixel and independent, so parallel and still deterministic.
     (0..w * h)
-        .map(|i| {
-            let (px, py) = ((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
-            for (k, g) in segs.iter().enumerate() {
-                let (a, d) = (g.a, g.d);
-                let t = (((px - a[0]) * d[0] + (py - a[1]) * d[1]) / g.l2).clamp(0.0, 1.0);
-                let (ex, ey) = (px - a[0] - t * d[0], py - a[1] - t * d[1]);
-                d2[k] = ex * ex + ey * ey;
-            }
-            let nearest = d2.iter().copied().fold(f32::INFINITY, f32::min);
-            let (mut c, mut s, mut sum) = (0f32, 0f32, 0f32);
-            for (k, g) in segs.iter().enumerate() {
-                // Longer segments carry more of the stroke; distances from the nearest one.
-                let wt = g.l2.sqrt() * (-(d2[k] - nearest) / (2.0 * SIGMA * SIGMA)).exp();
-                c += wt * g.doubled[0];
-                s += wt * g.doubled[1];
-                sum += wt;
-            }
-            if sum > 0.0 {
-                [c / sum, s / sum]
-            } else {
-                [0.0, 0.0]
-            }
-        })
+        .into_par_iter()
+        .map_init(
+            || vec![0f32; segs.len()],
+            |d2, i| {
+                let (px, py) = ((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
+                for (k, g) in segs.iter().enumerate() {
+                    let (a, d) = (g.a, g.d);
+                    let t = (((px - a[0]) * d[0] + (py - a[1]) * d[1]) / g.l2).clamp(0.0, 1.0);
+                    let (ex, ey) = (px - a[0] - t * d[0], py - a[1] - t * d[1]);
+                    d2[k] = ex * ex + ey * ey;
+                }
+                let nearest = d2.iter().copied().fold(f32::INFINITY, f32::min);
+                let (mut c, mut s, mut sum) = (0f32, 0f32, 0f32);
+                for (k, g) in segs.iter().enumerate() {
+                    // Longer segments carry more of the stroke; distances from the nearest one.
+                    let wt = g.l2.sqrt() * (-(d2[k] - nearest) / (2.0 * SIGMA * SIGMA)).exp();
+                    c += wt * g.doubled[0];
+                    s += wt * g.doubled[1];
+                    sum += wt;
+                }
+                if sum > 0.0 {
+                    [c / sum, s / sum]
+                } else {
+                    [0.0, 0.0]
+                }
+            },
+        )
         .collect()
 }
 
