@@ -644,6 +644,73 @@ mod tests {
         assert!(v >= 0.95, "IoU {v:.4}");
     }
 
+    /// The flow-agreement term's claim: a hair-coloured, strand-textured patch beside the
+    /// hair whose strands run across the direction strokes near it goes to background, while
+    /// the same patch with its strands along them is not pushed out by the term.
+    #[test]
+    fn strands_across_the_strokes_lean_to_background() {
+        let case = synth(&SynthParams::new(Style::Long, 2));
+        let strokes = direction_only(&case.strokes);
+        let interior = crate::synth::mask_interior(&case.mask, 32.0);
+        // The source: hair beside the left-hand stroke (x ≈ 150, y 228-359), which runs
+        // down; the disc: on the backdrop left of the hair, level with it.
+        let src = (0..512 * 512)
+            .filter(|&i| interior[i])
+            .min_by_key(|&i| ((i % 512) as i64 - 150).pow(2) + ((i / 512) as i64 - 300).pow(2))
+            .expect("a wide hair area");
+        let (sx, sy) = ((src % 512) as i64, (src / 512) as i64);
+        let (cx, cy, r) = (38i64, 300i64, 26i64);
+        let paste = |across: bool| {
+            let mut img = case.image.clone();
+            let mut disc = Vec::new();
+            for y in cy - r..=cy + r {
+                for x in cx - r..=cx + r {
+                    if (x - cx).pow(2) + (y - cy).pow(2) <= r * r {
+                        assert!(!case.is_hair(x as u32, y as u32), "disc overlaps the hair");
+                        let (dx, dy) = if across {
+                            (y - cy, cx - x)
+                        } else {
+                            (x - cx, y - cy)
+                        };
+                        let p = *case.image.get_pixel((sx + dx) as u32, (sy + dy) as u32);
+                        img.put_pixel(x as u32, y as u32, p);
+                        disc.push((x as u32, y as u32));
+                    }
+                }
+            }
+            (img, disc)
+        };
+        for across in [false, true] {
+            let (img, disc) = paste(across);
+            for a in [0.0, 3.0] {
+                let p = SegmentParams {
+                    agreement: a,
+                    ..SegmentParams::default()
+                };
+                let m = segment(&img, &strokes, &p).unwrap();
+                let f = disc
+                    .iter()
+                    .filter(|&&(x, y)| m.get_pixel(x, y)[0] > 127)
+                    .count() as f64
+                    / disc.len() as f64;
+                let v = iou(&m, &case.mask);
+                println!(
+                    "strands {}, agreement {a}: disc hair fraction {f:.3}, IoU with the true \
+                     mask {v:.4}",
+                    if across { "across" } else { "along" }
+                );
+                if across && a > 0.0 {
+                    save_overlay(&img, &m, Some(&case.mask), "long_2_across.png");
+                    assert!(f < 0.05, "the disc across the strokes stays hair: {f:.3}");
+                    assert!(v >= 0.95, "IoU {v:.4}");
+                } else {
+                    // Colour and texture say hair, and the term does not argue.
+                    assert!(f > 0.8, "across {across}, agreement {a}: {f:.3}");
+                }
+            }
+        }
+    }
+
     #[test]
     fn deterministic() {
         let case = synth(&SynthParams::new(Style::Whorl, 3));
