@@ -372,9 +372,16 @@ pub fn render(engine: &Engine, m: &Scene, p: &RenderParams) -> Result<Rendered> 
     // The photo in linear light, once for the strands' photo colour and the layers.
     let lin = m.photo.as_ref().filter(|_| composite).map(linear_photo);
     let photo = match (&m.photo, &m.camera, &strands_m.colors) {
-        (Some(img), Some(cam0), Some(_)) if composite && p.colour == ColourSource::Photo => Some(
-            strand_photo(img, lin.as_deref().expect("composite"), cam0, strands_m, p),
-        ),
+        (Some(img), Some(cam0), Some(_)) if composite && p.colour == ColourSource::Photo => {
+            Some(strand_photo(
+                img,
+                lin.as_deref().expect("composite"),
+                cam0,
+                m.mask.as_deref().filter(|_| !p.is_original_view()),
+                strands_m,
+                p,
+            ))
+        }
         _ => None,
     };
     let colors = match &photo {
@@ -461,10 +468,18 @@ pub fn render(engine: &Engine, m: &Scene, p: &RenderParams) -> Result<Rendered> 
 /// The photo colour of a composite render: every vertex's point in the photo as the model's
 /// camera sees it, the photo in linear light, the strand width in photo px (the view's
 /// `scale` widens strands on screen only) and the HSV adjustment.
+///
+/// With `hair` (a novel view), the strands see only the photo's hair: every other pixel
+/// takes the hair colour around it (a push-pull fill). A strand the photo shows over the
+/// face, the ear or the backdrop (the far side of the head, a tip just past the mask) was
+/// hidden or missed there; a turned view uncovers it, and with the full photo it came out
+/// as a ribbon of skin or backdrop colour. At the original view the full photo stays, so
+/// that a strand over a pixel that is not hair shows what the photo shows there.
 fn strand_photo(
     img: &image::RgbImage,
     lin: &[[f32; 3]],
     cam0: &WeakPerspective,
+    hair: Option<&[u8]>,
     s: &StrandSet,
     p: &RenderParams,
 ) -> StrandPhoto {
@@ -476,7 +491,23 @@ fn strand_photo(
             [o.x, o.y]
         })
         .collect();
-    let texels = lin.iter().map(|c| [c[0], c[1], c[2], 1.0]).collect();
+    let hair_only = hair
+        .filter(|h| h.len() == lin.len() && h.iter().any(|&v| v != 0))
+        .map(|h| {
+            let known: Vec<bool> = h.iter().map(|&v| v != 0).collect();
+            let fill = inpaint::push_pull(img.width(), img.height(), lin, &known, false);
+            lin.iter()
+                .zip(&known)
+                .zip(fill)
+                .map(|((&c, &k), f)| if k { c } else { f })
+                .collect::<Vec<_>>()
+        });
+    let texels = hair_only
+        .as_deref()
+        .unwrap_or(lin)
+        .iter()
+        .map(|c| [c[0], c[1], c[2], 1.0])
+        .collect();
     let sp = &p.shade;
     StrandPhoto {
         points,
@@ -764,4 +795,43 @@ fn resample_to(bg: &[[f32; 4]], w: u32, h: u32, vc: &ViewCamera) -> Vec<[f32; 4]
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// At a novel view the strands see only the photo's hair: a pixel beside the hair takes
+    /// the hair's colour, not the backdrop's; at the original view the photo stays whole.
+    #[test]
+    fn novel_views_colour_strands_from_the_hair_only() {
+        let (w, h) = (16u32, 8u32);
+        // Left half brown hair, right half a blue backdrop.
+        let img = image::RgbImage::from_fn(w, h, |x, _| {
+            if x < w / 2 {
+                image::Rgb([120, 70, 30])
+            } else {
+                image::Rgb([40, 90, 220])
+            }
+        });
+        let hair: Vec<u8> = (0..w * h).map(|i| (i % w < w / 2) as u8).collect();
+        let lin = linear_photo(&img);
+        let cam = WeakPerspective::frontal(1.0, Vec2::ZERO);
+        let s = StrandSet::default();
+        let p = RenderParams::default();
+        let backdrop_px = (3 * w + 12) as usize;
+        let novel = strand_photo(&img, &lin, &cam, Some(&hair), &s, &p);
+        let c = novel.texture.texels[backdrop_px];
+        assert!(
+            c[2] < c[0],
+            "the backdrop's blue reaches the strands: {c:?}"
+        );
+        assert_eq!(novel.texture.texels[3 * w as usize], {
+            let l = lin[3 * w as usize];
+            [l[0], l[1], l[2], 1.0]
+        });
+        let original = strand_photo(&img, &lin, &cam, None, &s, &p);
+        let c = original.texture.texels[backdrop_px];
+        assert!(c[2] > c[0], "the original view keeps the photo: {c:?}");
+    }
 }
