@@ -591,6 +591,46 @@ mod tests {
         }
     }
 
+    /// `case`'s image with a disc of radius `r` around `centre` (which must lie off the
+    /// hair) copied from the hair around the pixel `src`, turned a quarter turn when
+    /// `turned`; and the disc's pixels.
+    fn paste_disc(
+        case: &crate::synth::SynthCase,
+        src: usize,
+        centre: (i64, i64),
+        r: i64,
+        turned: bool,
+    ) -> (RgbImage, Vec<(u32, u32)>) {
+        let (sx, sy) = ((src % 512) as i64, (src / 512) as i64);
+        let (cx, cy) = centre;
+        let mut img = case.image.clone();
+        let mut disc = Vec::new();
+        for y in cy - r..=cy + r {
+            for x in cx - r..=cx + r {
+                if (x - cx).pow(2) + (y - cy).pow(2) <= r * r {
+                    assert!(!case.is_hair(x as u32, y as u32), "disc overlaps the hair");
+                    let (dx, dy) = if turned {
+                        (y - cy, cx - x)
+                    } else {
+                        (x - cx, y - cy)
+                    };
+                    let p = *case.image.get_pixel((sx + dx) as u32, (sy + dy) as u32);
+                    img.put_pixel(x as u32, y as u32, p);
+                    disc.push((x as u32, y as u32));
+                }
+            }
+        }
+        (img, disc)
+    }
+
+    /// The share of `disc`'s pixels that `m` marks as hair.
+    fn hair_share(m: &GrayImage, disc: &[(u32, u32)]) -> f64 {
+        disc.iter()
+            .filter(|&&(x, y)| m.get_pixel(x, y)[0] > 127)
+            .count() as f64
+            / disc.len() as f64
+    }
+
     /// A patch of real hair texture pasted onto the backdrop, away from every stroke, is
     /// segmented as hair (it is hair-coloured and large); one background stroke across it
     /// removes it while the true hair stays.
@@ -599,28 +639,8 @@ mod tests {
         let case = synth(&SynthParams::new(Style::Long, 2));
         let interior = crate::synth::mask_interior(&case.mask, 32.0);
         let src = interior.iter().position(|&b| b).expect("a wide hair area");
-        let (sx, sy) = ((src % 512) as i64, (src / 512) as i64);
-        let (cx, cy, r) = (60i64, 60i64, 30i64);
-        let mut img = case.image.clone();
-        let mut disc = Vec::new();
-        for y in cy - r..=cy + r {
-            for x in cx - r..=cx + r {
-                if (x - cx).pow(2) + (y - cy).pow(2) <= r * r {
-                    assert!(!case.is_hair(x as u32, y as u32), "disc overlaps the hair");
-                    let p = *case
-                        .image
-                        .get_pixel((sx + x - cx) as u32, (sy + y - cy) as u32);
-                    img.put_pixel(x as u32, y as u32, p);
-                    disc.push((x as u32, y as u32));
-                }
-            }
-        }
-        let frac = |m: &GrayImage| {
-            disc.iter()
-                .filter(|&&(x, y)| m.get_pixel(x, y)[0] > 127)
-                .count() as f64
-                / disc.len() as f64
-        };
+        let (img, disc) = paste_disc(&case, src, (60, 60), 30, false);
+        let frac = |m: &GrayImage| hair_share(m, &disc);
         let p = SegmentParams::default();
         let mut strokes = direction_only(&case.strokes);
         let without = segment(&img, &strokes, &p).unwrap();
@@ -658,41 +678,15 @@ mod tests {
             .filter(|&i| interior[i])
             .min_by_key(|&i| ((i % 512) as i64 - 150).pow(2) + ((i / 512) as i64 - 300).pow(2))
             .expect("a wide hair area");
-        let (sx, sy) = ((src % 512) as i64, (src / 512) as i64);
-        let (cx, cy, r) = (38i64, 300i64, 26i64);
-        let paste = |across: bool| {
-            let mut img = case.image.clone();
-            let mut disc = Vec::new();
-            for y in cy - r..=cy + r {
-                for x in cx - r..=cx + r {
-                    if (x - cx).pow(2) + (y - cy).pow(2) <= r * r {
-                        assert!(!case.is_hair(x as u32, y as u32), "disc overlaps the hair");
-                        let (dx, dy) = if across {
-                            (y - cy, cx - x)
-                        } else {
-                            (x - cx, y - cy)
-                        };
-                        let p = *case.image.get_pixel((sx + dx) as u32, (sy + dy) as u32);
-                        img.put_pixel(x as u32, y as u32, p);
-                        disc.push((x as u32, y as u32));
-                    }
-                }
-            }
-            (img, disc)
-        };
         for across in [false, true] {
-            let (img, disc) = paste(across);
+            let (img, disc) = paste_disc(&case, src, (38, 300), 26, across);
             for a in [0.0, 3.0] {
                 let p = SegmentParams {
                     agreement: a,
                     ..SegmentParams::default()
                 };
                 let m = segment(&img, &strokes, &p).unwrap();
-                let f = disc
-                    .iter()
-                    .filter(|&&(x, y)| m.get_pixel(x, y)[0] > 127)
-                    .count() as f64
-                    / disc.len() as f64;
+                let f = hair_share(&m, &disc);
                 let v = iou(&m, &case.mask);
                 println!(
                     "strands {}, agreement {a}: disc hair fraction {f:.3}, IoU with the true \
