@@ -30,15 +30,10 @@ const SIGMA: f32 = 12.0;
 /// about 7 px across).
 const WINDOW: usize = 2;
 
-/// The per-pixel bin of the agreement feature.
-pub(super) fn agreement_bins(rgb: &[[f32; 3]], strokes: &Strokes, w: usize, h: usize) -> Vec<u8> {
+/// The per-pixel bin of the agreement feature. `lum` is the luminance's 3x3 mean
+/// (`texture::luminance`): the light blur keeps JPEG noise from passing for structure.
+pub(super) fn agreement_bins(lum: &[f32], strokes: &Strokes, w: usize, h: usize) -> Vec<u8> {
     let predicted = stroke_orientation(strokes, w, h);
-    let lum: Vec<f32> = rgb
-        .iter()
-        .map(|c| 0.299 * c[0] + 0.587 * c[1] + 0.114 * c[2])
-        .collect();
-    // A light blur first, so that JPEG noise does not pass for structure.
-    let lum = box_mean(&lum, w, h, 1);
     let (mut xx, mut yy, mut xy) = (vec![0f32; w * h], vec![0f32; w * h], vec![0f32; w * h]);
     for y in 0..h {
         for x in 0..w {
@@ -153,7 +148,8 @@ mod tests {
             kind: StrokeKind::Direction,
             points: vec![[10.0, 5.0], [10.0, 35.0]],
         }]);
-        let b = agreement_bins(&rgb, &s, w, h);
+        let (_, blur) = super::super::texture::luminance(&rgb, w, h);
+        let b = agreement_bins(&blur, &s, w, h);
         let (along, across) = (b[20 * w + 8], b[20 * w + 30]);
         println!("along {along}, across {across}");
         assert!(along as usize >= BINS - 2, "along {along}");

@@ -23,7 +23,7 @@ use crate::io::annot::{StrokeKind, Strokes};
 use flow::{smoothness_weights, GridFlow};
 use gmm::{data_terms, Gmm};
 use image::{GrayImage, RgbImage};
-use texture::{bin_nll, texture_bins};
+use texture::{bin_nll, luminance, texture_bins};
 
 /// Tuning of [`segment`].
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
@@ -231,11 +231,12 @@ pub fn segment(image: &RgbImage, strokes: &Strokes, p: &SegmentParams) -> Result
         &mut rng,
     );
 
-    let tex = texture_bins(&rgb, wu, hu);
+    let (lum, lum_mean) = luminance(&rgb, wu, hu);
+    let tex = texture_bins(&lum, &lum_mean, wu, hu);
     let mut tex_fg: [f32; texture::BINS] = bin_nll(&tex, &hair_init);
     let mut tex_bg: [f32; texture::BINS] = bin_nll(&tex, &back_init);
     let agr = if p.agreement > 0.0 {
-        agree::agreement_bins(&rgb, strokes, wu, hu)
+        agree::agreement_bins(&lum_mean, strokes, wu, hu)
     } else {
         vec![0; n]
     };

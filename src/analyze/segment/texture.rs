@@ -17,16 +17,22 @@ pub(super) const BINS: usize = 24;
 /// last bin.
 const F_MAX: f32 = 4.5;
 
-/// The per-pixel bin of the texture feature.
-pub(super) fn texture_bins(rgb: &[[f32; 3]], w: usize, h: usize) -> Vec<u8> {
+/// Luminance (Rec. 601 weights) and its 3x3 box mean, which both the texture and the
+/// flow-agreement terms start from (computed once per segmentation).
+pub(super) fn luminance(rgb: &[[f32; 3]], w: usize, h: usize) -> (Vec<f32>, Vec<f32>) {
     let lum: Vec<f32> = rgb
         .iter()
         .map(|c| 0.299 * c[0] + 0.587 * c[1] + 0.114 * c[2])
         .collect();
     let mean = box_mean(&lum, w, h, 1);
+    (lum, mean)
+}
+
+/// The per-pixel bin of the texture feature, from [`luminance`]'s two planes.
+pub(super) fn texture_bins(lum: &[f32], mean: &[f32], w: usize, h: usize) -> Vec<u8> {
     let e: Vec<f32> = lum
         .iter()
-        .zip(&mean)
+        .zip(mean)
         .map(|(l, m)| (l - m) * (l - m))
         .collect();
     let rms = box_mean(&e, w, h, 3);
@@ -78,7 +84,8 @@ mod tests {
                 [v, v, v]
             })
             .collect();
-        let b = texture_bins(&rgb, w, h);
+        let (lum, mean) = luminance(&rgb, w, h);
+        let b = texture_bins(&lum, &mean, w, h);
         let (strand, smooth) = (b[10 * w + 5], b[10 * w + 35]);
         println!("strand bin {strand}, smooth bin {smooth}");
         assert!(strand > smooth + 10, "strand {strand}, smooth {smooth}");
