@@ -508,6 +508,102 @@ fn texture_is_bilinear_with_texel_centres_at_half_integers() {
     }
 }
 
+/// A mesh texel's alpha is coverage: floor(alpha·N + 0.5) of a pixel's N samples, on both
+/// paths, with depth written only where covered (a strand behind shows in the rest).
+#[test]
+fn texture_alpha_is_coverage_of_the_samples() {
+    let (w, h) = (8, 8);
+    for samples in [4u32, 1] {
+        let p = RasterParams {
+            samples,
+            ..Default::default()
+        };
+        for (a, k) in [
+            (0.0f32, 0u32),
+            (0.1, 0),
+            (0.3, 1),
+            (0.5, 2),
+            (0.7, 3),
+            (0.9, 4),
+            (1.0, 4),
+        ] {
+            let k = if samples == 1 { (a >= 0.5) as u32 } else { k };
+            let mesh = square_mesh(0.0, 0.0, 8.0, 8.0, 0.0, [1.0, 0.0, 0.0, a]);
+            // A green strand behind the whole square, filling every sample the mesh leaves.
+            let behind: Vec<[f32; 3]> = (0..8).map(|y| [-1.0, y as f32 + 0.5, -20.0]).collect();
+            let s = {
+                let mut s = ScreenStrands::default();
+                for q in &behind {
+                    s.points.extend_from_slice(&[*q, [9.0, q[1], -20.0]]);
+                    s.colors.extend([[0.0, 1.0, 0.0, 1.0]; 2]);
+                    s.counts.push(2);
+                }
+                s
+            };
+            let f = frame(w, h);
+            for (path, img) in ["gpu", "cpu"]
+                .iter()
+                .zip(both_with(&f, Some(&mesh), Some(&s), &p))
+            {
+                let want = k as f32 / samples as f32;
+                for (i, px) in img.iter().enumerate() {
+                    assert!(
+                        (px[0] - want).abs() < 2e-3 && (px[1] - (1.0 - want)).abs() < 2e-3,
+                        "{path}, {samples} samples, alpha {a}: pixel {i} is {px:?}, want red {want}"
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// Parity with a texture whose alpha cuts the head along a soft edge.
+#[test]
+fn gpu_matches_cpu_with_texture_alpha() {
+    for (w, h, seed, samples) in [(128u32, 112u32, 5u64, 4u32), (96, 80, 9, 1)] {
+        let mut rng = Rng::new(seed);
+        let mut mesh = head_mesh(w, h, &mut rng);
+        let tw = mesh.texture.width;
+        for (i, t) in mesh.texture.texels.iter_mut().enumerate() {
+            // A ramp across the texture with noise: cut, soft and kept columns.
+            let x = (i as u32 % tw) as f32 / (tw - 1) as f32;
+            t[3] = (1.6 * x - 0.3 + 0.2 * rng.next_f32()).clamp(0.0, 1.0);
+        }
+        let s = random_strands(w, h, 150, &mut rng);
+        let p = RasterParams {
+            samples,
+            strand_width: 1.0,
+        };
+        let f = Frame {
+            width: w,
+            height: h,
+            depth_range: (-200.0, 200.0),
+            background: Some(gradient_background(w, h)),
+        };
+        let cpu = render_cpu(&f, Some(&mesh), Some(&s), &p).unwrap();
+        let gpu = render_gpu(ctx(), &f, Some(&mesh), Some(&s), &p).unwrap();
+        // The cut must show: some of the head's pixels are partly covered.
+        let opaque = render_cpu(
+            &f,
+            Some(&head_mesh(w, h, &mut Rng::new(seed))),
+            Some(&s),
+            &p,
+        )
+        .unwrap();
+        let changed = cpu
+            .iter()
+            .zip(&opaque)
+            .filter(|(a, b)| a.iter().zip(b.iter()).any(|(x, y)| (x - y).abs() > 0.05))
+            .count();
+        println!("{w}x{h}, {samples} samples: the alpha changes {changed} px");
+        assert!(
+            changed > (w * h) as usize / 20,
+            "alpha cut only {changed} px"
+        );
+        agree("texture alpha", &gpu, &cpu, 2, 0.99).unwrap();
+    }
+}
+
 // ---------------------------------------------------------------------------------------------
 // Parity on a head + random strands
 // ---------------------------------------------------------------------------------------------

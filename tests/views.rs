@@ -11,7 +11,9 @@
 //!   (grown by the hair margin and 3 px), so the bound above cannot be widened by a hole
 //!   over the clothing;
 //! * the background is the same for every view (yaw 25° and pitch −10° compared: it
-//!   depends on the photo's camera only).
+//!   depends on the photo's camera only);
+//! * the head layer's outline follows the photo's pixels: at a view 0.5° off the photo's,
+//!   below the mouth it covers nothing beyond the photo's skin, hair and mouth.
 //!
 //! The astronaut at yaw ±25° and the synthetic case at yaw −25° are goldens on lavapipe.
 //! The pictures (render, photo, and the render with the photo's skin region tinted green
@@ -246,6 +248,66 @@ fn check_case(engine: &Engine, name: &str, m: &Scene, photo: &image::RgbImage) {
     for (yaw, pitch) in [(25.0, 0.0), (-25.0, 0.0), (0.0, 10.0), (0.0, -10.0)] {
         check_view(engine, name, m, photo, yaw, pitch, &layers);
     }
+    check_outline(engine, name, m, photo);
+}
+
+/// The head layer's outline follows the photo's pixels, not the mesh's triangles: at a view
+/// 0.5° off the photo's (where the layer lies on the photo), below the mouth it covers no
+/// pixel farther than 1 px from the photo's skin, its hair (grown by the hair margin) and
+/// the mouth (a disc of the mouth's width). Cut per triangle it covered the collar in steps
+/// of a triangle's size (the astronaut: 268 px below the mouth, 4 of them beyond; now 126 and 0).
+fn check_outline(engine: &Engine, name: &str, m: &Scene, photo: &image::RgbImage) {
+    use coif::render::raster::{render_cpu, Frame, RasterParams};
+    let (w, h) = photo.dimensions();
+    let (wu, hu) = (w as usize, h as usize);
+    let mut p = RenderParams {
+        yaw_deg: 0.5,
+        ..Default::default()
+    };
+    p.head_texture.tex_size = 256;
+    let layers = render_layers(engine, m, &p).unwrap();
+    let frame = Frame {
+        width: w,
+        height: h,
+        depth_range: (-1e4, 1e4),
+        background: None,
+    };
+    let drawn = render_cpu(&frame, layers.mesh.as_ref(), None, &RasterParams::default()).unwrap();
+    let cam0 = m.camera.unwrap();
+    let head = m.head.as_ref().unwrap();
+    let at = |n: &str| cam0.project(head.landmark(n).unwrap()).truncate();
+    let (ml, mr) = (at("mouth_left"), at("mouth_right"));
+    let (mouth, mouth_r) = (0.5 * (ml + mr), (mr - ml).length());
+    let hair: Vec<u8> = m
+        .mask
+        .as_ref()
+        .unwrap()
+        .iter()
+        .map(|&v| (v != 0) as u8)
+        .collect();
+    let hair = dilate(&hair, wu, hu, p.hair_margin_px as usize);
+    let allowed: Vec<u8> = (0..wu * hu)
+        .map(|i| {
+            let q = glam::Vec2::new((i % wu) as f32 + 0.5, (i / wu) as f32 + 0.5);
+            layers.skin[i] | hair[i] | ((q - mouth).length() <= mouth_r) as u8
+        })
+        .collect();
+    let allowed = dilate(&allowed, wu, hu, 1);
+    let (mut covered, mut beyond) = (0usize, 0usize);
+    for i in (mouth.y.ceil() as usize * wu).min(wu * hu)..wu * hu {
+        if drawn[i][3] >= 0.5 {
+            covered += 1;
+            beyond += (allowed[i] == 0) as usize;
+        }
+    }
+    println!(
+        "{name} at yaw 0.5: the head layer covers {covered} px below the mouth, {beyond} of \
+         them beyond the photo's skin, hair and mouth"
+    );
+    assert_eq!(
+        beyond, 0,
+        "{name}: the head layer covers {beyond} px of clothing or background below the mouth"
+    );
 }
 
 /// Novel-view goldens on lavapipe (the model built on the CPU, as tests/render.rs does).

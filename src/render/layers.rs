@@ -9,9 +9,11 @@
 //!   inpainted (the face: the photo's skin and inner face under the fitted head above the
 //!   chin, grown by the hair margin and 3 px; below the mouth it takes the colour under the
 //!   chin, the neck behind the jaw), the same for every novel view. The head mesh
-//!   keeps what the photo shows as head: below the chin only the neck triangles the photo
-//!   shows as skin ([`skin_mask`]); above it, triangles facing the photo's camera when they
-//!   land on face or hair, and turned-away ones above the mouth (the back of the skull).
+//!   keeps what the photo shows as head, cut along the photo's pixels by its texture's
+//!   alpha (coverage, anti-aliased; see `render::raster`): below the chin the photo's skin
+//!   ([`skin_mask`]), so the neck ends where the photo's neck does; above it, where it faces
+//!   the photo's camera, face or hair; turned-away triangles stay above the mouth (the back
+//!   of the skull).
 //!   Clothing stays in the background, where the body stays put. The neck twists: its
 //!   vertices turn with the head in proportion to their height between the lowest visible
 //!   skin (not turned, so the neck stays on the photo's neck) and the chin (turned fully).
@@ -201,10 +203,14 @@ pub(super) fn layers(
             let v = t.map(|i| Vec3::from(th.positions[i as usize]));
             let q = cam0.project((v[0] + v[1] + v[2]) / 3.0);
             let facing = (v[1] - v[0]).cross(v[2] - v[0]).dot(toward0) > 0.0;
+            // A triangle over the edge of what the photo shows stays when its centre or a
+            // corner is inside: the texture's alpha (below) then cuts it along the photo's
+            // own pixels.
+            let inside = |m: &[u8]| at(m, q) || v.iter().any(|&c| at(m, cam0.project(c)));
             if v.iter().all(|q| q.y <= chin.y) {
-                facing && at(&skin, q)
+                facing && inside(&skin)
             } else if facing {
-                let keep = at(&head_or_hair, q);
+                let keep = inside(&head_or_hair);
                 if keep {
                     above.push(*t);
                 }
@@ -290,7 +296,50 @@ pub(super) fn layers(
             vc.project(v).unwrap_or([f32::NAN; 3])
         })
         .collect();
-    let (tw, tht, texels) = th.texture;
+    let (tw, tht, mut texels) = th.texture;
+    // Per texel, whether the photo shows head where it sees the texel: below the chin its
+    // skin (the neck ends where the photo's neck does), above it face or hair with the
+    // small holes closed (eyes, shadows). As the texture's alpha this cuts the mesh along the
+    // photo's pixels, anti-aliased, where the triangles alone left a saw-tooth of their own
+    // size along the jaw and the collar. Texels turned away from the photo keep alpha 1: the
+    // photo says nothing about them.
+    let shown = {
+        // The hair grown by its margin, as the skin leaves it out: no gap between the two.
+        let mut m: Vec<bool> = face.iter().zip(&hair).map(|(&a, &b)| a | b != 0).collect();
+        let mut fill = Vec::new();
+        crate::base::mask::for_each_component(&m, pwu, phu, false, false, |comp, border| {
+            if !border && comp.len() * 100 < pwu * phu {
+                fill.extend_from_slice(comp);
+            }
+        });
+        for k in fill {
+            m[k] = true;
+        }
+        m
+    };
+    // Softened (a 3x3 box twice) so the cut follows the region's shape, not the 1-px
+    // steps of a binary mask's edge.
+    let soft = |m: &mut dyn Iterator<Item = bool>| {
+        let v: Vec<f32> = m.map(|b| b as u8 as f32).collect();
+        let once = crate::base::filter::box_mean(&v, pwu, phu, 1);
+        crate::base::filter::box_mean(&once, pwu, phu, 1)
+    };
+    let shown = soft(&mut shown.into_iter());
+    let skin_soft = soft(&mut skin.iter().map(|&v| v != 0));
+    for (t, s) in texels.iter_mut().zip(&th.surface) {
+        let Some(s) = s else { continue };
+        if s.normal.dot(toward0) <= 0.0 {
+            continue;
+        }
+        // Texels the photo sees edge-on (the head's side beside the face outline) are cut
+        // too: kept, a turned view unfolds those few px into a slab of guessed colour.
+        let m = if s.pos.y <= chin.y {
+            &skin_soft
+        } else {
+            &shown
+        };
+        t[3] = coverage_at(m, pwu, phu, cam0.project(s.pos).truncate());
+    }
     let mesh = ScreenMesh {
         positions,
         uvs: th.uvs,
@@ -307,6 +356,28 @@ pub(super) fn layers(
         skin,
         mesh: Some(mesh),
     })
+}
+
+/// Soft mask `m` (w x h, in [0, 1]) bilinear at photo point `q` (pixel centres at +0.5),
+/// 0 outside.
+fn coverage_at(m: &[f32], w: usize, h: usize, q: Vec2) -> f32 {
+    let (fx, fy) = (q.x - 0.5, q.y - 0.5);
+    if !(fx.is_finite() && fy.is_finite()) {
+        return 0.0;
+    }
+    let (x0, y0) = (fx.floor(), fy.floor());
+    let (ax, ay) = (fx - x0, fy - y0);
+    let at = |x: f32, y: f32| -> f32 {
+        let inside = x >= 0.0 && y >= 0.0 && x < w as f32 && y < h as f32;
+        if inside {
+            m[y as usize * w + x as usize]
+        } else {
+            0.0
+        }
+    };
+    let top = at(x0, y0) * (1.0 - ax) + at(x0 + 1.0, y0) * ax;
+    let bottom = at(x0, y0 + 1.0) * (1.0 - ax) + at(x0 + 1.0, y0 + 1.0) * ax;
+    top * (1.0 - ay) + bottom * ay
 }
 
 /// The view's turn scaled by `w` (0 = none, 1 = all of it).

@@ -7,7 +7,9 @@
 
 use crate::gpu::engine::RenderStageDef;
 use crate::render::raster::Texture;
-use crate::stages::raster_common::{bilinear_at, snap, Fb, Offsets, Plane, Poly, TileBuf};
+use crate::stages::raster_common::{
+    a2c_mask, bilinear_at, snap, Fb, Offsets, Plane, Poly, TileBuf,
+};
 
 /// Entry points (vertex, fragment) of the mesh and the background pipelines.
 pub const MESH: (&str, &str) = ("vs_mesh", "fs_mesh");
@@ -39,7 +41,8 @@ pub fn tri_bounds(t: &TriRec) -> [f32; 4] {
 }
 
 /// Draws triangle `t` into the tile: `vs_mesh`'s corners, snapped as the rasteriser does,
-/// back faces culled, every covered pixel textured as `fs_mesh` does.
+/// back faces culled, every covered pixel textured as `fs_mesh` does and keeping the samples
+/// its texture alpha covers ([`coverage_mask`]).
 pub fn mesh_tri<const N: usize>(
     buf: &mut TileBuf<N>,
     t: &TriRec,
@@ -79,10 +82,23 @@ pub fn mesh_tri<const N: usize>(
                 bary.interp(vs, cx, cy) as f32,
             ];
             let c = sample_bilinear(tex, uv);
+            let cov = cov & coverage_mask(c[3], px, py, N as u32);
+            if cov == 0 {
+                continue;
+            }
             let z = zp.samples(px, py, &z_off);
             buf.write(lx, ly, cov, [c[0], c[1], c[2], 1.0], z);
         }
     }
+}
+
+/// The samples `fs_mesh` keeps at pixel (`px`, `py`) for texture alpha `a`: the strands'
+/// alpha-to-coverage rule without the strand term (k = floor(a·N + 0.5) samples from
+/// r = (px + 2·py) mod N on).
+pub fn coverage_mask(a: f32, px: i32, py: i32, n: u32) -> u32 {
+    let k = (a.clamp(0.0, 1.0) * n as f32 + 0.5) as u32;
+    let r = (px as u32).wrapping_add(2u32.wrapping_mul(py as u32)) & (n - 1);
+    a2c_mask(n, r, k)
 }
 
 /// Screen-linear interpolation over a triangle's float corners (fb px).

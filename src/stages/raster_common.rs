@@ -36,6 +36,14 @@ pub const SAMPLE_POSITIONS_4: [[f32; 2]; 4] = [
     [0.625, 0.875],
 ];
 
+/// The alpha-to-coverage mask: k <= n samples starting at r, in order (mod n), for
+/// n = 1 or 4 (powers of two).
+#[inline]
+pub fn a2c_mask(n: u32, r: u32, k: u32) -> u32 {
+    let run = (1u32 << k) - 1;
+    ((run << r) | (run >> (n - r))) & ((1u32 << n) - 1)
+}
+
 /// Sub-pixel grid vertices snap to (8 bits, as lavapipe).
 pub const SUBPIXEL: f32 = 256.0;
 

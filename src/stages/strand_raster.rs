@@ -7,7 +7,7 @@
 use crate::gpu::engine::RenderStageDef;
 use crate::render::raster::Texture;
 use crate::stages::raster_common::{
-    bilinear_at, mask32, snap, Config, Fb, Offsets, Plane, Poly, TileBuf, SUBPIXEL,
+    a2c_mask, bilinear_at, mask32, snap, Config, Fb, Offsets, Plane, Poly, TileBuf, SUBPIXEL,
 };
 
 /// Entry points (vertex, fragment) of the strand pipeline.
@@ -425,12 +425,4 @@ fn scan<const E: usize, const N: usize>(
             }
         }
     }
-}
-
-/// The alpha-to-coverage mask: k <= n samples starting at r, in order (mod n), for
-/// n = 1 or 4 (powers of two).
-#[inline]
-fn a2c_mask(n: u32, r: u32, k: u32) -> u32 {
-    let run = (1u32 << k) - 1;
-    ((run << r) | (run >> (n - r))) & ((1u32 << n) - 1)
 }

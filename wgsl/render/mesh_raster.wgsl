@@ -6,8 +6,9 @@
 // image is viewed). Texture: bilinear with clamp-to-edge done by hand with textureLoad, so
 // the weights are full f32 and the CPU mirror (`src/stages/mesh_raster.rs`, `sample_bilinear`) reproduces
 // them; hardware filtering may use as few as 8 fractional bits. Texel (i, j) has its centre
-// at uv ((i + 0.5) / W, (j + 0.5) / H), row 0 at v = 0. The mesh is opaque: texel alpha is
-// ignored.
+// at uv ((i + 0.5) / W, (j + 0.5) / H), row 0 at v = 0. Texel alpha is coverage, not blending: the
+// fragment keeps `coverage_mask(alpha)` of its samples, so a texture can cut the mesh's outline along its own pixels, anti-aliased like a triangle
+// edge, and what the mesh keeps stays opaque and depth-tested.
 //
 // Background: one full-screen triangle copies the pixel's (premultiplied) background colour
 // into every sample, without touching depth.
@@ -47,8 +48,27 @@ fn texel(i: i32, j: i32, dims: vec2<i32>) -> vec4<f32> {
     return textureLoad(tex, vec2<i32>(clamp(i, 0, dims.x - 1), clamp(j, 0, dims.y - 1)), 0);
 }
 
+// The samples a fragment keeps for texture alpha `a`, by the strands' alpha-to-coverage rule
+// (`strand_raster.wgsl`) without the strand term: k = floor(a·N + 0.5) samples from
+// r = (x + 2·y) mod N on, so a soft edge becomes a dithered, anti-aliased one.
+fn coverage_mask(a: f32, px: vec2<u32>) -> u32 {
+    let n = cfg.samples;
+    let k = u32(floor(clamp(a, 0.0, 1.0) * f32(n) + 0.5));
+    let r = (px.x + 2u * px.y) % n;
+    var mask = 0u;
+    for (var i = 0u; i < k; i++) {
+        mask |= 1u << ((r + i) % n);
+    }
+    return mask;
+}
+
+struct MeshOut {
+    @location(0) colour: vec4<f32>,
+    @builtin(sample_mask) mask: u32,
+}
+
 @fragment
-fn fs_mesh(in: VsOut) -> @location(0) vec4<f32> {
+fn fs_mesh(in: VsOut) -> MeshOut {
     let dims = vec2<i32>(textureDimensions(tex));
     let s = in.uv.x * f32(dims.x) - 0.5;
     let t = in.uv.y * f32(dims.y) - 0.5;
@@ -61,7 +81,8 @@ fn fs_mesh(in: VsOut) -> @location(0) vec4<f32> {
     let top = mix(texel(i, j, dims), texel(i + 1, j, dims), ax);
     let bottom = mix(texel(i, j + 1, dims), texel(i + 1, j + 1, dims), ax);
     let c = mix(top, bottom, ay);
-    return vec4<f32>(c.rgb, 1.0);
+    // in.pos.xy is the pixel centre (no per-sample shading), so this is the pixel index.
+    return MeshOut(vec4<f32>(c.rgb, 1.0), coverage_mask(c.a, vec2<u32>(in.pos.xy)));
 }
 
 @vertex

@@ -105,6 +105,9 @@ pub struct TexturedHead {
     /// Where each texel's colour came from: [`TEXEL_PHOTO`], [`TEXEL_MIRROR`],
     /// [`TEXEL_PATCHMATCH`] or [`TEXEL_SMOOTH`].
     pub texel_source: Vec<u8>,
+    /// The surface point each texel centre shows (None where no triangle maps it), for
+    /// layers that decide per texel what the photo shows there.
+    pub surface: Vec<Option<Texel>>,
     pub report: HeadTextureReport,
 }
 
@@ -258,10 +261,12 @@ pub fn head_texture(
 }
 
 /// What a texel centre sees of the mesh.
-#[derive(Clone, Copy)]
-struct Texel {
-    pos: Vec3,
-    normal: Vec3,
+#[derive(Clone, Copy, Debug)]
+pub struct Texel {
+    /// The surface point (model space).
+    pub pos: Vec3,
+    /// Its outward unit normal.
+    pub normal: Vec3,
     /// Distance from the uv centre: where uv triangles overlap (the map is not one-to-one
     /// around the ears and under the chin), the outermost surface wins.
     reach: f32,
@@ -503,6 +508,7 @@ pub fn head_texture_with(
             tex.iter().map(|c| [c[0], c[1], c[2], 1.0]).collect(),
         ),
         texel_source: source,
+        surface: texels,
         report,
     })
 }

@@ -46,11 +46,13 @@
 //!   k = floor(alpha·N + 0.5) of its samples, taken in the order r, r+1, ... (mod N) with
 //!   r = (x + 2·y + strand index) mod N. Adding the strand index lets overlapping
 //!   semi-transparent strands cover different samples, as transparency should.
-//! - **Mesh**: opaque; back faces culled (front faces are counter-clockwise as the image is
-//!   viewed, which is what a mesh counter-clockwise from outside gives after the camera's y
-//!   flip); bilinear texture with clamp-to-edge, texel (i, j) centred at
-//!   uv ((i + 0.5) / W, (j + 0.5) / H), row 0 at v = 0. Triangles with a non-finite vertex
-//!   or uv are skipped.
+//! - **Mesh**: opaque where it is drawn; back faces culled (front faces are
+//!   counter-clockwise as the image is viewed, which is what a mesh counter-clockwise from
+//!   outside gives after the camera's y flip); bilinear texture with clamp-to-edge, texel
+//!   (i, j) centred at uv ((i + 0.5) / W, (j + 0.5) / H), row 0 at v = 0. The texture's
+//!   alpha is coverage, by the strands' rule without the strand term (r = (x + 2·y) mod N),
+//!   so a texture can cut the mesh's outline along its own texels, anti-aliased (the head
+//!   layer's neck and face outline). Triangles with a non-finite vertex or uv are skipped.
 //! - **Compositing**: samples start as the background (premultiplied; None = transparent
 //!   black); a drawn sample becomes opaque. The result is returned as straight
 //!   (un-premultiplied) linear RGBA, so an opaque background gives alpha 1 everywhere.
@@ -91,7 +93,8 @@ pub struct Frame {
     pub background: Option<Vec<[f32; 4]>>,
 }
 
-/// A texture in linear straight RGBA, row 0 at v = 0.
+/// A texture in linear straight RGBA, row 0 at v = 0. On a mesh, alpha is the share of a
+/// pixel's samples the mesh covers (see the module notes), not a blend.
 #[derive(Clone, Debug)]
 pub struct Texture {
     pub width: u32,
