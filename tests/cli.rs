@@ -450,6 +450,39 @@ fn model_export_import_round_trip_and_bad_landmarks() {
     let side: serde_json::Value =
         serde_json::from_slice(&std::fs::read(c.p("render.png.json")).unwrap()).unwrap();
     assert!(side["report"]["backend"].as_str().unwrap().contains("cpu"));
+    // A novel view of a head fitted to landmarks says nothing more; of one placed by the
+    // default fit it warns that the face may not follow (same model, the method changed).
+    let yaw = |model: &str, out: &str| {
+        coif(&[
+            "render",
+            "--backend",
+            "cpu",
+            "--model",
+            model,
+            "--out",
+            out,
+            "--yaw",
+            "20",
+        ])
+    };
+    let o = yaw(&model, &c.s("yaw.png"));
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("default fit"), "{}", stderr(&o));
+    let guessed = c.p("guessed");
+    std::fs::create_dir_all(&guessed).unwrap();
+    for f in ["strands.hair", "photo.png", "mask.png"] {
+        std::fs::copy(c.p("model").join(f), guessed.join(f)).unwrap();
+    }
+    let mut m2 = meta.clone();
+    m2["head"]["fit"]["method"] = "default".into();
+    std::fs::write(guessed.join("model.json"), m2.to_string()).unwrap();
+    let o = yaw(&c.s("guessed"), &c.s("guessed.png"));
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("default fit") && stderr(&o).contains("--landmarks"),
+        "{}",
+        stderr(&o)
+    );
     // A camera inside the head, and an output folder that does not exist.
     let o = coif(&[
         "render",

@@ -686,6 +686,16 @@ fn run_render(engine: &Engine, j: &RenderJob) -> anyhow::Result<Report> {
     }
     let r = render::render(engine, &scene, p)
         .with_context(|| format!("rendering {}", j.model.display()))?;
+    let mut warnings = Vec::new();
+    if !p.is_original_view() && scene.photo.is_some() && default_head_fit(&j.model) {
+        warnings.push(format!(
+            "{}: the head was placed by the default fit (the model was made without \
+             --landmarks): this view turns a frontal head as wide as the hair mask, and a \
+             face the photo shows tilted or turned will not follow it; `coif model \
+             --landmarks` fits the head to the face",
+            j.model.display()
+        ));
+    }
     record_all(&r.report.seconds);
     let side = stage("write").run(|| render::write(&j.out, &r, p, j.sixteen))?;
     Ok(Report {
@@ -705,8 +715,22 @@ fn run_render(engine: &Engine, j: &RenderJob) -> anyhow::Result<Report> {
             side.display()
         ),
         details: timings(&r.report.seconds),
-        warnings: Vec::new(),
+        warnings,
     })
+}
+
+/// Whether the model folder's `model.json` says its head was placed by the default fit (no
+/// landmarks). Unreadable or older files say nothing: no warning then.
+fn default_head_fit(dir: &Path) -> bool {
+    std::fs::read_to_string(dir.join("model.json"))
+        .ok()
+        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+        .and_then(|v| {
+            v.pointer("/head/fit/method")?
+                .as_str()
+                .map(|m| m == "default")
+        })
+        .unwrap_or(false)
 }
 
 /// Every frame of an animated scene into the folder `j.out` (`NNNN.png`). A tracked video
