@@ -751,8 +751,10 @@ fn render_frames(engine: &Engine, scene: &Scene, j: &RenderJob) -> anyhow::Resul
         crate::interrupt::check()?;
         let mut p = j.params.clone();
         // A tracked video: each frame over its own photo, seen by its own camera.
-        let s = match scene.footage_frame(k)? {
-            Some(s) => s,
+        // A tracked video's frame shows its strands where they lie; a simulated frame's
+        // strands have moved from where the photo saw them (the scene's own strands).
+        let (s, moved) = match scene.footage_frame(k)? {
+            Some(s) => (s, false),
             None => {
                 let m = sim::track::pose_transform(pose);
                 let mut s = scene.clone();
@@ -763,11 +765,15 @@ fn render_frames(engine: &Engine, scene: &Scene, j: &RenderJob) -> anyhow::Resul
                 p.yaw_deg += pose[0];
                 p.pitch_deg += pose[1];
                 p.roll_deg += pose[2];
-                s
+                (s, true)
             }
         };
-        let r = render::render(engine, &s, &p)
-            .with_context(|| format!("rendering frame {k} of {}", j.model.display()))?;
+        let r = if moved {
+            render::render_moved(engine, &s, &scene.strands, &p)
+        } else {
+            render::render(engine, &s, &p)
+        }
+        .with_context(|| format!("rendering frame {k} of {}", j.model.display()))?;
         record_all(&r.report.seconds);
         stage("write")
             .run(|| render::write(&txn.dir().join(format!("{k:04}.png")), &r, &p, j.sixteen))?;

@@ -53,7 +53,7 @@ pub fn render_layers(engine: &Engine, m: &Scene, p: &RenderParams) -> Result<Lay
         crate::error::Error::Invalid(format!("{} has no photo to render into", m.dir.display()))
     })?;
     let lin = super::linear_photo(photo);
-    layers(engine, m, &lin, &vc, p, &mut RenderReport::default())
+    layers(engine, m, &lin, &vc, p, false, &mut RenderReport::default())
 }
 
 /// The background layer and the head mesh of a composite render (see the module notes).
@@ -63,6 +63,7 @@ pub(super) fn layers(
     lin: &[[f32; 3]],
     vc: &ViewCamera,
     p: &RenderParams,
+    moved: bool,
     report: &mut RenderReport,
 ) -> Result<Layers> {
     let photo = m.photo.as_ref().expect("checked by the caller");
@@ -75,7 +76,9 @@ pub(super) fn layers(
     };
     let hair0 = hair.clone();
     let hair = dilate(&hair, pwu, phu, p.hair_margin_px as usize);
-    let original = p.is_original_view() && (vc.width, vc.height) == (pw, ph);
+    // Strands moved from where the photo saw them (`render_moved`) get the inpainted
+    // background at every view: the photo's own hair would show where they left.
+    let original = !moved && p.is_original_view() && (vc.width, vc.height) == (pw, ph);
     let head = m.head.as_ref();
     // The head mesh once, in model space and as the photo's camera sees it.
     let head_mesh = head.map(|hd| {

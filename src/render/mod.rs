@@ -302,6 +302,43 @@ fn linear_photo(img: &image::RgbImage) -> Vec<[f32; 3]> {
 
 /// Renders `m` with `p` on `engine`.
 pub fn render(engine: &Engine, m: &Scene, p: &RenderParams) -> Result<Rendered> {
+    render_impl(engine, m, None, p)
+}
+
+/// Renders `m`, whose strands have moved from where the photo saw them (a simulated frame
+/// taken back to the head's rest pose), with `p`: `rest` holds the same strands (same
+/// counts) where the photo saw them. Each strand keeps the photo's colour from its rest
+/// place, and the background is the photo with its hair inpainted at every view, the
+/// photo's own as well: with the photo itself behind them, strands drawn in the photo's
+/// colour where they now lie reproduce the photo whatever they do, and a lock that moved
+/// leaves its old place showing. `colour_spacing_px` does not apply (the model's vertex
+/// colours are drawn).
+pub fn render_moved(
+    engine: &Engine,
+    m: &Scene,
+    rest: &StrandSet,
+    p: &RenderParams,
+) -> Result<Rendered> {
+    if rest.counts != m.strands.counts || rest.points.len() != m.strands.points.len() {
+        return Err(Error::Invalid(format!(
+            "{}: the moved strands ({} strands, {} vertices) are not the rest strands ({} \
+             strands, {} vertices) with their vertices moved",
+            m.dir.display(),
+            m.strands.counts.len(),
+            m.strands.points.len(),
+            rest.counts.len(),
+            rest.points.len()
+        )));
+    }
+    render_impl(engine, m, Some(rest), p)
+}
+
+fn render_impl(
+    engine: &Engine,
+    m: &Scene,
+    rest: Option<&StrandSet>,
+    p: &RenderParams,
+) -> Result<Rendered> {
     let vc = view_camera(m, p)?;
     let (w, h) = (vc.width, vc.height);
     let mut report = RenderReport {
@@ -323,7 +360,7 @@ pub fn render(engine: &Engine, m: &Scene, p: &RenderParams) -> Result<Rendered> 
     check_memory(engine, m, p, w, h)?;
     // Strands: colours resampled along them from the photo, shaded in model space, then
     // projected.
-    let dense = resample_colours(m, p.colour_spacing_px);
+    let dense = resample_colours(m, p.colour_spacing_px).filter(|_| rest.is_none());
     let strands_m = dense.as_ref().unwrap_or(&m.strands);
     let base = shade::base_colours(strands_m, DEFAULT_HAIR_LINEAR);
     let mut sp = p.shade.clone();
@@ -377,8 +414,10 @@ pub fn render(engine: &Engine, m: &Scene, p: &RenderParams) -> Result<Rendered> 
                 img,
                 lin.as_deref().expect("composite"),
                 cam0,
-                m.mask.as_deref().filter(|_| !p.is_original_view()),
-                strands_m,
+                m.mask
+                    .as_deref()
+                    .filter(|_| rest.is_some() || !p.is_original_view()),
+                rest.unwrap_or(strands_m),
                 p,
             ))
         }
@@ -418,7 +457,7 @@ pub fn render(engine: &Engine, m: &Scene, p: &RenderParams) -> Result<Rendered> 
         let lin = lin
             .as_deref()
             .expect("checked above: composite renders have a photo");
-        let l = layers::layers(engine, m, lin, &vc, p, &mut report)?;
+        let l = layers::layers(engine, m, lin, &vc, p, rest.is_some(), &mut report)?;
         lap("layers", &mut report);
         let (pw, ph) = m.photo.as_ref().expect("composite").dimensions();
         (Some(resample_to(&l.background, pw, ph, &vc)), l.mesh)
