@@ -41,6 +41,7 @@ fn scene_yaw(n: usize, size: u32, yaw: f32) -> Scene {
         width: size,
         height: size,
         animation: None,
+        rest: None,
     }
 }
 
@@ -420,6 +421,18 @@ fn edit_cli_writes_a_model_and_refuses_bad_input() {
         r#"{"version":1,"strokes":[{"kind":"cut","points":[[10,10],[10,10]]}]}"#,
     )
     .unwrap();
+    // The unedited model at the photo's view, which every edit must change.
+    let o = coif(&[
+        "render",
+        "--backend",
+        "cpu",
+        "--model",
+        &p("model"),
+        "--out",
+        &p("unedited.png"),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let unedited = image::open(p("unedited.png")).unwrap().to_rgb8();
     for (tool, file, extra) in [
         ("--comb", "comb.json", vec![]),
         ("--cut", "cut.json", vec!["--radius", "0"]),
@@ -441,6 +454,12 @@ fn edit_cli_writes_a_model_and_refuses_bad_input() {
         let roots_only = back.strands.counts.iter().filter(|&&c| c == 1).count();
         println!("{out}: {roots_only} strands keep only their root");
         assert!(back.camera.is_some() && back.head.is_some());
+        // Where the photo saw the edited strands, one to one with them.
+        let rest = back
+            .rest
+            .as_ref()
+            .expect("an edited model keeps its rest strands");
+        assert_eq!(rest.counts, back.strands.counts);
         let o = coif(&[
             "render",
             "--backend",
@@ -451,7 +470,34 @@ fn edit_cli_writes_a_model_and_refuses_bad_input() {
             &format!("{out}.png"),
         ]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        // The edit shows at the photo's view (before, the photo came back whatever it did).
+        let img = image::open(format!("{out}.png")).unwrap().to_rgb8();
+        let changed = img
+            .pixels()
+            .zip(unedited.pixels())
+            .filter(|(a, b)| (0..3).any(|k| a.0[k].abs_diff(b.0[k]) > 10))
+            .count();
+        println!("{out}: {changed} px differ from the unedited render by more than 10 levels");
+        assert!(
+            changed >= 20,
+            "{tool} {file}: the edit does not show ({changed} px)"
+        );
     }
+    // A rest file that does not match the strands, and a bad `rest` key: clear errors.
+    let edited = t.path().join("out-comb");
+    let rest = coif::io::strands::read(&edited.join("rest.hair")).unwrap();
+    let short = coif::hair::strands::StrandSet::new(
+        rest.points[..rest.counts[0] as usize].to_vec(),
+        vec![rest.counts[0]],
+    );
+    coif::io::strands::write(&edited.join("rest.hair"), &short).unwrap();
+    let e = Scene::load(&edited).unwrap_err().to_string();
+    assert!(e.contains("rest.hair") && e.contains("one to one"), "{e}");
+    let meta_path = edited.join("model.json");
+    let text = std::fs::read_to_string(&meta_path).unwrap();
+    std::fs::write(&meta_path, text.replace("\"rest.hair\"", "\"../x.hair\"")).unwrap();
+    let e = Scene::load(&edited).unwrap_err().to_string();
+    assert!(e.contains("model.json") && e.contains("rest"), "{e}");
     let cases: &[(&[&str], &str)] = &[
         (&["--comb", "cut.json"], "cut.json"),
         (&["--cut", "comb.json"], "comb.json"),

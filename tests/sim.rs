@@ -212,6 +212,7 @@ fn model_folder(dir: &std::path::Path, n: usize) {
         width: 128,
         height: 128,
         animation: None,
+        rest: None,
     };
     scene.save(dir, serde_json::json!({})).unwrap();
 }
@@ -408,6 +409,7 @@ fn moved_strands_carry_their_photo_colour() {
         width: w,
         height: h,
         animation: None,
+        rest: None,
     };
     const SHIFT: f32 = 24.0;
     let delta = c.camera.r.transpose() * glam::Vec3::new(SHIFT / c.camera.s, 0.0, 0.0);

@@ -493,6 +493,7 @@ pub fn evaluate(engine: &Engine, vp: &VideoParams, o: &EvalOptions) -> Result<Cl
                 width: w,
                 height: h,
                 animation: None,
+                rest: None,
             };
             let r = crate::render::render(engine, &scene, &crate::render::RenderParams::default())?;
             rendered.push(crate::render::to_rgb8(&r));

@@ -3,7 +3,8 @@
 //! modelling produces it, rendering reads it, simulation and editing change it.
 //!
 //! Folder layout: `strands.hair` (model space), `model.json` (camera, head parameters, size
-//! and whatever the producing pipeline records), `photo.png`, `mask.png`.
+//! and whatever the producing pipeline records), `photo.png`, `mask.png`, and for an edited
+//! model `rest.hair` (where the photo saw the strands; `model.json` key `rest`).
 
 use crate::error::{Error, Result};
 use crate::hair::head::{Head, HeadParams, WeakPerspective};
@@ -29,6 +30,11 @@ pub struct Scene {
     pub height: u32,
     /// A simulated or edited sequence: per-frame strand files and head poses.
     pub animation: Option<Animation>,
+    /// Where the photo saw `strands`, when they have changed since (an edited model): the
+    /// same counts, each vertex at its place in the model the photo was modelled into. The
+    /// renderer takes the photo's colour there and draws over the photo with its hair
+    /// inpainted. None: the strands are where the photo saw them.
+    pub rest: Option<StrandSet>,
 }
 
 /// Frames of a scene that moves (`model.json` key `animation`): `frames/NNNN.hair` in model
@@ -72,7 +78,12 @@ pub struct SceneMeta {
     /// The photo's path as recorded, used when the folder has no `photo.png`.
     pub image: Option<PathBuf>,
     pub animation: Option<Animation>,
+    /// `rest.hair` holds where the photo saw the strands (key `rest`).
+    pub rest: bool,
 }
+
+/// The file of [`Scene::rest`] in a model folder.
+pub const REST_FILE: &str = "rest.hair";
 
 impl SceneMeta {
     /// Parses `model.json` text; `meta_path` names the file in errors.
@@ -134,6 +145,16 @@ impl SceneMeta {
                 Some(a)
             }
         };
+        let rest = match meta.get("rest") {
+            None | Some(Value::Null) => false,
+            Some(Value::String(f)) if f == REST_FILE => true,
+            Some(v) => {
+                return Err(bad(
+                    meta_path,
+                    format!("rest: expected \"{REST_FILE}\", got {v}"),
+                ))
+            }
+        };
         Ok(SceneMeta {
             camera,
             head,
@@ -141,6 +162,7 @@ impl SceneMeta {
             height: dim("height").unwrap_or(0),
             image,
             animation,
+            rest,
         })
     }
 }
@@ -149,7 +171,13 @@ impl Scene {
     /// The files and folders of a model folder that [`Scene::load`] reads: an output there
     /// would overwrite the model (a picture beside them is fine).
     pub fn inputs(dir: &Path) -> Vec<PathBuf> {
-        let files = ["model.json", "strands.hair", "photo.png", "mask.png"];
+        let files = [
+            "model.json",
+            "strands.hair",
+            "photo.png",
+            "mask.png",
+            REST_FILE,
+        ];
         // Folders of a moving scene: its strands per frame, a tracked video's footage.
         let folders = ["frames", "photos", "masks"];
         files.iter().chain(&folders).map(|f| dir.join(f)).collect()
@@ -170,10 +198,33 @@ impl Scene {
             mut height,
             image,
             animation,
+            rest,
         } = SceneMeta::parse(&text, &meta_path)?;
         let strands_path = dir.join("strands.hair");
         let strands = crate::io::strands::read(&strands_path)?;
         check_strands(&strands, &strands_path)?;
+        let rest = match rest {
+            false => None,
+            true => {
+                let path = dir.join(REST_FILE);
+                let r = crate::io::strands::read(&path)?;
+                check_strands(&r, &path)?;
+                if r.counts != strands.counts {
+                    return Err(bad(
+                        &path,
+                        format!(
+                            "{} strands, {} vertices, but strands.hair has {} strands, {} \
+                             vertices: the rest strands must match them one to one",
+                            r.counts.len(),
+                            r.points.len(),
+                            strands.counts.len(),
+                            strands.points.len()
+                        ),
+                    ));
+                }
+                Some(r)
+            }
+        };
         let photo_path = [Some(dir.join("photo.png")), image]
             .into_iter()
             .flatten()
@@ -216,6 +267,7 @@ impl Scene {
             width,
             height,
             animation,
+            rest,
         })
     }
 }
@@ -234,6 +286,7 @@ impl Scene {
             width: 0,
             height: 0,
             animation: None,
+            rest: None,
         })
     }
 }
@@ -310,6 +363,7 @@ impl Scene {
         s.width = w;
         s.height = h;
         s.animation = None;
+        s.rest = None;
         Ok(Some(s))
     }
 
@@ -320,6 +374,9 @@ impl Scene {
     pub fn save(&self, dir: &Path, extra: Value) -> Result<()> {
         crate::io::ensure_dir(dir)?;
         crate::io::strands::write(&dir.join("strands.hair"), &self.strands)?;
+        if let Some(rest) = &self.rest {
+            crate::io::strands::write(&dir.join(REST_FILE), rest)?;
+        }
         // The photo travels with the model, so `coif render` needs nothing else.
         if let Some(photo) = &self.photo {
             crate::io::write_png(&dir.join("photo.png"), photo)?;
@@ -360,6 +417,9 @@ impl Scene {
         }
         if let Some(a) = &self.animation {
             merge(&mut meta, json!({ "animation": a }));
+        }
+        if self.rest.is_some() {
+            merge(&mut meta, json!({ "rest": REST_FILE }));
         }
         merge(&mut meta, extra);
         let text = serde_json::to_string_pretty(&meta)

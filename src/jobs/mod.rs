@@ -769,7 +769,12 @@ fn render_frames(engine: &Engine, scene: &Scene, j: &RenderJob) -> anyhow::Resul
             }
         };
         let r = if moved {
-            render::render_moved(engine, &s, &scene.strands, &p)
+            render::render_moved(
+                engine,
+                &s,
+                scene.rest.as_ref().unwrap_or(&scene.strands),
+                &p,
+            )
         } else {
             render::render(engine, &s, &p)
         }
@@ -854,6 +859,7 @@ fn run_edit(engine: &Engine, j: &EditJob) -> anyhow::Result<Report> {
     let scene = match &hierarchy {
         Some((_, centres)) => Scene {
             strands: centres.clone(),
+            rest: None,
             ..full.clone()
         },
         None => full.clone(),
@@ -932,10 +938,15 @@ fn run_edit(engine: &Engine, j: &EditJob) -> anyhow::Result<Report> {
         }
         None => (strands, details),
     };
+    // Where the photo saw the edited strands: each keeps its rest strand's first vertices
+    // (a comb moves vertices, a cut drops tail ones). Rendered without it, the photo (hair
+    // and all) came back at the photo's view whatever the edit did.
+    let rest = rest_after_edit(full.rest.as_ref().unwrap_or(&full.strands), &strands);
     let edited = Scene {
         dir: j.out.clone(),
         strands,
         animation: None,
+        rest: Some(rest),
         ..full
     };
     stage("write").run(|| edited.save(&j.out, json!({ "edit": meta, "level": j.level })))?;
@@ -944,6 +955,33 @@ fn run_edit(engine: &Engine, j: &EditJob) -> anyhow::Result<Report> {
         details,
         warnings,
     })
+}
+
+/// The rest strands of `edited` taken from `before`'s (see [`Scene::rest`]): strand i's
+/// first vertices. When the edit did not only move or drop tail vertices (other strand
+/// counts, a strand that grew), the edited strands stand for their own rest: their colour is
+/// then the photo's where they lie, still over the inpainted photo.
+fn rest_after_edit(
+    before: &crate::hair::strands::StrandSet,
+    edited: &crate::hair::strands::StrandSet,
+) -> crate::hair::strands::StrandSet {
+    let same_shape = before.counts.len() == edited.counts.len()
+        && before
+            .counts
+            .iter()
+            .zip(&edited.counts)
+            .all(|(b, e)| e <= b);
+    if !same_shape {
+        return edited.clone();
+    }
+    let off = before.offsets();
+    let points = edited
+        .counts
+        .iter()
+        .enumerate()
+        .flat_map(|(i, &n)| before.points[off[i]..off[i] + n as usize].iter().copied())
+        .collect();
+    crate::hair::strands::StrandSet::new(points, edited.counts.clone())
 }
 
 fn run_export(j: &ExportJob) -> anyhow::Result<Report> {

@@ -125,6 +125,7 @@ impl Model {
             width: photo.width(),
             height: photo.height(),
             animation: None,
+            rest: None,
         }
     }
 }

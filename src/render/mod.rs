@@ -300,13 +300,17 @@ fn linear_photo(img: &image::RgbImage) -> Vec<[f32; 3]> {
         .collect()
 }
 
-/// Renders `m` with `p` on `engine`.
+/// Renders `m` with `p` on `engine`; an edited model's strands as [`render_moved`] draws
+/// them from its [`Scene::rest`].
 pub fn render(engine: &Engine, m: &Scene, p: &RenderParams) -> Result<Rendered> {
-    render_impl(engine, m, None, p)
+    match &m.rest {
+        Some(rest) => render_moved(engine, m, rest, p),
+        None => render_impl(engine, m, None, p),
+    }
 }
 
 /// Renders `m`, whose strands have moved from where the photo saw them (a simulated frame
-/// taken back to the head's rest pose), with `p`: `rest` holds the same strands (same
+/// taken back to the head's rest pose, an edited model), with `p`: `rest` holds the same strands (same
 /// counts) where the photo saw them. Each strand keeps the photo's colour from its rest
 /// place, and the background is the photo with its hair inpainted at every view, the
 /// photo's own as well: with the photo itself behind them, strands drawn in the photo's
