@@ -747,6 +747,8 @@ fn render_frames(engine: &Engine, scene: &Scene, j: &RenderJob) -> anyhow::Resul
         indicatif::ProgressStyle::with_template("render {bar:30} {pos}/{len} frames {eta}")
             .expect("static template"),
     );
+    // What the simulated frames' views share, made once (the inpainted photo, the head).
+    let mut shared = None;
     for (k, pose) in a.head.iter().enumerate() {
         crate::interrupt::check()?;
         let mut p = j.params.clone();
@@ -769,12 +771,8 @@ fn render_frames(engine: &Engine, scene: &Scene, j: &RenderJob) -> anyhow::Resul
             }
         };
         let r = if moved {
-            render::render_moved(
-                engine,
-                &s,
-                scene.rest.as_ref().unwrap_or(&scene.strands),
-                &p,
-            )
+            let rest = scene.rest.as_ref().unwrap_or(&scene.strands);
+            render::render_moved_with(engine, &s, rest, &p, &mut shared)
         } else {
             render::render(engine, &s, &p)
         }

@@ -53,10 +53,20 @@ pub fn render_layers(engine: &Engine, m: &Scene, p: &RenderParams) -> Result<Lay
         crate::error::Error::Invalid(format!("{} has no photo to render into", m.dir.display()))
     })?;
     let lin = super::linear_photo(photo);
-    layers(engine, m, &lin, &vc, p, false, &mut RenderReport::default())
+    layers(
+        engine,
+        m,
+        &lin,
+        &vc,
+        p,
+        false,
+        &mut RenderReport::default(),
+        None,
+    )
 }
 
 /// The background layer and the head mesh of a composite render (see the module notes).
+#[allow(clippy::too_many_arguments)]
 pub(super) fn layers(
     engine: &Engine,
     m: &Scene,
@@ -65,6 +75,7 @@ pub(super) fn layers(
     p: &RenderParams,
     moved: bool,
     report: &mut RenderReport,
+    cache: Option<&mut Option<Base>>,
 ) -> Result<Layers> {
     let photo = m.photo.as_ref().expect("checked by the caller");
     let cam0 = m.camera.expect("checked by the caller");
@@ -74,21 +85,10 @@ pub(super) fn layers(
         Some(mk) => mk.iter().map(|&v| (v != 0) as u8).collect(),
         None => vec![0; pwu * phu],
     };
-    let hair0 = hair.clone();
-    let hair = dilate(&hair, pwu, phu, p.hair_margin_px as usize);
+    let hair0 = hair;
     // Strands moved from where the photo saw them (`render_moved`) get the inpainted
     // background at every view: the photo's own hair would show where they left.
     let original = !moved && p.is_original_view() && (vc.width, vc.height) == (pw, ph);
-    let head = m.head.as_ref();
-    // The head mesh once, in model space and as the photo's camera sees it.
-    let head_mesh = head.map(|hd| {
-        let (verts, tris) = hd.mesh(p.head_texture.mesh_res);
-        let seen = crate::model::volume::Mesh {
-            verts: verts.iter().map(|&v| cam0.project(v).to_array()).collect(),
-            tris: tris.clone(),
-        };
-        (verts, tris, seen)
-    });
     if original {
         // The photo, recoloured in the hair as the strands are (their photo colour goes
         // through the same HSV step), so uncovered hair reads as the strands beside it; the
@@ -107,7 +107,8 @@ pub(super) fn layers(
             })
             .collect();
         // The head hides strands behind it and shows the same picture (screen-space uvs).
-        let mesh = head_mesh.map(|(verts, tris, _)| {
+        let mesh = m.head.as_ref().map(|hd| {
+            let (verts, tris) = hd.mesh(p.head_texture.mesh_res);
             let positions: Vec<[f32; 3]> = verts
                 .iter()
                 .map(|&v| vc.project(v).unwrap_or([f32::NAN; 3]))
@@ -134,6 +135,108 @@ pub(super) fn layers(
             mesh,
         });
     }
+    // Every novel view of the scene shares its background and its head layer but for the
+    // head's pose: a caller drawing many (a simulation's frames) keeps them in `cache`.
+    let mut own = None;
+    let slot = cache.unwrap_or(&mut own);
+    if slot.is_none() {
+        *slot = Some(base(engine, m, lin, p, report)?);
+    }
+    let b = slot.as_ref().expect("filled above");
+    report.hole_pixels = b.hole.iter().filter(|&&v| v != 0).count();
+    Ok(b.view(&cam0, vc, p))
+}
+
+/// What every novel view of a scene shares (see the module notes): the inpainted
+/// background, the hole it fills, the photo's skin region and the head layer in model space.
+pub struct Base {
+    background: Vec<[f32; 4]>,
+    hole: Vec<u8>,
+    skin: Vec<u8>,
+    head: Option<BaseHead>,
+}
+
+/// The head layer of a [`Base`]: its mesh in model space, textured and cut, and how the
+/// neck twists.
+struct BaseHead {
+    positions: Vec<[f32; 3]>,
+    uvs: Vec<[f32; 2]>,
+    triangles: Vec<[u32; 3]>,
+    texture: Texture,
+    /// Vertices that turn fully with the head (any triangle above the chin holds them).
+    of_head: Vec<bool>,
+    /// Photo rows of the lowest visible skin under the face and of the chin.
+    bottom: f32,
+    chin_y: f32,
+}
+
+impl Base {
+    /// The layers as the view `vc` with the head turned by `p` sees them. The neck twists:
+    /// its vertices turn with the head in proportion to their height between the lowest
+    /// visible skin (not turned) and the chin (turned fully).
+    fn view(&self, cam0: &WeakPerspective, vc: &ViewCamera, p: &RenderParams) -> Layers {
+        let mesh = self.head.as_ref().map(|hd| {
+            // The view's model-space turn undone, then redone by a share of the angles.
+            let undo = rotation(p).transpose();
+            let positions = hd
+                .positions
+                .iter()
+                .zip(&hd.of_head)
+                .map(|(&v, &of_head)| {
+                    let v = Vec3::from_array(v);
+                    let v = if of_head || hd.bottom <= hd.chin_y + 0.5 {
+                        v
+                    } else {
+                        let q = cam0.project(v);
+                        let w = ((hd.bottom - q.y) / (hd.bottom - hd.chin_y)).clamp(0.0, 1.0);
+                        undo * partial_rotation(p, w) * v
+                    };
+                    vc.project(v).unwrap_or([f32::NAN; 3])
+                })
+                .collect();
+            ScreenMesh {
+                positions,
+                uvs: hd.uvs.clone(),
+                triangles: hd.triangles.clone(),
+                texture: hd.texture.clone(),
+            }
+        });
+        Layers {
+            background: self.background.clone(),
+            hole: self.hole.clone(),
+            skin: self.skin.clone(),
+            mesh,
+        }
+    }
+}
+
+/// The [`Base`] of novel views of `m` (see the module notes).
+fn base(
+    engine: &Engine,
+    m: &Scene,
+    lin: &[[f32; 3]],
+    p: &RenderParams,
+    report: &mut RenderReport,
+) -> Result<Base> {
+    let photo = m.photo.as_ref().expect("checked by the caller");
+    let cam0 = m.camera.expect("checked by the caller");
+    let (pw, ph) = photo.dimensions();
+    let (pwu, phu) = (pw as usize, ph as usize);
+    let hair: Vec<u8> = match &m.mask {
+        Some(mk) => mk.iter().map(|&v| (v != 0) as u8).collect(),
+        None => vec![0; pwu * phu],
+    };
+    let hair = dilate(&hair, pwu, phu, p.hair_margin_px as usize);
+    let head = m.head.as_ref();
+    // The head mesh once, in model space and as the photo's camera sees it.
+    let head_mesh = head.map(|hd| {
+        let (verts, tris) = hd.mesh(p.head_texture.mesh_res);
+        let seen = crate::model::volume::Mesh {
+            verts: verts.iter().map(|&v| cam0.project(v).to_array()).collect(),
+            tris: tris.clone(),
+        };
+        (verts, tris, seen)
+    });
     // Pixels of the photo a mesh covers.
     let covered = |mesh: &crate::model::volume::Mesh| -> Result<Vec<bool>> {
         let dm = crate::model::volume::rasterize_depth(engine, pw, ph, &[mesh])?;
@@ -144,11 +247,11 @@ pub(super) fn layers(
         // No head: only the hair leaves the background.
         report.hole_pixels = hair.iter().filter(|&&v| v != 0).count();
         let (filled, _) = inpaint(engine, pw, ph, lin, &hair, &p.inpaint)?;
-        return Ok(Layers {
+        return Ok(Base {
             background: filled.iter().map(|c| [c[0], c[1], c[2], 1.0]).collect(),
             hole: hair,
             skin: vec![0; pwu * phu],
-            mesh: None,
+            head: None,
         });
     };
     let skin = skin_mask(lin, pw, ph, head, &cam0, &hair);
@@ -271,7 +374,6 @@ pub(super) fn layers(
 
     // The lowest photo row of skin below the chin, under the face.
     let bottom = lowest_skin_row(&skin, pw, ph, chin_px.truncate()).unwrap_or(chin_px.y);
-    // The view's model-space turn undone, then redone by a share of the angles.
     // Only vertices of the neck alone twist: one shared with a head triangle turns fully,
     // or a triangle spanning the chin would stretch between a turned and an unturned corner.
     let mut of_head = vec![false; th.positions.len()];
@@ -282,23 +384,6 @@ pub(super) fn layers(
             }
         }
     }
-    let undo = rotation(p).transpose();
-    let positions: Vec<[f32; 3]> = th
-        .positions
-        .iter()
-        .zip(&of_head)
-        .map(|(&v, &of_head)| {
-            let v = Vec3::from_array(v);
-            let v = if of_head || bottom <= chin_px.y + 0.5 {
-                v
-            } else {
-                let q = cam0.project(v);
-                let w = ((bottom - q.y) / (bottom - chin_px.y)).clamp(0.0, 1.0);
-                undo * partial_rotation(p, w) * v
-            };
-            vc.project(v).unwrap_or([f32::NAN; 3])
-        })
-        .collect();
     let (tw, tht, mut texels) = th.texture;
     // Per texel, whether the photo shows head where it sees the texel: below the chin its
     // skin (the neck ends where the photo's neck does), above it face or hair with the
@@ -343,21 +428,23 @@ pub(super) fn layers(
         };
         t[3] = coverage_at(m, pwu, phu, cam0.project(s.pos).truncate());
     }
-    let mesh = ScreenMesh {
-        positions,
-        uvs: th.uvs,
-        triangles,
-        texture: Texture {
-            width: tw,
-            height: tht,
-            texels,
-        },
-    };
-    Ok(Layers {
+    Ok(Base {
         background,
         hole,
         skin,
-        mesh: Some(mesh),
+        head: Some(BaseHead {
+            positions: th.positions,
+            uvs: th.uvs,
+            triangles,
+            texture: Texture {
+                width: tw,
+                height: tht,
+                texels,
+            },
+            of_head,
+            bottom,
+            chin_y: chin_px.y,
+        }),
     })
 }
 

@@ -305,7 +305,7 @@ fn linear_photo(img: &image::RgbImage) -> Vec<[f32; 3]> {
 pub fn render(engine: &Engine, m: &Scene, p: &RenderParams) -> Result<Rendered> {
     match &m.rest {
         Some(rest) => render_moved(engine, m, rest, p),
-        None => render_impl(engine, m, None, p),
+        None => render_impl(engine, m, None, p, None),
     }
 }
 
@@ -323,6 +323,20 @@ pub fn render_moved(
     rest: &StrandSet,
     p: &RenderParams,
 ) -> Result<Rendered> {
+    render_moved_with(engine, m, rest, p, &mut None)
+}
+
+/// [`render_moved`] for one of many views of the same scene (a simulation's frames):
+/// `cache` keeps what every view shares (the inpainted background, the head layer), filled
+/// by the first call. Views differ only in the head's turn; the scene and the rest of `p`
+/// must be the same on every call.
+pub fn render_moved_with(
+    engine: &Engine,
+    m: &Scene,
+    rest: &StrandSet,
+    p: &RenderParams,
+    cache: &mut Option<layers::Base>,
+) -> Result<Rendered> {
     if rest.counts != m.strands.counts || rest.points.len() != m.strands.points.len() {
         return Err(Error::Invalid(format!(
             "{}: the moved strands ({} strands, {} vertices) are not the rest strands ({} \
@@ -334,7 +348,7 @@ pub fn render_moved(
             rest.points.len()
         )));
     }
-    render_impl(engine, m, Some(rest), p)
+    render_impl(engine, m, Some(rest), p, Some(cache))
 }
 
 fn render_impl(
@@ -342,6 +356,7 @@ fn render_impl(
     m: &Scene,
     rest: Option<&StrandSet>,
     p: &RenderParams,
+    cache: Option<&mut Option<layers::Base>>,
 ) -> Result<Rendered> {
     let vc = view_camera(m, p)?;
     let (w, h) = (vc.width, vc.height);
@@ -461,7 +476,7 @@ fn render_impl(
         let lin = lin
             .as_deref()
             .expect("checked above: composite renders have a photo");
-        let l = layers::layers(engine, m, lin, &vc, p, rest.is_some(), &mut report)?;
+        let l = layers::layers(engine, m, lin, &vc, p, rest.is_some(), &mut report, cache)?;
         lap("layers", &mut report);
         let (pw, ph) = m.photo.as_ref().expect("composite").dimensions();
         (Some(resample_to(&l.background, pw, ph, &vc)), l.mesh)
