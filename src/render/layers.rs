@@ -81,11 +81,7 @@ pub(super) fn layers(
     let cam0 = m.camera.expect("checked by the caller");
     let (pw, ph) = photo.dimensions();
     let (pwu, phu) = (pw as usize, ph as usize);
-    let hair: Vec<u8> = match &m.mask {
-        Some(mk) => mk.iter().map(|&v| (v != 0) as u8).collect(),
-        None => vec![0; pwu * phu],
-    };
-    let hair0 = hair;
+    let hair0 = hair_mask(m, pwu * phu);
     // Strands moved from where the photo saw them (`render_moved`) get the inpainted
     // background at every view: the photo's own hair would show where they left.
     let original = !moved && p.is_original_view() && (vc.width, vc.height) == (pw, ph);
@@ -210,6 +206,14 @@ impl Base {
     }
 }
 
+/// The scene's hair mask as 1 / 0 (`n` zeros without one).
+fn hair_mask(m: &Scene, n: usize) -> Vec<u8> {
+    match &m.mask {
+        Some(mk) => mk.iter().map(|&v| (v != 0) as u8).collect(),
+        None => vec![0; n],
+    }
+}
+
 /// The [`Base`] of novel views of `m` (see the module notes).
 fn base(
     engine: &Engine,
@@ -222,11 +226,12 @@ fn base(
     let cam0 = m.camera.expect("checked by the caller");
     let (pw, ph) = photo.dimensions();
     let (pwu, phu) = (pw as usize, ph as usize);
-    let hair: Vec<u8> = match &m.mask {
-        Some(mk) => mk.iter().map(|&v| (v != 0) as u8).collect(),
-        None => vec![0; pwu * phu],
-    };
-    let hair = dilate(&hair, pwu, phu, p.hair_margin_px as usize);
+    let hair = dilate(
+        &hair_mask(m, pwu * phu),
+        pwu,
+        phu,
+        p.hair_margin_px as usize,
+    );
     let head = m.head.as_ref();
     // The head mesh once, in model space and as the photo's camera sees it.
     let head_mesh = head.map(|hd| {
