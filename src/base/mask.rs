@@ -120,6 +120,20 @@ pub fn erode(mask: &[u8], w: usize, h: usize, r: usize) -> Vec<u8> {
     square_1d(&square_1d(mask, w, h, r, true, true), w, h, r, false, true)
 }
 
+/// Sets the holes of `m` (w x h): 4-connected unset regions that do not touch the image
+/// border and are smaller than `max_share` of the image.
+pub fn fill_holes(m: &mut [bool], w: usize, h: usize, max_share: f64) {
+    let mut fill = Vec::new();
+    for_each_component(m, w, h, false, false, |comp, border| {
+        if !border && (comp.len() as f64) < max_share * (w * h) as f64 {
+            fill.extend_from_slice(comp);
+        }
+    });
+    for k in fill {
+        m[k] = true;
+    }
+}
+
 /// Calls `f(pixels, touches_border)` for every connected component of the pixels equal to
 /// `value` (8-connected when `eight`, else 4-connected). `m` is read as it is on entry, so
 /// the caller may collect changes and apply them afterwards.
@@ -184,6 +198,20 @@ mod tests {
             .flat_map(|r| r.bytes().map(|b| b == b'#'))
             .collect();
         (m, rows[0].len(), rows.len())
+    }
+
+    #[test]
+    fn fill_holes_fills_enclosed_small_regions_only() {
+        // A 1-px hole and a 2-px one inside; a gap open to the border stays.
+        let (mut m, w, h) = grid(&["######", "#.#..#", "######", "#.####"]);
+        fill_holes(&mut m, w, h, 0.1);
+        let (want, _, _) = grid(&["######", "######", "######", "#.####"]);
+        assert_eq!(m, want);
+        // Under the size limit (2 px is not < 0.05 · 24) the larger hole stays.
+        let (mut m, w, h) = grid(&["######", "#.#..#", "######", "#.####"]);
+        fill_holes(&mut m, w, h, 0.05);
+        let (want, _, _) = grid(&["######", "###..#", "######", "#.####"]);
+        assert_eq!(m, want);
     }
 
     #[test]

@@ -396,29 +396,17 @@ fn base(
     // photo's pixels, anti-aliased, where the triangles alone left a saw-tooth of their own
     // size along the jaw and the collar. Texels turned away from the photo keep alpha 1: the
     // photo says nothing about them.
-    let shown = {
-        // The hair grown by its margin, as the skin leaves it out: no gap between the two.
-        let mut m: Vec<bool> = face.iter().zip(&hair).map(|(&a, &b)| a | b != 0).collect();
-        let mut fill = Vec::new();
-        crate::base::mask::for_each_component(&m, pwu, phu, false, false, |comp, border| {
-            if !border && comp.len() * 100 < pwu * phu {
-                fill.extend_from_slice(comp);
-            }
-        });
-        for k in fill {
-            m[k] = true;
-        }
-        m
-    };
+    // The hair grown by its margin, as the skin leaves it out: no gap between the two.
+    let mut shown: Vec<bool> = face.iter().zip(&hair).map(|(&a, &b)| a | b != 0).collect();
+    crate::base::mask::fill_holes(&mut shown, pwu, phu, 0.01);
     // Softened (a 3x3 box twice) so the cut follows the region's shape, not the 1-px
     // steps of a binary mask's edge.
-    let soft = |m: &mut dyn Iterator<Item = bool>| {
-        let v: Vec<f32> = m.map(|b| b as u8 as f32).collect();
+    let soft = |v: Vec<f32>| {
         let once = crate::base::filter::box_mean(&v, pwu, phu, 1);
         crate::base::filter::box_mean(&once, pwu, phu, 1)
     };
-    let shown = soft(&mut shown.into_iter());
-    let skin_soft = soft(&mut skin.iter().map(|&v| v != 0));
+    let shown = soft(shown.iter().map(|&b| b as u8 as f32).collect());
+    let skin_soft = soft(skin.iter().map(|&v| (v != 0) as u8 as f32).collect());
     for (t, s) in texels.iter_mut().zip(&th.surface) {
         let Some(s) = s else { continue };
         if s.normal.dot(toward0) <= 0.0 {

@@ -310,8 +310,8 @@ pub fn render(engine: &Engine, m: &Scene, p: &RenderParams) -> Result<Rendered> 
 }
 
 /// Renders `m`, whose strands have moved from where the photo saw them (a simulated frame
-/// taken back to the head's rest pose, an edited model), with `p`: `rest` holds the same strands (same
-/// counts) where the photo saw them. Each strand keeps the photo's colour from its rest
+/// taken back to the head's rest pose, an edited model), with `p`: `rest` holds the same
+/// strands (same counts) where the photo saw them. Each strand keeps the photo's colour from its rest
 /// place, and the background is the photo with its hair inpainted at every view, the
 /// photo's own as well: with the photo itself behind them, strands drawn in the photo's
 /// colour where they now lie reproduce the photo whatever they do, and a lock that moved
@@ -379,7 +379,10 @@ fn render_impl(
     check_memory(engine, m, p, w, h)?;
     // Strands: colours resampled along them from the photo, shaded in model space, then
     // projected.
-    let dense = resample_colours(m, p.colour_spacing_px).filter(|_| rest.is_none());
+    let dense = match rest {
+        None => resample_colours(m, p.colour_spacing_px),
+        Some(_) => None,
+    };
     let strands_m = dense.as_ref().unwrap_or(&m.strands);
     let base = shade::base_colours(strands_m, DEFAULT_HAIR_LINEAR);
     let mut sp = p.shade.clone();

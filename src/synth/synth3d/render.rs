@@ -307,16 +307,7 @@ impl Footprint {
 pub(super) fn close_mask(raw: &[bool], w: usize, h: usize, r: f32) -> Vec<u8> {
     let offs = mask::disc(r, false);
     let mut m = mask::erode_by(&mask::dilate_by(raw, w, h, &offs, false), w, h, &offs, true);
-    // Holes: 4-connected non-hair components not touching the border.
-    let mut fill = Vec::new();
-    mask::for_each_component(&m, w, h, false, false, |comp, border| {
-        if !border && comp.len() * 100 < w * h {
-            fill.extend_from_slice(comp);
-        }
-    });
-    for k in fill {
-        m[k] = true;
-    }
+    mask::fill_holes(&mut m, w, h, 0.01);
     m.iter().map(|&b| if b { 255 } else { 0 }).collect()
 }
 
