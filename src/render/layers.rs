@@ -12,8 +12,8 @@
 //!   keeps what the photo shows as head, cut along the photo's pixels by its texture's
 //!   alpha (coverage, anti-aliased; see `render::raster`): below the chin the photo's skin
 //!   ([`skin_mask`]), so the neck ends where the photo's neck does; above it, where it faces
-//!   the photo's camera, face or hair; turned-away triangles stay above the mouth (the back
-//!   of the skull).
+//!   the photo's camera, face or hair; turned away from it, the scalp only (the back of the
+//!   skull, [`unseen_texel_stays`]).
 //!   Clothing stays in the background, where the body stays put. The neck twists: its
 //!   vertices turn with the head in proportion to their height between the lowest visible
 //!   skin (not turned, so the neck stays on the photo's neck) and the chin (turned fully).
@@ -394,8 +394,8 @@ fn base(
     // skin (the neck ends where the photo's neck does), above it face or hair with the
     // small holes closed (eyes, shadows). As the texture's alpha this cuts the mesh along the
     // photo's pixels, anti-aliased, where the triangles alone left a saw-tooth of their own
-    // size along the jaw and the collar. Texels turned away from the photo keep alpha 1: the
-    // photo says nothing about them.
+    // size along the jaw and the collar. Texels turned away from the photo keep alpha 1 on
+    // the scalp and 0 elsewhere ([`unseen_texel_stays`]): the photo says nothing about them.
     // The hair grown by its margin, as the skin leaves it out: no gap between the two.
     let mut shown: Vec<bool> = face.iter().zip(&hair).map(|(&a, &b)| a | b != 0).collect();
     crate::base::mask::fill_holes(&mut shown, pwu, phu, 0.01);
@@ -410,6 +410,9 @@ fn base(
     for (t, s) in texels.iter_mut().zip(&th.surface) {
         let Some(s) = s else { continue };
         if s.normal.dot(toward0) <= 0.0 {
+            if !unseen_texel_stays(head, s.pos) {
+                t[3] = 0.0;
+            }
             continue;
         }
         // Texels the photo sees edge-on (the head's side beside the face outline) are cut
@@ -439,6 +442,16 @@ fn base(
             chin_y: chin_px.y,
         }),
     })
+}
+
+/// Whether a head texel turned away from the photo's camera stays in the head layer: only
+/// on the scalp, where the skull hides the far side's strands. Elsewhere (behind the ears,
+/// the nape, the back of the neck) the photo says nothing and no strand grows; where the
+/// fitted head is wider than the photo's, a turned view showed that part as a ribbon of
+/// guessed skin hanging beside the face, cut off from it. Cut, the inpainted background
+/// shows there, as it does beside the turned cheek.
+pub fn unseen_texel_stays(head: &Head, pos: Vec3) -> bool {
+    head.scalp_uv(pos).is_some() && !head.in_face(pos)
 }
 
 /// Soft mask `m` (w x h, in [0, 1]) bilinear at photo point `q` (pixel centres at +0.5),
@@ -687,4 +700,49 @@ fn lowest_skin_row(skin: &[u8], w: u32, h: u32, chin: Vec2) -> Option<f32> {
         .rev()
         .find(|&y| skin[y * wu..(y + 1) * wu].iter().any(|&v| v != 0))
         .map(|y| y as f32 + 1.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Turned-away texels stay on the back of the skull and go around the ears and on the
+    /// back of the neck (what a turned view showed as a ribbon beside the face).
+    #[test]
+    fn unseen_texels_stay_on_the_back_of_the_skull_only() {
+        let head = Head::default();
+        let lm = |n: &str| head.landmark(n).expect("default head landmark");
+        let (eye_y, chin_y) = (lm("nose_bridge").y, lm("chin").y);
+        let ears = [lm("left_ear"), lm("right_ear")];
+        let (verts, tris) = head.mesh(48);
+        let mut normals = vec![Vec3::ZERO; verts.len()];
+        for t in &tris {
+            let v = t.map(|i| verts[i as usize]);
+            let n = (v[1] - v[0]).cross(v[2] - v[0]);
+            for &i in t {
+                normals[i as usize] += n;
+            }
+        }
+        // [cut, kept] counts of surface points turned away from a frontal camera (+z).
+        let (mut skull, mut ear, mut neck) = ([0usize; 2], [0usize; 2], [0usize; 2]);
+        for (v, n) in verts.iter().zip(&normals) {
+            if n.z >= 0.0 {
+                continue;
+            }
+            let kept = unseen_texel_stays(&head, *v) as usize;
+            if v.y > eye_y + 0.04 && v.x.abs() < 0.05 {
+                skull[kept] += 1;
+            } else if ears.iter().any(|e| e.distance(*v) < 0.025) {
+                ear[kept] += 1;
+            } else if v.y < chin_y {
+                neck[kept] += 1;
+            }
+        }
+        assert!(
+            skull[1] > 50 && skull[0] == 0,
+            "back of the skull: {skull:?}"
+        );
+        assert!(ear[0] > 5 && ear[1] == 0, "around the ears: {ear:?}");
+        assert!(neck[0] > 50 && neck[1] == 0, "back of the neck: {neck:?}");
+    }
 }
