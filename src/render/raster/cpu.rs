@@ -158,6 +158,9 @@ fn raster_n<const N: usize>(s: &Scene) -> Vec<[f32; 4]> {
     img
 }
 
+/// How many segments ahead of the one drawn the tile loop prefetches.
+const PREFETCH_AHEAD: usize = 8;
+
 /// Depth buckets of [`DrawOrder`]: fine enough that a bucket's segments lie within ~1/4096
 /// of the tile's depth range of each other (nearly sorted is as good as sorted for the
 /// depth test), few enough that clearing the counts costs nothing.
@@ -285,12 +288,19 @@ fn tile<'b, const N: usize>(
         // (the depth mapping is monotone and clipping only moves an end along its segment,
         // so this orders the prepared segments well enough; any order gives the same image).
         let mut since = ZMAX_EVERY;
-        for &[i, k] in order.front_to_back(&src.s.points, segs) {
+        let sorted = order.front_to_back(&src.s.points, segs);
+        for (n, &[i, k]) in sorted.iter().enumerate() {
+            if let Some(&[j, _]) = sorted.get(n + PREFETCH_AHEAD) {
+                src.prefetch(j as usize);
+            }
             if since == ZMAX_EVERY {
                 buf.refresh_zmax();
                 since = 0;
             }
             since += 1;
+            if src.surely_hidden(buf, i as usize) {
+                continue;
+            }
             if let Some(seg) = src.seg(i as usize, k) {
                 strand_quad(buf, &seg, cfg, photo, &fb, &offs, i + 1);
             }

@@ -69,6 +69,8 @@ mod gpu;
 
 use crate::error::{Error, Result};
 use crate::gpu::GpuContext;
+use crate::stages::raster_common::TileBuf;
+use crate::stages::strand_raster::seg_bounds;
 use crate::Engine;
 use rayon::prelude::*;
 
@@ -204,6 +206,60 @@ struct SegSource<'a> {
 }
 
 impl SegSource<'_> {
+    /// Asks the CPU to fetch what [`Self::seg`] will read for vertex `i` into cache (the
+    /// tile draws its segments front to back, so their data is read in an order unrelated
+    /// to its layout, and a load missing every cache stalled the tile loop). A hint only.
+    #[inline(always)]
+    fn prefetch(&self, i: usize) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+            let s = self.s;
+            let at = |p: *const i8| {
+                // SAFETY: a prefetch never faults, and every pointer is in bounds here.
+                unsafe { _mm_prefetch::<_MM_HINT_T0>(p) }
+            };
+            if i + 1 < s.points.len() {
+                at(s.points[i..].as_ptr().cast());
+                at(s.points[i + 1..].as_ptr().cast());
+                at(s.colors[i..].as_ptr().cast());
+                at(s.colors[i + 1..].as_ptr().cast());
+                if let Some(ph) = &s.photo {
+                    at(ph.points[i..].as_ptr().cast());
+                }
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = i;
+    }
+
+    /// Whether the segment from vertex `i` is surely hidden in the tile: behind every sample
+    /// already drawn over a conservative pixel box, with a nearest depth no nearer than what
+    /// [`strand_quad`](crate::stages::strand_raster::strand_quad) would test (clipping only
+    /// moves an end along the segment, and its snapping margin is at most |Δz|·0.01 / 2h).
+    /// Read before [`Self::seg`], so a hidden segment costs its two points only; false when
+    /// unsure (`seg` and the quad then decide as before).
+    #[inline(always)]
+    fn surely_hidden<const N: usize>(&self, buf: &TileBuf<N>, i: usize) -> bool {
+        let (a, b) = (self.s.points[i], self.s.points[i + 1]);
+        let (za, zb) = (self.prep.depth.z(a[2]), self.prep.depth.z(b[2]));
+        let bb = seg_bounds([a[0], a[1]], [b[0], b[1]], self.prep.half);
+        if !(za.is_finite() && zb.is_finite() && bb.iter().all(|v| v.is_finite())) {
+            return false;
+        }
+        let px = [
+            (bb[0] - 1.0).floor() as i32,
+            (bb[1] - 1.0).floor() as i32,
+            (bb[2] + 1.0).floor() as i32,
+            (bb[3] + 1.0).floor() as i32,
+        ];
+        let Some((x0, y0, x1, y1)) = buf.clip(px) else {
+            return false;
+        };
+        let margin = (za - zb).abs() * 0.01 / (2.0 * self.prep.half).max(MIN_SEGMENT_PX);
+        buf.hidden(x0, y0, x1, y1, za.min(zb) - margin - 1e-6)
+    }
+
     /// The segment from vertex `i` to `i + 1` of strand `k`, prepared; None when skipped.
     #[inline(always)]
     fn seg(&self, i: usize, k: u32) -> Option<SegRec> {
