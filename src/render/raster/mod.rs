@@ -216,17 +216,17 @@ impl SegSource<'_> {
             use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
             let s = self.s;
             let at = |p: *const i8| {
-                // SAFETY: a prefetch never faults, and every pointer is in bounds here.
+                // SAFETY: a prefetch never faults, and every pointer comes from a live slice.
                 unsafe { _mm_prefetch::<_MM_HINT_T0>(p) }
             };
-            if i + 1 < s.points.len() {
-                at(s.points[i..].as_ptr().cast());
-                at(s.points[i + 1..].as_ptr().cast());
-                at(s.colors[i..].as_ptr().cast());
-                at(s.colors[i + 1..].as_ptr().cast());
-                if let Some(ph) = &s.photo {
-                    at(ph.points[i..].as_ptr().cast());
-                }
+            let photo = s.photo.as_ref().and_then(|ph| ph.points.get(i));
+            let points = s.points.get(i..i + 2).into_iter().flatten();
+            let colors = s.colors.get(i..i + 2).into_iter().flatten();
+            for p in points.map(|p| p.as_ptr()) {
+                at(p.cast());
+            }
+            for p in colors.map(|c| c.as_ptr()).chain(photo.map(|o| o.as_ptr())) {
+                at(p.cast());
             }
         }
         #[cfg(not(target_arch = "x86_64"))]
