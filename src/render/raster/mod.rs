@@ -219,15 +219,14 @@ impl SegSource<'_> {
                 // SAFETY: a prefetch never faults, and every pointer comes from a live slice.
                 unsafe { _mm_prefetch::<_MM_HINT_T0>(p) }
             };
-            let photo = s.photo.as_ref().and_then(|ph| ph.points.get(i));
             let points = s.points.get(i..i + 2).into_iter().flatten();
             let colors = s.colors.get(i..i + 2).into_iter().flatten();
-            for p in points.map(|p| p.as_ptr()) {
-                at(p.cast());
-            }
-            for p in colors.map(|c| c.as_ptr()).chain(photo.map(|o| o.as_ptr())) {
-                at(p.cast());
-            }
+            let photo = s.photo.as_ref().and_then(|ph| ph.points.get(i));
+            points
+                .map(|p| p.as_ptr().cast())
+                .chain(colors.map(|c| c.as_ptr().cast()))
+                .chain(photo.map(|o| o.as_ptr().cast()))
+                .for_each(at);
         }
         #[cfg(not(target_arch = "x86_64"))]
         let _ = i;
@@ -257,6 +256,7 @@ impl SegSource<'_> {
             return false;
         };
         let margin = (za - zb).abs() * 0.01 / (2.0 * self.prep.half).max(MIN_SEGMENT_PX);
+        // 1e-6 more: a clipped end's lerped depth may round an ulp below min(za, zb).
         buf.hidden(x0, y0, x1, y1, za.min(zb) - margin - 1e-6)
     }
 
