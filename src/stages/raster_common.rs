@@ -347,6 +347,19 @@ impl<const N: usize> TileBuf<N> {
         true
     }
 
+    /// [`TileBuf::hidden`] for the one tile pixel of index `i`, against its own samples
+    /// rather than its block's bound.
+    #[inline(always)]
+    pub fn pixel_hidden(&self, i: usize, z_near: f32) -> bool {
+        let z = z_near - 1e-6;
+        let d = &self.depth[i];
+        let mut far = d[0];
+        for s in 1..N {
+            far = if d[s] > far { d[s] } else { far };
+        }
+        far <= z
+    }
+
     /// Depth-tests and writes the samples in `mask` of tile pixel (lx, ly) for a primitive
     /// of rank 0 (the mesh, drawn first and in order): `Less` against the buffer, and
     /// outside [0, 1] nothing (the GPU clips the primitive). Branch-free selects, for the

@@ -141,6 +141,7 @@ pub fn strand_quad<const N: usize>(
         rank,
         zp,
         z_off,
+        z_near,
         photo: photo.map(|tex| {
             let o0 = [s.o[0], s.o[1]];
             let od = [s.o[2] - s.o[0], s.o[3] - s.o[1]];
@@ -305,6 +306,8 @@ struct Shade<'a, const N: usize> {
     rank: u32,
     zp: Plane,
     z_off: [f64; N],
+    /// The nearest depth any sample of the quad gets (see `strand_quad`).
+    z_near: f32,
     /// Photo colour: the photo, o0, o1 - o0, n_o, the screen normal n / h² (so that
     /// (c - p0)·it is the signed width fraction), the mode and the HSV settings.
     photo: Option<PhotoShade<'a>>,
@@ -322,6 +325,13 @@ struct PhotoShade<'a> {
 impl<const N: usize> Shade<'_, N> {
     #[inline(always)]
     fn pixel(&self, buf: &mut TileBuf<N>, lx: i32, ly: i32, cov: u32) {
+        // Before anything else: a pixel whose every sample is nearer than the segment's
+        // nearest depth (the bound the tile's block test uses) fails `Less` in all of them.
+        // Most fragments of a front-to-back tile end here.
+        let i = (ly * buf.w + lx) as usize;
+        if buf.pixel_hidden(i, self.z_near) {
+            return;
+        }
         let n = N as u32;
         let (px, py) = (buf.x0 + lx, buf.y0 + ly);
         // Position along the segment at the pixel centre, clamped.
@@ -343,7 +353,6 @@ impl<const N: usize> Shade<'_, N> {
             return;
         }
         let z = self.zp.samples(px, py, &self.z_off);
-        let i = (ly * buf.w + lx) as usize;
         let pass = buf.passing(i, mask, z, self.rank);
         if pass == 0 {
             return;
