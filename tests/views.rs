@@ -202,11 +202,22 @@ fn check_view(
         }
     }
     let skin_px = skin.iter().filter(|&&v| v != 0).count();
+    // Skin of the photo that the view shows as the hole's fill (no strand and no head over
+    // it: the pixel is the background's): where the head layer falls short of the face.
+    let skin_as_fill = (0..wu * hu)
+        .filter(|&i| {
+            let o = out.get_pixel((i % wu) as u32, (i / wu) as u32).0;
+            skin[i] != 0
+                && layers.hole[i] != 0
+                && hair[i] == 0
+                && (0..3).all(|k| (o[k] as i32 - bg8[4 * i + k] as i32).abs() <= 2)
+        })
+        .count();
     println!(
         "{name} yaw {yaw:+} pitch {pitch:+}: {outside} px outside the hair, face and neck \
          layers, {broken} beyond what the inpainting allows (largest bound {worst_bound} \
-         levels); skin region {skin_px} px; hole {} px, {hole_out} outside the photo's hair \
-         and head",
+         levels); skin region {skin_px} px, {skin_as_fill} of them shown as the hole's fill; \
+         hole {} px, {hole_out} outside the photo's hair and head",
         layers.hole.iter().filter(|&&v| v != 0).count()
     );
     let mut row = image::RgbImage::new(3 * w, h);

@@ -21,6 +21,7 @@
 //!   mouth), so background and clothing pixels inside the parametric outline do not smear
 //!   onto the head.
 
+use super::face_warp::FaceWarp;
 use super::{rotation, RenderParams, RenderReport, ViewCamera};
 use crate::base::colour;
 use crate::base::mask::{dilate, erode};
@@ -280,13 +281,44 @@ fn base(
             skin[i] | (inner[i] & within as u8)
         })
         .collect();
-    // The face texture from the photo where skin (or the inner face) shows, the rest filled.
-    let usable: Vec<u8> = covered(&seen)?
-        .iter()
-        .enumerate()
-        .map(|(i, &c)| (c && hair[i] == 0 && face[i] != 0) as u8)
+    // The head layer fitted to the photo face's width, wider or narrower (see
+    // `face_warp`): every photo-side use of the head's points below goes through `proj0`.
+    let seen_px = covered(&seen)?;
+    let warp = FaceWarp::fit(&seen_px, &face, &hair, pwu, phu, head, &cam0);
+    let proj0 = |v: Vec3| warp.map(cam0.project(v));
+    // The face texture from the photo where skin (or the inner face) shows, the rest
+    // filled; the texture is taken from the photo pulled through the map, so each texel
+    // shows the photo pixel its moved point lands on.
+    let usable: Vec<u8> = (0..pwu * phu)
+        .map(|i| (seen_px[i] && hair[i] == 0 && face[i] != 0) as u8)
         .collect();
-    let th = head_texture_with(engine, head, &cam0, lin, pw, ph, &usable, &p.head_texture)?;
+    let (lin_w, usable_w) = if warp.is_identity() {
+        (lin.to_vec(), usable)
+    } else {
+        // The nearer of the two pixels, for masks.
+        let nearer = |a: u8, b: u8, t: f32| if t < 0.5 { a } else { b };
+        let (hair_w, face_w) = (
+            warp.pull(&hair, pwu, phu, nearer),
+            warp.pull(&face, pwu, phu, nearer),
+        );
+        // The moved head covers the map of every pixel the fitted one covers.
+        let usable_w = (0..pwu * phu)
+            .map(|i| (seen_px[i] && hair_w[i] == 0 && face_w[i] != 0) as u8)
+            .collect();
+        let lerp =
+            |a: [f32; 3], b: [f32; 3], t: f32| std::array::from_fn(|k| a[k] + (b[k] - a[k]) * t);
+        (warp.pull(lin, pwu, phu, lerp), usable_w)
+    };
+    let th = head_texture_with(
+        engine,
+        head,
+        &cam0,
+        &lin_w,
+        pw,
+        ph,
+        &usable_w,
+        &p.head_texture,
+    )?;
     let at = |m: &[u8], q: Vec3| {
         let (x, y) = (q.x.floor(), q.y.floor());
         x >= 0.0
@@ -312,12 +344,12 @@ fn base(
         .copied()
         .filter(|t| {
             let v = t.map(|i| Vec3::from(th.positions[i as usize]));
-            let q = cam0.project((v[0] + v[1] + v[2]) / 3.0);
+            let q = proj0((v[0] + v[1] + v[2]) / 3.0);
             let facing = (v[1] - v[0]).cross(v[2] - v[0]).dot(toward0) > 0.0;
             // A triangle over the edge of what the photo shows stays when its centre or a
             // corner is inside: the texture's alpha (below) then cuts it along the photo's
             // own pixels.
-            let inside = |m: &[u8]| at(m, q) || v.iter().any(|&c| at(m, cam0.project(c)));
+            let inside = |m: &[u8]| at(m, q) || v.iter().any(|&c| at(m, proj0(c)));
             if v.iter().all(|q| q.y <= chin.y) {
                 facing && inside(&skin)
             } else if facing {
@@ -340,7 +372,7 @@ fn base(
     let proj: Vec<[f32; 3]> = th
         .positions
         .iter()
-        .map(|&v| cam0.project(Vec3::from(v)).to_array())
+        .map(|&v| proj0(Vec3::from(v)).to_array())
         .collect();
     let above_px = covered(&crate::model::volume::Mesh {
         verts: proj,
@@ -422,14 +454,20 @@ fn base(
         } else {
             &shown
         };
-        t[3] = coverage_at(m, pwu, phu, cam0.project(s.pos).truncate());
+        t[3] = coverage_at(m, pwu, phu, proj0(s.pos).truncate());
     }
+    // The mesh itself moved: each vertex across the photo's view, at its own depth.
+    let positions = th
+        .positions
+        .iter()
+        .map(|&v| cam0.unproject(proj0(Vec3::from(v))).to_array())
+        .collect();
     Ok(Base {
         background,
         hole,
         skin,
         head: Some(BaseHead {
-            positions: th.positions,
+            positions,
             uvs: th.uvs,
             triangles,
             texture: Texture {

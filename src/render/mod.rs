@@ -20,6 +20,7 @@
 //! length keeps the head's scale (`distance`), so the view can also be put inside the head,
 //! which is refused.
 
+pub mod face_warp;
 pub mod inpaint;
 pub mod layers;
 pub mod raster;
