@@ -68,7 +68,7 @@ impl FaceWarp {
     /// Measures the map from `covered` (photo pixels the fitted head covers at the photo's
     /// view), `face` (the photo's face pixels: skin and the inner face) and `hair` (the hair
     /// mask as the layers grow it), all w x h.
-    /// The identity when the head has no eyes or chin landmarks.
+    /// The identity when the head has no eyes or chin landmarks, or a mask is not w x h.
     pub fn fit(
         covered: &[bool],
         face: &[u8],
@@ -78,6 +78,12 @@ impl FaceWarp {
         head: &Head,
         cam: &WeakPerspective,
     ) -> FaceWarp {
+        if [covered.len(), face.len(), hair.len()]
+            .iter()
+            .any(|&n| n != w * h)
+        {
+            return FaceWarp::identity();
+        }
         let at = |n: &str| head.landmark(n).map(|p| cam.project(p).truncate());
         let (Some(le), Some(re), Some(chin)) = (at("left_eye"), at("right_eye"), at("chin")) else {
             return FaceWarp::identity();
@@ -131,8 +137,10 @@ impl FaceWarp {
                     return far.abs_diff(edge) as f32;
                 }
                 let mut x = edge;
-                while x != c && face[row + x] == 0 {
-                    if hair[row + x] != 0 {
+                while face[row + x] == 0 {
+                    // Hair: the head goes on under it. The centre line reached: no face on
+                    // this row to fit to.
+                    if hair[row + x] != 0 || x == c {
                         return 0.0;
                     }
                     x = toward_centre(x);
