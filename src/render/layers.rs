@@ -287,28 +287,20 @@ fn base(
     let warp = FaceWarp::fit(&seen_px, &face, &hair, pwu, phu, head, &cam0);
     let proj0 = |v: Vec3| warp.map(cam0.project(v));
     // The face texture from the photo where skin (or the inner face) shows, the rest
-    // filled; the texture is taken from the photo pulled through the map, so each texel
-    // shows the photo pixel its moved point lands on.
-    let usable: Vec<u8> = (0..pwu * phu)
-        .map(|i| (seen_px[i] && hair[i] == 0 && face[i] != 0) as u8)
+    // filled; the texture is taken from the photo and masks pulled through the map, so each
+    // texel shows the photo pixel its moved point lands on (the moved head covers the map of
+    // every pixel the fitted one covers).
+    // (Rows the map leaves alone are copied as they are.)
+    let nearer = |a: u8, b: u8, t: f32| if t < 0.5 { a } else { b };
+    let lerp = |a: [f32; 3], b: [f32; 3], t: f32| std::array::from_fn(|k| a[k] + (b[k] - a[k]) * t);
+    let lin_w = warp.pull(lin, pwu, phu, lerp);
+    let (hair_w, face_w) = (
+        warp.pull(&hair, pwu, phu, nearer),
+        warp.pull(&face, pwu, phu, nearer),
+    );
+    let usable_w: Vec<u8> = (0..pwu * phu)
+        .map(|i| (seen_px[i] && hair_w[i] == 0 && face_w[i] != 0) as u8)
         .collect();
-    let (lin_w, usable_w) = if warp.is_identity() {
-        (lin.to_vec(), usable)
-    } else {
-        // The nearer of the two pixels, for masks.
-        let nearer = |a: u8, b: u8, t: f32| if t < 0.5 { a } else { b };
-        let (hair_w, face_w) = (
-            warp.pull(&hair, pwu, phu, nearer),
-            warp.pull(&face, pwu, phu, nearer),
-        );
-        // The moved head covers the map of every pixel the fitted one covers.
-        let usable_w = (0..pwu * phu)
-            .map(|i| (seen_px[i] && hair_w[i] == 0 && face_w[i] != 0) as u8)
-            .collect();
-        let lerp =
-            |a: [f32; 3], b: [f32; 3], t: f32| std::array::from_fn(|k| a[k] + (b[k] - a[k]) * t);
-        (warp.pull(lin, pwu, phu, lerp), usable_w)
-    };
     let th = head_texture_with(
         engine,
         head,

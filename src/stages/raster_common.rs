@@ -283,6 +283,10 @@ pub struct TileBuf<const N: usize> {
 /// little.
 pub const ZBLOCK: i32 = 2;
 
+/// Slack of the depth-bound tests ([`TileBuf::hidden`], [`TileBuf::pixel_hidden`]) for the
+/// rounding of per-sample depths to f32.
+const DEPTH_ROUNDING: f32 = 1e-6;
+
 impl<const N: usize> TileBuf<N> {
     /// Sizes the tile at (x0, y0), w x h, with every depth 1, every depth bound fresh, and no
     /// colour yet (the caller fills `color` with the background, w·h pixels).
@@ -336,7 +340,7 @@ impl<const N: usize> TileBuf<N> {
     #[inline]
     pub fn hidden(&self, lx0: i32, ly0: i32, lx1: i32, ly1: i32, z_near: f32) -> bool {
         let bw = (self.w + ZBLOCK - 1) / ZBLOCK;
-        let z = z_near - 1e-6;
+        let z = z_near - DEPTH_ROUNDING;
         for by in ly0 / ZBLOCK..=ly1 / ZBLOCK {
             for bx in lx0 / ZBLOCK..=lx1 / ZBLOCK {
                 if self.zmax[(by * bw + bx) as usize] > z {
@@ -351,7 +355,7 @@ impl<const N: usize> TileBuf<N> {
     /// rather than its block's bound.
     #[inline(always)]
     pub fn pixel_hidden(&self, i: usize, z_near: f32) -> bool {
-        let z = z_near - 1e-6;
+        let z = z_near - DEPTH_ROUNDING;
         let d = &self.depth[i];
         let mut far = d[0];
         for s in 1..N {
