@@ -63,13 +63,13 @@ pub fn mesh_tri<const N: usize>(
     let zp = bary.plane(corners.map(|q| q[2]));
     let z_off = zp.offsets(&offs.1);
     let (us, vs) = (corners.map(|q| q[3]), [t.v[0], t.v[1], t.v[2]]);
-    let step = tri.step();
+    let (step, so) = (tri.step(), tri.sample_offsets());
     for ly in ly0..=ly1 {
         let py = buf.y0 + ly;
         let mut e = tri.edges(buf.x0 + lx0, py);
         for lx in lx0..=lx1 {
             let px = buf.x0 + lx;
-            let cov = tri.mask(&e);
+            let cov = tri.mask(&e, &so);
             for k in 0..3 {
                 e[k] += step[k];
             }

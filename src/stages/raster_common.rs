@@ -107,8 +107,10 @@ pub struct Poly<const E: usize, const N: usize> {
     pub a: [i64; E],
     pub b: [i64; E],
     pub c: [i64; E],
-    /// Per edge, per sample: a·ox + b·oy.
-    pub so: [[i64; N]; E],
+    /// The sample positions (1/256 px) the offsets of [`Poly::sample_offsets`] and
+    /// [`Poly::narrow`] are taken at: computed where they are used (a strand quad that is
+    /// skipped, or drawn narrow in i32, never needs the i64 products).
+    offs: [[i64; 2]; N],
     /// Inclusive pixel bounding box.
     pub bbox: [i32; 4],
 }
@@ -129,7 +131,6 @@ impl<const E: usize, const N: usize> Poly<E, N> {
             return None;
         }
         let (mut a, mut b, mut c) = ([0i64; E], [0i64; E], [0i64; E]);
-        let mut so = [[0i64; N]; E];
         for k in 0..E {
             // Walk the edges with the interior on the positive side.
             let (p, q) = if area > 0 {
@@ -144,9 +145,6 @@ impl<const E: usize, const N: usize> Poly<E, N> {
             // include their samples; other edges exclude them.
             let top_left = dy < 0 || (dy == 0 && dx > 0);
             c[k] = -(a[k] * p[0] + b[k] * p[1]) - if top_left { 0 } else { 1 };
-            for (s, o) in offs.iter().enumerate() {
-                so[k][s] = a[k] * o[0] + b[k] * o[1];
-            }
         }
         let mut bbox = [i32::MAX, i32::MAX, i32::MIN, i32::MIN];
         for p in &v {
@@ -158,7 +156,13 @@ impl<const E: usize, const N: usize> Poly<E, N> {
                 bbox[3].max(y),
             ];
         }
-        Some(Poly { a, b, c, so, bbox })
+        Some(Poly {
+            a,
+            b,
+            c,
+            offs: *offs,
+            bbox,
+        })
     }
 
     /// Edge values at the corner of pixel (px, py); add [`Poly::step`] per pixel right.
@@ -173,15 +177,23 @@ impl<const E: usize, const N: usize> Poly<E, N> {
         self.a.map(|a| a * 256)
     }
 
-    /// Bit s set when sample s of the pixel whose corner has edge values `e` is covered.
+    /// Per edge, per sample: a·ox + b·oy, what [`Poly::mask`] adds to a pixel's edge values.
+    pub fn sample_offsets(&self) -> [[i64; N]; E] {
+        std::array::from_fn(|k| {
+            std::array::from_fn(|s| self.a[k] * self.offs[s][0] + self.b[k] * self.offs[s][1])
+        })
+    }
+
+    /// Bit s set when sample s of the pixel whose corner has edge values `e` is covered,
+    /// given the polygon's [`Poly::sample_offsets`] `so`.
     /// Branch-free: coverage is data-dependent and mispredictions dominated.
     #[inline]
-    pub fn mask(&self, e: &[i64; E]) -> u32 {
+    pub fn mask(&self, e: &[i64; E], so: &[[i64; N]; E]) -> u32 {
         let mut m = 0;
         for s in 0..N {
             let mut inside = true;
             for k in 0..E {
-                inside &= e[k] + self.so[k][s] >= 0;
+                inside &= e[k] + so[k][s] >= 0;
             }
             m |= (inside as u32) << s;
         }
@@ -189,12 +201,29 @@ impl<const E: usize, const N: usize> Poly<E, N> {
     }
 
     /// The same set-up in i32, valid while every edge value visited fits (see
-    /// `strand_quad`): then 4 samples go through one SIMD compare.
-    pub fn narrow(&self) -> ([[i32; N]; E], [i32; E]) {
+    /// `strand_quad`): the sample offsets, the step per pixel right and the step per row
+    /// down. Then 4 samples go through one SIMD compare, and (i32 arithmetic being exact
+    /// mod 2^32) any sum of these whose true value fits is exact in wrapping i32.
+    #[inline(always)]
+    pub fn narrow(&self) -> ([[i32; N]; E], [i32; E], [i32; E]) {
+        let (a, b) = (self.a.map(|v| v as i32), self.b.map(|v| v as i32));
+        let so = std::array::from_fn(|k| {
+            std::array::from_fn(|s| {
+                a[k].wrapping_mul(self.offs[s][0] as i32)
+                    .wrapping_add(b[k].wrapping_mul(self.offs[s][1] as i32))
+            })
+        });
         (
-            self.so.map(|r| r.map(|v| v as i32)),
-            self.step().map(|v| v as i32),
+            so,
+            a.map(|v| v.wrapping_mul(256)),
+            b.map(|v| v.wrapping_mul(256)),
         )
+    }
+
+    /// [`Poly::edges`] in wrapping i32 (see [`Poly::narrow`]).
+    #[inline(always)]
+    pub fn edges32(&self, px: i32, py: i32) -> [i32; E] {
+        self.edges(px, py).map(|v| v as i32)
     }
 }
 
@@ -339,16 +368,15 @@ impl<const N: usize> TileBuf<N> {
     /// passes `Less`. The margin covers the rounding of per-sample depths to f32.
     #[inline]
     pub fn hidden(&self, lx0: i32, ly0: i32, lx1: i32, ly1: i32, z_near: f32) -> bool {
-        let bw = (self.w + ZBLOCK - 1) / ZBLOCK;
+        let bw = ((self.w + ZBLOCK - 1) / ZBLOCK) as usize;
         let z = z_near - DEPTH_ROUNDING;
-        for by in ly0 / ZBLOCK..=ly1 / ZBLOCK {
-            for bx in lx0 / ZBLOCK..=lx1 / ZBLOCK {
-                if self.zmax[(by * bw + bx) as usize] > z {
-                    return false;
-                }
-            }
-        }
-        true
+        let cols = (lx0 / ZBLOCK) as usize..=(lx1 / ZBLOCK) as usize;
+        // A row of blocks at a time (one bounds check a row, not one a block).
+        (ly0 / ZBLOCK..=ly1 / ZBLOCK).all(|by| {
+            self.zmax[by as usize * bw..][cols.clone()]
+                .iter()
+                .all(|&m| m <= z)
+        })
     }
 
     /// [`TileBuf::hidden`] for the one tile pixel of index `i`, against its own samples

@@ -125,12 +125,12 @@ pub fn strand_quad<const N: usize>(
     let (a, b, c, dd) = (to_px(qa), to_px(qb), to_px(qc), to_px(qd));
     let (dy_ac, dy_bd) = (qc[1] - qa[1], qd[1] - qb[1]);
     let by_sides = (dy_ac > 0 && dy_bd > 0) || (dy_ac < 0 && dy_bd < 0);
-    let mut spans = Spans {
+    let mut spans = Spans::new(
         by_sides,
-        ac: (a[0], a[1], (c[0] - a[0]) / (c[1] - a[1])),
-        bd: (b[0], b[1], (dd[0] - b[0]) / (dd[1] - b[1])),
-        next_top: None,
-    };
+        (a[0], a[1], (c[0] - a[0]) / (c[1] - a[1])),
+        (b[0], b[1], (dd[0] - b[0]) / (dd[1] - b[1])),
+        ly0,
+    );
     let shade = Shade {
         p0: s.p0,
         d,
@@ -194,32 +194,48 @@ pub fn strand_quad<const N: usize>(
 }
 
 /// Row spans of a quad from its two long sides A->C and B->D (see `strand_quad`), in tile
-/// pixels; rows are asked for top to bottom, so each side's x at a row's bottom is kept as
-/// the next row's top.
+/// pixels. Rows are asked for one by one from the first (`Spans::new`'s `ly0`) down, so
+/// each side's x at a row's bottom is kept as the next row's top.
 struct Spans {
     by_sides: bool,
     /// Per side: x and y of its first corner (tile px) and its slope dx/dy.
     ac: (f32, f32, f32),
     bd: (f32, f32, f32),
-    /// (row, x of A->C, x of B->D) at the top of the next row.
-    next_top: Option<(i32, f32, f32)>,
+    /// x of A->C and of B->D at the top of the next row.
+    top: (f32, f32),
 }
 
 impl Spans {
+    #[inline]
+    fn x(side: (f32, f32, f32), y: f32) -> f32 {
+        side.0 + side.2 * (y - side.1)
+    }
+
+    fn new(by_sides: bool, ac: (f32, f32, f32), bd: (f32, f32, f32), ly0: i32) -> Spans {
+        let y0 = ly0 as f32;
+        let top = if by_sides {
+            (Self::x(ac, y0), Self::x(bd, y0))
+        } else {
+            (0.0, 0.0)
+        };
+        Spans {
+            by_sides,
+            ac,
+            bd,
+            top,
+        }
+    }
+
     /// Tile columns that may hold covered pixels of tile row `ly`, within `cols`.
     #[inline]
     fn row(&mut self, ly: i32, cols: (i32, i32)) -> (i32, i32) {
         if !self.by_sides {
             return cols;
         }
-        let x = |side: (f32, f32, f32), y: f32| side.0 + side.2 * (y - side.1);
-        let (y0, y1) = (ly as f32, ly as f32 + 1.0);
-        let (t_ac, t_bd) = match self.next_top {
-            Some((row, a, b)) if row == ly => (a, b),
-            _ => (x(self.ac, y0), x(self.bd, y0)),
-        };
-        let (b_ac, b_bd) = (x(self.ac, y1), x(self.bd, y1));
-        self.next_top = Some((ly + 1, b_ac, b_bd));
+        let y1 = (ly + 1) as f32;
+        let (t_ac, t_bd) = self.top;
+        let (b_ac, b_bd) = (Self::x(self.ac, y1), Self::x(self.bd, y1));
+        self.top = (b_ac, b_bd);
         // f32 error here is below 1e-3 px even 16k px from the tile; 0.02 px is ample.
         // Plain compares, not `f32::min`/`max`: the values are finite (both sides have
         // dy != 0), so the NaN handling those add on every row buys nothing.
@@ -227,18 +243,14 @@ impl Spans {
             |a: f32, b: f32| if b < a { b } else { a },
             |a: f32, b: f32| if b > a { b } else { a },
         );
-        let lo = mx(
-            mn(mn(t_ac, b_ac), mn(t_bd, b_bd)) - 0.02,
-            cols.0 as f32 - 1.0,
+        // Clamped to the columns first, so that truncation is the floor: the left end is
+        // >= cols.0 >= 0, the right end >= -1 (an empty row).
+        let lo = mx(mn(mn(t_ac, b_ac), mn(t_bd, b_bd)) - 0.02, cols.0 as f32);
+        let hi = mx(
+            mn(mx(mx(t_ac, b_ac), mx(t_bd, b_bd)) + 0.02, cols.1 as f32),
+            -1.0,
         );
-        let hi = mn(
-            mx(mx(t_ac, b_ac), mx(t_bd, b_bd)) + 0.02,
-            cols.1 as f32 + 1.0,
-        );
-        // Floor without a libm call: anything left of -2 is outside the tile anyway, and
-        // truncating a value >= 0 is its floor.
-        let fl = |v: f32| (mx(v, -2.0) + 2.0) as i32 - 2;
-        (cols.0.max(fl(lo)), cols.1.min(fl(hi)))
+        (lo as i32, (hi + 1.0) as i32 - 1)
     }
 }
 
@@ -261,18 +273,23 @@ fn scan_quad<const N: usize>(
     spans: &mut Spans,
     shade: &Shade<N>,
 ) {
-    let (so, st) = quad.narrow();
+    let (so, st, sr) = quad.narrow();
+    // Edge values at the first column of each row, stepped down row by row in i32.
+    let mut row = quad.edges32(buf.x0 + cols.0, buf.y0 + rows.0);
     for ly in rows.0..=rows.1 {
-        let py = buf.y0 + ly;
         let (lx0, lx1) = spans.row(ly, cols);
+        let e = row;
+        for k in 0..4 {
+            row[k] = row[k].wrapping_add(sr[k]);
+        }
         if lx0 > lx1 {
             continue;
         }
-        let e = quad.edges(buf.x0 + lx0, py);
         let mut v = [[0i32; N]; 4];
         for k in 0..4 {
+            let e = e[k].wrapping_add(st[k].wrapping_mul(lx0 - cols.0));
             for s in 0..N {
-                v[k][s] = (e[k] as i32).wrapping_add(so[k][s]);
+                v[k][s] = e.wrapping_add(so[k][s]);
             }
         }
         for lx in lx0..=lx1 {
@@ -389,8 +406,17 @@ fn scan<const E: usize, const N: usize>(
 ) {
     let narrow = narrow(bbox);
     let np = pieces.len().min(2);
-    let small: [([[i32; N]; E], [i32; E]); 2] =
-        [0, 1].map(|i| pieces.get(i).map_or(([[0; N]; E], [0; E]), |p| p.narrow()));
+    let small: [([[i32; N]; E], [i32; E], [i32; E]); 2] = [0, 1].map(|i| {
+        pieces
+            .get(i)
+            .map_or(([[0; N]; E], [0; E], [0; E]), |p| p.narrow())
+    });
+    let wide: [[[i64; N]; E]; 2] = [0, 1].map(|i| {
+        pieces
+            .get(i)
+            .filter(|_| !narrow)
+            .map_or([[0; N]; E], |p| p.sample_offsets())
+    });
     for ly in rows.0..=rows.1 {
         let py = buf.y0 + ly;
         let (lx0, lx1) = spans.row(ly, cols);
@@ -399,14 +425,11 @@ fn scan<const E: usize, const N: usize>(
         }
         let px0 = buf.x0 + lx0;
         if narrow {
-            let mut e: [[i32; E]; 2] = [0, 1].map(|i| {
-                pieces
-                    .get(i)
-                    .map_or([0; E], |p| p.edges(px0, py).map(|v| v as i32))
-            });
+            let mut e: [[i32; E]; 2] =
+                [0, 1].map(|i| pieces.get(i).map_or([0; E], |p| p.edges32(px0, py)));
             for lx in lx0..=lx1 {
                 let mut cov = 0;
-                for (i, (so, st)) in small[..np].iter().enumerate() {
+                for (i, (so, st, _)) in small[..np].iter().enumerate() {
                     cov |= mask32(&e[i], so);
                     for k in 0..E {
                         e[i][k] = e[i][k].wrapping_add(st[k]);
@@ -422,7 +445,7 @@ fn scan<const E: usize, const N: usize>(
             for lx in lx0..=lx1 {
                 let mut cov = 0;
                 for (i, p) in pieces.iter().enumerate() {
-                    cov |= p.mask(&e[i]);
+                    cov |= p.mask(&e[i], &wide[i]);
                     let st = p.step();
                     for k in 0..E {
                         e[i][k] += st[k];

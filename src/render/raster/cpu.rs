@@ -45,7 +45,9 @@ fn tile_range(b: [f32; 4], w: u32, h: u32, tiles_x: u32, tiles_y: u32) -> Option
     if !(b[2] >= 0.0 && b[3] >= 0.0 && b[0] <= w as f32 && b[1] <= h as f32) {
         return None;
     }
-    let t = |v: f32, n: u32| ((v / TILE as f32).max(0.0) as u32).min(n - 1);
+    // Times 1/TILE, not divided by TILE: the same value (a power of two), without a divide
+    // per segment corner.
+    let t = |v: f32, n: u32| ((v * (1.0 / TILE as f32)).max(0.0) as u32).min(n - 1);
     Some([
         t(b[0], tiles_x),
         t(b[1], tiles_y),
