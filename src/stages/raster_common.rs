@@ -205,7 +205,7 @@ impl<const E: usize, const N: usize> Poly<E, N> {
     /// down. Then 4 samples go through one SIMD compare, and (i32 arithmetic being exact
     /// mod 2^32) any sum of these whose true value fits is exact in wrapping i32.
     #[inline(always)]
-    pub fn narrow(&self) -> ([[i32; N]; E], [i32; E], [i32; E]) {
+    pub fn narrow(&self) -> Narrow<E, N> {
         let (a, b) = (self.a.map(|v| v as i32), self.b.map(|v| v as i32));
         let so = std::array::from_fn(|k| {
             std::array::from_fn(|s| {
@@ -226,6 +226,9 @@ impl<const E: usize, const N: usize> Poly<E, N> {
         self.edges(px, py).map(|v| v as i32)
     }
 }
+
+/// [`Poly::narrow`]'s set-up: per edge the sample offsets, the step right, the step down.
+pub type Narrow<const E: usize, const N: usize> = ([[i32; N]; E], [i32; E], [i32; E]);
 
 /// [`Poly::mask`] on i32 edge values.
 #[inline]

@@ -7,7 +7,8 @@
 use crate::gpu::engine::RenderStageDef;
 use crate::render::raster::Texture;
 use crate::stages::raster_common::{
-    a2c_mask, bilinear_at, mask32, snap, Config, Fb, Offsets, Plane, Poly, TileBuf, SUBPIXEL,
+    a2c_mask, bilinear_at, mask32, snap, Config, Fb, Narrow, Offsets, Plane, Poly, TileBuf,
+    SUBPIXEL,
 };
 
 /// Entry points (vertex, fragment) of the strand pipeline.
@@ -406,7 +407,7 @@ fn scan<const E: usize, const N: usize>(
 ) {
     let narrow = narrow(bbox);
     let np = pieces.len().min(2);
-    let small: [([[i32; N]; E], [i32; E], [i32; E]); 2] = [0, 1].map(|i| {
+    let small: [Narrow<E, N>; 2] = [0, 1].map(|i| {
         pieces
             .get(i)
             .map_or(([[0; N]; E], [0; E], [0; E]), |p| p.narrow())
