@@ -407,9 +407,11 @@ fn scan<const E: usize, const N: usize>(
 ) {
     let narrow = narrow(bbox);
     let np = pieces.len().min(2);
+    // One of the two set-ups, as the polygon's size asks.
     let small: [Narrow<E, N>; 2] = [0, 1].map(|i| {
         pieces
             .get(i)
+            .filter(|_| narrow)
             .map_or(([[0; N]; E], [0; E], [0; E]), |p| p.narrow())
     });
     let wide: [[[i64; N]; E]; 2] = [0, 1].map(|i| {
