@@ -7,8 +7,8 @@
 use crate::gpu::engine::RenderStageDef;
 use crate::render::raster::Texture;
 use crate::stages::raster_common::{
-    a2c_mask, bilinear_at, mask32, snap, Config, Fb, Narrow, Offsets, Plane, Poly, TileBuf,
-    SUBPIXEL,
+    a2c_mask, bilinear_at, mask32, snap, trunc_i32, Config, Fb, Narrow, Offsets, Plane, Poly,
+    TileBuf, SUBPIXEL,
 };
 
 /// Entry points (vertex, fragment) of the strand pipeline.
@@ -244,14 +244,14 @@ impl Spans {
             |a: f32, b: f32| if b < a { b } else { a },
             |a: f32, b: f32| if b > a { b } else { a },
         );
-        // Clamped to the columns first, so that truncation is the floor: the left end is
-        // >= cols.0 >= 0, the right end >= -1 (an empty row).
+        // Clamped to the columns first, so that truncation is the floor (of a finite value
+        // in range): the left end is >= cols.0 >= 0, the right end >= -1 (an empty row).
         let lo = mx(mn(mn(t_ac, b_ac), mn(t_bd, b_bd)) - 0.02, cols.0 as f32);
         let hi = mx(
             mn(mx(mx(t_ac, b_ac), mx(t_bd, b_bd)) + 0.02, cols.1 as f32),
             -1.0,
         );
-        (lo as i32, (hi + 1.0) as i32 - 1)
+        (trunc_i32(lo), trunc_i32(hi + 1.0) - 1)
     }
 }
 
@@ -310,9 +310,7 @@ fn scan_quad<const N: usize>(
     // Per edge, lane l = (pixel j, sample s): the sample's offset plus j steps right; and
     // the step from one group of pixels to the next.
     let lane: [[i32; LANES]; 4] = std::array::from_fn(|k| {
-        std::array::from_fn(|l| {
-            so[k][l % N].wrapping_add(st[k].wrapping_mul((l / N) as i32))
-        })
+        std::array::from_fn(|l| so[k][l % N].wrapping_add(st[k].wrapping_mul((l / N) as i32)))
     });
     let group: [i32; 4] = std::array::from_fn(|k| st[k].wrapping_mul(px_per as i32));
     // Edge values at the first column of each row, stepped down row by row in i32.

@@ -69,7 +69,7 @@ mod gpu;
 
 use crate::error::{Error, Result};
 use crate::gpu::GpuContext;
-use crate::stages::raster_common::TileBuf;
+use crate::stages::raster_common::{trunc_i32, TileBuf};
 use crate::stages::strand_raster::seg_bounds;
 use crate::Engine;
 use rayon::prelude::*;
@@ -246,15 +246,23 @@ impl SegSource<'_> {
         if !(za.is_finite() && zb.is_finite() && bb.iter().all(|v| v.is_finite())) {
             return false;
         }
-        let px = [
-            (bb[0] - 1.0).floor() as i32,
-            (bb[1] - 1.0).floor() as i32,
-            (bb[2] + 1.0).floor() as i32,
-            (bb[3] + 1.0).floor() as i32,
-        ];
-        let Some((x0, y0, x1, y1)) = buf.clip(px) else {
+        // The box widened by a pixel, in tile px, clamped to the tile before truncation (so
+        // truncation is the floor, of a finite value in range).
+        let (ox, oy) = (buf.x0 as f32, buf.y0 as f32);
+        let (lo, hi) = (
+            [bb[0] - 1.0 - ox, bb[1] - 1.0 - oy],
+            [bb[2] + 1.0 - ox, bb[3] + 1.0 - oy],
+        );
+        let (wl, hl) = ((buf.w - 1) as f32, (buf.h - 1) as f32);
+        if !(hi[0] >= 0.0 && hi[1] >= 0.0 && lo[0] < wl + 1.0 && lo[1] < hl + 1.0) {
             return false;
-        };
+        }
+        let (x0, y0, x1, y1) = (
+            trunc_i32(lo[0].max(0.0)),
+            trunc_i32(lo[1].max(0.0)),
+            trunc_i32(hi[0].min(wl)),
+            trunc_i32(hi[1].min(hl)),
+        );
         let margin = (za - zb).abs() * 0.01 / (2.0 * self.prep.half).max(MIN_SEGMENT_PX);
         // 1e-6 more: a clipped end's lerped depth may round an ulp below min(za, zb).
         buf.hidden(x0, y0, x1, y1, za.min(zb) - margin - 1e-6)
