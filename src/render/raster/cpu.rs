@@ -20,7 +20,7 @@
 use super::Scene;
 use crate::base::colour::f16_store;
 use crate::stages::mesh_raster::{mesh_tri, tri_bounds};
-use crate::stages::raster_common::{sample_offsets, Fb, TileBuf};
+use crate::stages::raster_common::{sample_offsets, trunc_i32, Fb, TileBuf};
 use crate::stages::strand_raster::{seg_bounds, strand_quad};
 use rayon::prelude::*;
 
@@ -47,7 +47,9 @@ fn tile_range(b: [f32; 4], w: u32, h: u32, tiles_x: u32, tiles_y: u32) -> Option
     }
     // Times 1/TILE, not divided by TILE: the same value (a power of two), without a divide
     // per segment corner.
-    let t = |v: f32, n: u32| ((v * (1.0 / TILE as f32)).max(0.0) as u32).min(n - 1);
+    // Clamped in f32, then truncated: the floor of a finite value in range (a NaN bound
+    // fails the test above, an infinite one clamps).
+    let t = |v: f32, n: u32| trunc_i32((v * (1.0 / TILE as f32)).clamp(0.0, (n - 1) as f32)) as u32;
     Some([
         t(b[0], tiles_x),
         t(b[1], tiles_y),
@@ -197,13 +199,14 @@ impl DrawOrder {
             hi = hi.max(z);
             self.keys.push((z, [i, k]));
         }
-        // Nearest (largest z) in bucket 0; NaN depths (never drawn) land in bucket 0 too.
+        // Nearest (largest z) in bucket 0; NaN depths (never drawn) in the last one (the
+        // truncation gives i32::MIN for NaN).
         let scale = if hi > lo {
             (DEPTH_BUCKETS - 1) as f32 / (hi - lo)
         } else {
             0.0
         };
-        let bucket = |z: f32| (((hi - z) * scale) as usize).min(DEPTH_BUCKETS - 1);
+        let bucket = |z: f32| (trunc_i32((hi - z) * scale) as u32 as usize).min(DEPTH_BUCKETS - 1);
         self.counts.clear();
         self.counts.resize(DEPTH_BUCKETS + 1, 0);
         for &(z, _) in &self.keys {
