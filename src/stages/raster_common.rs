@@ -74,12 +74,24 @@ impl Fb {
     }
 }
 
-/// Round to the 1/256 px grid, ties to even (as lavapipe), without a libm call: adding
-/// 1.5·2^52 leaves no fraction bits, so the FPU's own round-to-nearest-even does it.
-#[inline]
+/// Round to the 1/256 px grid, ties to even (as lavapipe), without a libm call. On x86-64
+/// SSE's conversion rounds in the default mode, to nearest even (Rust code never runs in
+/// another), so it is one instruction; elsewhere adding 1.5·2^52 leaves no fraction bits, so
+/// the FPU's own round-to-nearest-even does it. Corners are finite (the host clips them to a
+/// guard band); v·256 is exact in f32.
+#[inline(always)]
 pub fn snap(v: f32) -> i64 {
-    const MAGIC: f64 = 6_755_399_441_055_744.0;
-    ((v * SUBPIXEL) as f64 + MAGIC - MAGIC) as i64
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_cvtss_si64, _mm_set_ss};
+        // SAFETY: SSE is part of x86-64.
+        unsafe { _mm_cvtss_si64(_mm_set_ss(v * SUBPIXEL)) }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        const MAGIC: f64 = 6_755_399_441_055_744.0;
+        ((v * SUBPIXEL) as f64 + MAGIC - MAGIC) as i64
+    }
 }
 
 /// Sample positions of an N-sample pixel, in 1/256 px and in px.
@@ -485,6 +497,43 @@ impl<const N: usize> TileBuf<N> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `snap` rounds to the 1/256 px grid with ties to even, as the portable form does,
+    /// on ties, near-ties and far corners; and the check can fail (ties away from zero
+    /// differ).
+    #[test]
+    fn snap_rounds_ties_to_even() {
+        let portable = |v: f32| {
+            const MAGIC: f64 = 6_755_399_441_055_744.0;
+            ((v * SUBPIXEL) as f64 + MAGIC - MAGIC) as i64
+        };
+        let mut vals = vec![
+            0.0f32,
+            -0.0,
+            1.0 / 512.0,
+            3.0 / 512.0,
+            -1.0 / 512.0,
+            1e6,
+            -4096.5,
+        ];
+        for k in -3000..3000 {
+            let v = k as f32 / 512.0;
+            vals.extend([
+                v,
+                f32::from_bits(v.to_bits() + 1),
+                f32::from_bits(v.to_bits().max(1) - 1),
+            ]);
+        }
+        for &v in &vals {
+            assert_eq!(snap(v), portable(v), "{v}");
+        }
+        assert_eq!(snap(1.0 / 512.0), 0);
+        assert_eq!(snap(3.0 / 512.0), 2);
+        assert_ne!(
+            snap(1.0 / 512.0),
+            (1.0f32 / 512.0 * SUBPIXEL).round() as i64
+        );
+    }
 
     /// The depth bounds only skip what the per-sample test would reject: a primitive
     /// nearer than one sample of a block is never hidden, and a block stays conservative
