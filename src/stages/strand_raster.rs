@@ -402,7 +402,9 @@ impl<const N: usize> Shade<'_, N> {
         // coverage and the depth test come before the colour, which most fragments (hidden
         // under nearer strands) never need.
         let alpha = self.c0[3] * (1.0 - t) + self.c1[3] * t;
-        let k = (alpha.clamp(0.0, 1.0) * n as f32 + 0.5) as u32;
+        // Truncated without the saturating fix-ups; a NaN alpha (i32::MIN) keeps no sample,
+        // as `as` gives.
+        let k = trunc_i32(alpha.clamp(0.0, 1.0) * n as f32 + 0.5).max(0) as u32;
         let r = (px as u32)
             .wrapping_add(2u32.wrapping_mul(py as u32))
             .wrapping_add(self.strand)
