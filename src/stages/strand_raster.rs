@@ -265,9 +265,9 @@ fn narrow(bbox: [i32; 4]) -> bool {
 /// Sample lanes [`scan_quad`] tests at once: `LANES / N` pixels of N samples each.
 const LANES: usize = 8;
 
-/// Bit l set when lane l of `or` is not negative. SSE2's sign-bit gather on x86-64 (the
-/// compiler does not find it for the plain loop on 8 lanes, which cost 16 instructions
-/// per group in the profile).
+/// Bit l set when lane l of `or` is not negative. SSE2's sign-bit gather on x86-64: the
+/// compiler does not find it for the plain loop on 8 lanes (in the profile that loop cost
+/// more than the edge values it tests).
 #[inline(always)]
 fn inside_lanes(or: &[i32; LANES]) -> u32 {
     #[cfg(target_arch = "x86_64")]

@@ -364,10 +364,11 @@ fn f16c() -> bool {
 }
 
 /// [`resolve`] with F16C: `f16_store` is a conversion to f16 rounding toward zero and back
-/// (`vcvtps2ph` with rounding 3, which keeps -0 and subnormals as the software does; the
-/// input clamped to ±65504 first, as the software clamps), every pixel by the one branch-free path (the same
-/// value as the shortcut there), the samples summed in the same order from the same -0. A NaN channel becomes the canonical NaN, as
-/// `f16_store` returns (the hardware would keep its payload).
+/// (`vcvtps2ph` with rounding 3, which keeps -0 and subnormals as the software does), the
+/// input clamped to ±65504 first as the software clamps, and a NaN channel its own quiet
+/// NaN, as the software's arithmetic leaves it (the conversion would cut its payload).
+/// Every pixel takes the one branch-free path (the same value as the plain path's
+/// shortcut), the samples summed in the same order from the same -0.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,f16c")]
 unsafe fn resolve_f16c<const N: usize>(color: &[[[f32; 4]; N]]) -> Vec<[f32; 4]> {
