@@ -8,7 +8,7 @@
 # Seeds come from the repo's test data and a small run of coif itself (never from ../shared).
 # A crash stops the script with the target's name; libFuzzer leaves the input in
 # fuzz/artifacts/<target>/: fix the parser and copy the input to fuzz/regressions/<target>/,
-# which tests/fuzz_regressions.rs replays on every `cargo test`.
+# which tests/it/fuzz_regressions.rs replays on every `cargo test`.
 # The execution count of each target is printed and appended to fuzz/target/fuzz-stats.tsv.
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Puts the real portraits whose licence is unclear where tests/segment_real.rs reads them:
+# Puts the real portraits whose licence is unclear where tests/it/segment_real.rs reads them:
 # tests/data/real/fetched/ (git-ignored; never committed).
 #
 # t1.jpg is a group photo of five people at a card table (a TV promotional still; the

@@ -64,5 +64,5 @@ if ! python3 -c 'import cv2; cv2.DISOpticalFlow_create' >/dev/null 2>&1; then
     python3 -m pip install -q --break-system-packages opencv-python-headless
 fi
 
-# Real portraits with no stated licence, for tests/segment_real.rs (never committed).
+# Real portraits with no stated licence, for tests/it/segment_real.rs (never committed).
 "$(dirname "$0")/real_portraits.sh"

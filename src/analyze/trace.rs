@@ -52,7 +52,7 @@ pub struct TraceParams {
     /// still follow the same neighbours. 1 px by default: at a side part the tracer overshoots
     /// onto the narrow side by only 10-30 px of nearly level hair, which falls by 1-3 px
     /// there; a 6 px drop missed those, 1 px lifts the synthetic side parts from 96.8-97.5%
-    /// to 98.1-98.6% of curve length resolved the true way (`tests/analyze.rs`). The cost:
+    /// to 98.1-98.6% of curve length resolved the true way (`tests/it/analyze.rs`). The cost:
     /// the tight arcs round a whorl are cut as well, and on the synthetic whorl (seed 1) two
     /// short pieces near its centre then resolve the wrong way (98.3% instead of 100%).
     pub apex_drop: f32,

@@ -1,7 +1,7 @@
 //! Figures of video tracking against a synthetic clip's exact ground truth (issue 15): the
 //! flow's end-point error on hair, the drift of W*_i (Eq. 6) against flow alone and
 //! features alone, 3D vertex error, roots, head yaw, temporal flicker of the re-rendered
-//! hair and seconds per frame. Shared by `tests/video_eval.rs` (small clips) and
+//! hair and seconds per frame. Shared by `tests/it/video_eval.rs` (small clips) and
 //! `benches/video.rs` (the issue's 256², 61-frame clips beside OpenCV's flows).
 //!
 //! The tracker starts from the ground-truth strands of frame 0 with the true camera, so the

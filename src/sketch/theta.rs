@@ -56,7 +56,7 @@ pub struct ThetaParams {
 /// λθ = 1, 4.9° / 6.0° / 6.6° / 6.8° with 0.5, 3.2° / 3.4° / 4.6° / 4.7° with 0.25, against
 /// 2.3° / 3.8° / 3.4° / 5.3° for the Gabor field. 0.25 costs more sweeps (100-170) and
 /// blurs orientation boundaries more where there is no sketch, which is what the sketch is
-/// for. Measured by `tests/sketch_pursuit.rs` (`theta_smoothness_scan`, ignored by default).
+/// for. Measured by `tests/it/sketch_pursuit.rs` (`theta_smoothness_scan`, ignored by default).
 pub const DEFAULT_LAMBDA_THETA: f32 = 0.25;
 
 impl Default for ThetaParams {

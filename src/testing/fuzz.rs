@@ -1,6 +1,6 @@
 //! The parsers under coverage-guided fuzzing (`fuzz/`, `scripts/fuzz.sh`), by target name.
 //! One function runs a target on one input, so the fuzz targets, the seed-corpus replay and
-//! the regression test (`tests/fuzz_regressions.rs`) exercise exactly the same code.
+//! the regression test (`tests/it/fuzz_regressions.rs`) exercise exactly the same code.
 //!
 //! A parser may refuse any input with an error; it must not panic, hang or allocate without
 //! bound. Where a writer exists, whatever a reader accepts must write and read back (the

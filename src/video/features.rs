@@ -11,7 +11,7 @@
 //! backward for earlier ones). With [`Anchor::Reference`] each step's chained estimate is
 //! refined against the reference frame's own patch, so errors do not accumulate along the
 //! chain, but a patch that has turned since the reference no longer fits it.
-//! `tests/video_features.rs` measures both over 30 frames of the synthetic portrait with
+//! `tests/it/video_features.rs` measures both over 30 frames of the synthetic portrait with
 //! fresh noise per frame: mean drift at frame 30 is 0.35 px chained against 0.09 px anchored
 //! on a sliding clip, and 0.56 against 0.46 px on a turning one (0.25°/frame), so
 //! [`Anchor::Reference`] is the default.
@@ -54,7 +54,7 @@ pub struct KltParams {
     pub min_eigen: f32,
     /// Smallest λmin/λmax of the structure tensor for a detected feature. Along an edge or a strand (ratio near 0) the position is not determined:
     /// translation-only Lucas–Kanade then slides along it as soon as the patch turns a
-    /// little (`tests/video_features.rs` prints the error by ratio).
+    /// little (`tests/it/video_features.rs` prints the error by ratio).
     pub min_isotropy: f32,
     /// The same limit for keeping a tracked feature, lower than `min_isotropy` so that a
     /// feature detected near the limit is not lost to the small change of its patch from

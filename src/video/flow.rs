@@ -7,7 +7,7 @@
 //! orientation contribute nothing to the data term.
 //!
 //! **Method.** Variational coarse-to-fine flow after Brox et al. 2004, with the choices
-//! below (measured on the synthetic pairs of `tests/video_flow.rs`):
+//! below (measured on the synthetic pairs of `tests/it/video_flow.rs`):
 //! * pyramid by factor 2 (`flow_down`, a [1 3 3 1] tent per axis); the coarsest level's
 //!   shorter side is at least [`FlowParams::min_size`];
 //! * per level, [`FlowParams::warps`] warping steps (`flow_warp`): b sampled at q + u(q),
@@ -169,7 +169,7 @@ pub fn feature_orient_params() -> OrientParams {
 /// data term can pin to a fraction of a pixel. Dividing it by its local mean removes the
 /// slow changes of the Gabor confidence with the strand angle to the pixel grid and with the
 /// lighting; r / (r + K) bounds the few hot pixels. The texture alone loses the large
-/// motions (the 3° turn of `tests/video_flow.rs`: 1.5 px EPE), where the smooth θ term
+/// motions (the 3° turn of `tests/it/video_flow.rs`: 1.5 px EPE), where the smooth θ term
 /// guides the coarse levels, hence the mix. Measured with `benches/flow_epe.rs` (seed-1
 /// clips, 256², every 3rd pair, EPE on hair long/whorl/sidepart): clamped only (with the
 /// default orientation parameters) 0.27/0.15/0.18 px at its best α (1 to 3); texture only

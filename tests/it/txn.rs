@@ -4,7 +4,7 @@
 //! runs are removed; a batch stopped by SIGTERM and resumed gives the uninterrupted run's
 //! files; output paths that are inputs or of the wrong kind are refused before work.
 
-mod common;
+use crate::common;
 
 use common::procs::*;
 use common::{fails, stderr};

@@ -1,7 +1,7 @@
 //! Issue 19: orientation, growth direction and the original-view re-render on texture
 //! variations of the synthetic portraits (`coif synth --texture`), hair the default look does
 //! not draw: wavy strands (curly), and a web-photo mix of wider, fainter, curled strands
-//! under blur, noise and JPEG compression (photo). Every style at 512², as tests/accuracy.rs
+//! under blur, noise and JPEG compression (photo). Every style at 512², as tests/it/accuracy.rs
 //! (at 384² the default Gabor bank loses 0.3-0.8° on every style, so a smaller size would
 //! measure the size, not the texture); orientation on seeds 1-2 and both backends (about a
 //! minute, lavapipe included), direction and re-render on seed 1 on the cpu backend.
@@ -17,7 +17,7 @@
 //! (0.9-2.7° here). The re-render holds: every hair pixel shows the photo under it (infinite
 //! PSNR over the hair region on every case here).
 
-mod common;
+use crate::common;
 
 use coif::analyze::orient::{orient, GrayImage, OrientParams};
 use coif::analyze::{analyze, AnalyzeParams};

@@ -270,7 +270,7 @@ fn czs_is_small() {
         let mut worst = 0;
         for seed in 0..10 {
             let mut s = random_sketch(1000 + seed, 512, 512, 30, 8, 10);
-            // The curves' budget; a real mask's outline is measured in tests/sketch_cli.rs.
+            // The curves' budget; a real mask's outline is measured in tests/it/sketch_cli.rs.
             s.region.clear();
             for c in &mut s.curves {
                 c.prims.truncate(8);

@@ -1,7 +1,7 @@
 //! The command line on good and bad input: clear messages naming the file or limit, the
 //! documented exit codes, and no half-written output.
 
-mod common;
+use crate::common;
 
 use common::{fails, stderr};
 use std::path::{Path, PathBuf};

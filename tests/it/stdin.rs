@@ -3,7 +3,7 @@
 //! `/dev/stdin` or `/proc/self/fd/0` (what `<(...)` hands over as `/dev/fd/63`), checked
 //! against the same run on the file. Each test's comment says how it failed before the fix.
 
-mod common;
+use crate::common;
 
 use common::{fails, stderr};
 use std::io::Write;

@@ -2,8 +2,6 @@
 //! with ground truth and on real photographs, the figures the issue asks for printed, the
 //! command's files and its errors.
 
-mod common;
-
 use coif::eval::metrics::erode;
 use coif::gpu::engine::Engine;
 use coif::sketch::run::{analyse, SketchInputs, SketchParams, SketchResult};

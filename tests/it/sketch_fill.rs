@@ -13,7 +13,7 @@
 //!   weight schedule reaches min w > 0.9 within the 600-sweep cap; and how many sweeps it
 //!   needs without the cap on one case). Every figure is printed.
 
-mod common;
+use crate::common;
 
 use coif::gpu::engine::Engine;
 use coif::sketch::fill::{self, FillParams, FillState, Mode};

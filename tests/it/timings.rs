@@ -3,13 +3,13 @@
 //! reports GPU time per pass; `coif batch`'s summary aggregates its jobs' timings. No test
 //! asserts on a duration.
 
-mod common;
+use crate::common;
 
 use serde_json::Value;
 use std::path::Path;
 use std::process::{Command, Output};
 
-const SCHEMA: &str = include_str!("../schemas/timings.v1.schema.json");
+const SCHEMA: &str = include_str!("../../schemas/timings.v1.schema.json");
 
 fn coif(dir: &Path, args: &[&str]) -> Output {
     let mut c = Command::new(env!("CARGO_BIN_EXE_coif"));

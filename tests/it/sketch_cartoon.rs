@@ -2,7 +2,7 @@
 //! points, its exact Bézier form, narrowed ends), the rendering on the CPU mirror and on
 //! lavapipe, the golden, the SVG, and the command's files and errors.
 
-mod common;
+use crate::common;
 
 use coif::gpu::engine::Engine;
 use coif::sketch::cartoon::{
@@ -198,7 +198,7 @@ fn cpu_and_lavapipe_cartoons_agree() {
             a.save(Path::new(dir).join(format!("cartoon_{}.png", style.name())))
                 .unwrap();
         }
-        // The raster parity tolerance of tests/raster.rs: ≥ 99 % of pixels within 2/255.
+        // The raster parity tolerance of tests/it/raster.rs: ≥ 99 % of pixels within 2/255.
         assert!(share <= 0.01, "{} differs", style.name());
     }
 }

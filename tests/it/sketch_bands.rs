@@ -1,7 +1,7 @@
 //! The low band as shading bases plus the colour map (CZ06 Eq. 1) against the input blurred
 //! at σ_L inside the hair, on real fur photographs and a synthetic portrait.
 
-mod common;
+use crate::common;
 
 use coif::gpu::engine::Engine;
 use coif::sketch::bands::{bands, blur_rgb_in_mask, SIGMA_L};

@@ -125,7 +125,7 @@ fn save_png(name: &str, w: u32, h: u32, v: &[[f32; 3]]) {
     println!("wrote {}", path.display());
 }
 
-// Shader validation, bindings and the uniform layout of the pm_* stages: tests/shader_validation.rs.
+// Shader validation, bindings and the uniform layout of the pm_* stages: tests/it/shader_validation.rs.
 
 // ---------------------------------------------------------------------------------------------
 // Stage parity

@@ -5,7 +5,7 @@
 //! - lavapipe and the cpu backend agree within the stated tolerances, which come from f32
 //!   sums taken in another order, not from a measurement they were fitted to.
 
-mod common;
+use crate::common;
 
 use coif::io::{npy, strands};
 use common::procs::{coif, ok};

@@ -2,8 +2,8 @@
 //! defects of its Why): each test runs the real binary on an input that was accepted, or
 //! refused with the wrong code, before the fix.
 
+use crate::common;
 use std::path::PathBuf;
-mod common;
 
 use common::{fails, stderr};
 use std::process::{Command, Output};

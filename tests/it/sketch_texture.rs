@@ -15,7 +15,7 @@
 //! - Determinism: same seed, same bits; another seed, another image.
 //! - The measuring helpers fail on textures that do not follow the field.
 
-mod common;
+use crate::common;
 
 use coif::analyze::orient::{orient, GrayImage, OrientParams};
 use coif::gpu::engine::{BufProxy, Engine, Recording};

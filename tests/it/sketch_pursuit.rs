@@ -1,6 +1,6 @@
 //! CZ06 Step 1: the orientation field Θ (`cz_theta_gs`), the window sums of the sketch
 //! pursuit (`cz_window_sums`), and the pursuit itself (Eq. 24). Every test prints its
-//! figures (`cargo test --release --test sketch_pursuit -- --nocapture`).
+//! figures (`cargo test --release --test it sketch_pursuit:: -- --nocapture`).
 //!
 //! Parity tolerances: one half-sweep of `cz_theta_gs` 1e-6 (the same sums; lavapipe may
 //! fuse a multiply-add), 12 sweeps 1e-4; `cz_window_sums` prefix sums 1e-4 relative (the
@@ -8,7 +8,7 @@
 //! on at least 99.9% of positions (the refinement takes an atan2, which may round the other
 //! way at a boundary; the δ there still agrees).
 
-mod common;
+use crate::common;
 
 use coif::analyze::orient::{orient, GrayImage, OrientParams};
 use coif::gpu::engine::{Engine, Recording};

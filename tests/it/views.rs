@@ -19,7 +19,7 @@
 //! The pictures (render, photo, and the render with the photo's skin region tinted green
 //! and the pixels that broke the bound in red) are written to `<target>/views-pictures/`.
 
-mod common;
+use crate::common;
 
 use coif::analyze::analyze;
 use coif::base::mask::dilate;
@@ -321,7 +321,7 @@ fn check_outline(engine: &Engine, name: &str, m: &Scene, photo: &image::RgbImage
     );
 }
 
-/// Novel-view goldens on lavapipe (the model built on the CPU, as tests/render.rs does).
+/// Novel-view goldens on lavapipe (the model built on the CPU, as tests/it/render.rs does).
 fn goldens(m: &Scene, views: &[(&str, f32)]) {
     let gpu = common::gpu();
     let mut errors = Vec::new();
@@ -362,7 +362,7 @@ fn astronaut_novel_views_change_only_hair_face_and_neck() {
     );
 }
 
-/// Yaw +25° of this case is `render_synth_long_256_yaw25` in tests/render.rs.
+/// Yaw +25° of this case is `render_synth_long_256_yaw25` in tests/it/render.rs.
 #[test]
 fn synthetic_novel_views_change_only_hair_face_and_neck() {
     let engine = Engine::cpu();

@@ -2,7 +2,7 @@
 //! before work with a message naming them, and the cpu backend's tiled orientation equals
 //! the one-piece run. Real `coif` processes: a refusal must come before anything is written.
 
-mod common;
+use crate::common;
 
 use common::fails;
 use std::path::Path;

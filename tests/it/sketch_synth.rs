@@ -2,8 +2,6 @@
 //! portraits and real crops, the figures the issue asks for printed, the golden on
 //! lavapipe, the command's files and errors.
 
-mod common;
-
 use coif::analyze::orient::{orient, GrayImage, OrientParams};
 use coif::eval::metrics::{erode, mean_orient_error_deg, ssim_region};
 use coif::gpu::engine::{BackendChoice, Engine};

@@ -1,7 +1,7 @@
 //! Orientation accuracy against the exact ground truth of `coif synth`: every style, seeds
 //! 1-3, both backends. Acceptance: mean error <= 2° over hair pixels >= 5 px inside the mask.
 
-mod common;
+use crate::common;
 
 use coif::analyze::orient::{orient, GrayImage, OrientParams};
 use coif::eval::metrics::orientation_error;

@@ -8,7 +8,7 @@
 //! mask (a clip has no per-frame hair mask). The end-point error is measured on a's hair pixels at least 4 px
 //! inside the hair mask whose target q + V(q) is at least 4 px inside the image.
 
-mod common;
+use crate::common;
 
 use coif::analyze::orient::{orient, GrayImage};
 use coif::gpu::engine::Engine;

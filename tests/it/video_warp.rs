@@ -2,7 +2,7 @@
 //! bilinear field sampler `shared/field_sample.wgsl`) on lavapipe
 //! against their CPU mirrors, and the properties the equations promise.
 
-mod common;
+use crate::common;
 
 use coif::gpu::engine::Engine;
 use coif::hair::head::WeakPerspective;

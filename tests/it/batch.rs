@@ -2,7 +2,7 @@
 //! job is reported while the others complete, `--resume` skips exactly the matching jobs,
 //! and manifest errors name the line and key before any job runs.
 
-mod common;
+use crate::common;
 
 use common::procs::*;
 use serde_json::Value;

@@ -10,7 +10,7 @@
 //! `eps_px` (0.01 px): an ulp of difference can take one more or one fewer step, so the two
 //! may differ by up to that last step, `eps_px`; the lost/tracked status must agree exactly.
 
-mod common;
+use crate::common;
 
 use coif::analyze::orient::GrayImage;
 use coif::base::sentinel::SENTINEL;

@@ -8,7 +8,7 @@
 //! equally and rounding picks the other one; the argmax, and the confidence measured around
 //! it, then differ by design.
 
-mod common;
+use crate::common;
 
 use coif::analyze::orient::{orient, OrientParams, SENTINEL};
 use coif::gpu::engine::{BufProxy, Engine, Recording};

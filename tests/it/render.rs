@@ -2,7 +2,7 @@
 //! view (PSNR over the hair region, printed), novel views and recolouring, goldens on
 //! lavapipe (metric in golden/README.md), and bad input.
 
-mod common;
+use crate::common;
 
 use coif::analyze::analyze;
 use coif::hair::scene::Scene;

@@ -1,7 +1,7 @@
 //! Golden pictures on lavapipe: orientation and confidence of one synthetic case.
 //! Metric and blessing: golden/README.md (COIF_BLESS=1 writes missing or changed goldens).
 
-mod common;
+use crate::common;
 
 use coif::analyze::orient::{orient, GrayImage, OrientParams};
 use coif::synth::{synth, Style, SynthParams};

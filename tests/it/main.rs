@@ -1,0 +1,57 @@
+//! Every integration test in one binary (`cargo test --release --test it [module::][name]`).
+//!
+//! Why one binary and not a file per binary: each binary links the whole crate and wgpu
+//! (seconds per link, 48 links), and the test harness runs one binary at a time, so a binary
+//! whose tests end unevenly left a core idle until its slowest test ended. One binary links
+//! once and keeps both cores busy to the end.
+
+mod common;
+
+mod accuracy;
+mod analyze;
+mod batch;
+mod cli;
+mod determinism;
+mod direction;
+mod edit;
+mod field3d;
+mod fuzz_regressions;
+mod golden;
+mod grow;
+mod head;
+mod inpaint;
+mod memory;
+mod model;
+mod parity;
+mod raster;
+mod render;
+mod segment_real;
+mod shade;
+mod shader_validation;
+mod sim;
+mod sketch_bands;
+mod sketch_cartoon;
+mod sketch_cli;
+mod sketch_edit;
+mod sketch_fill;
+mod sketch_format;
+mod sketch_pursuit;
+mod sketch_swc;
+mod sketch_synth;
+mod sketch_texture;
+mod stdin;
+mod strands;
+mod synth3d;
+mod synth_video;
+mod timings;
+mod txn;
+mod validate;
+mod variations;
+mod video_cli;
+mod video_eval;
+mod video_features;
+mod video_flow;
+mod video_frames;
+mod video_warp;
+mod views;
+mod volume;
