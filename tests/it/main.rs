@@ -1,9 +1,9 @@
 //! Every integration test in one binary (`cargo test --release --test it [module::][name]`).
 //!
-//! Why one binary and not a file per binary: each binary links the whole crate and wgpu
-//! (seconds per link, 48 links), and the test harness runs one binary at a time, so a binary
-//! whose tests end unevenly left a core idle until its slowest test ended. One binary links
-//! once and keeps both cores busy to the end.
+//! Why one binary and not a binary per file: each binary links the whole crate and wgpu, so
+//! after a change to the library 48 binaries were rebuilt and linked (4-6 s each on 2 cores);
+//! this crate builds in ~36 s. (CI's total did not move: there the library's own unit-test
+//! build is the longer path, and the suite's 1,009 s equal the 48 binaries' 1,010 s.)
 
 mod common;
 
