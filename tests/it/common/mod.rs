@@ -1,5 +1,4 @@
 //! Shared test fixtures.
-#![allow(dead_code)] // each test binary uses a different subset
 
 pub mod procs;
 
