@@ -55,3 +55,23 @@ mod video_frames;
 mod video_warp;
 mod views;
 mod volume;
+
+/// A file in `tests/it/` that this list forgets would never be compiled or run, silently.
+#[test]
+fn every_file_in_tests_it_is_a_module_here() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/it");
+    let main = std::fs::read_to_string(dir.join("main.rs")).unwrap();
+    let mut missing = Vec::new();
+    for e in std::fs::read_dir(&dir).unwrap() {
+        let name = e.unwrap().file_name().into_string().unwrap();
+        if let Some(m) = name.strip_suffix(".rs") {
+            if m != "main" && !main.lines().any(|l| l == format!("mod {m};")) {
+                missing.push(name);
+            }
+        }
+    }
+    assert!(
+        missing.is_empty(),
+        "not declared in tests/it/main.rs: {missing:?}"
+    );
+}
