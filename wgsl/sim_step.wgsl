@@ -271,10 +271,14 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         var xi = vert(&x, i) + vi * dt;
         var c = collide(m0, m1, xi, vi, cfg.margin);
         let before = c.x;
+        let untouched = all(c.x == xi);
         xi = limit(cfg.strain_limit, rest[base + 3u * (i - 1u)], parent, c.x);
         vi = c.v;
-        // Alternating projections: outside the head, within the limit of the parent.
-        for (var k = 0u; k < PROJECTIONS; k++) {
+        // Alternating projections: outside the head, within the limit of the parent. A
+        // vertex neither pushed nor limited is at least `margin` from the head, where the
+        // first test would end the loop.
+        let rounds = select(PROJECTIONS, 0u, untouched && all(xi == before));
+        for (var k = 0u; k < rounds; k++) {
             c = collide(m0, m1, xi, vi, 0.5 * cfg.margin);
             if all(c.x == xi) {
                 break;

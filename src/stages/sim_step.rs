@@ -155,43 +155,133 @@ pub fn wind(cfg: &Config, perm: &[u32], p: V3, t: f32) -> V3 {
     ]
 }
 
-/// One strand's step; `x` and `v` hold its `n_verts` vertices (xyz each).
+/// Strands stepped together by the mirror. Every strand's band system has the same shape, so
+/// the assembly and the solve run lane by lane over `LANES` strands in one loop, which the
+/// compiler turns into SIMD (the solve's long chains of dependent divides and square roots
+/// then overlap); each lane does one shader invocation's arithmetic in the same order, so a
+/// batch gives the one-strand step's values to the bit (tested below).
+const LANES: usize = 8;
+
+/// Per batch of `L` strands: the band of the lower triangle, l[i * B1 + (i − j)] = A[i][j],
+/// and the right-hand side, one value per lane.
+struct Scratch<const L: usize> {
+    l: Vec<[f32; L]>,
+    rhs: Vec<[f32; L]>,
+}
+
+impl<const L: usize> Scratch<L> {
+    fn new() -> Self {
+        Scratch {
+            l: vec![[0.0; L]; MAX_UNKNOWNS * B1],
+            rhs: vec![[0.0; L]; MAX_UNKNOWNS],
+        }
+    }
+}
+
+/// Steps every strand: `x` and `v` hold `n_strands` strands of `n_verts` vertices (xyz each),
+/// `roots` one point per strand, `rest` three spring rest lengths per vertex.
 #[allow(clippy::too_many_arguments)]
-pub fn step_strand(
+pub fn step_all(
     cfg: &Config,
     perm: &[u32],
     head: &[f32],
     motion: &[f32],
-    root: V3,
+    roots: &[f32],
     rest: &[f32],
     x: &mut [f32],
     v: &mut [f32],
 ) {
     let n = cfg.n_verts as usize;
+    let ns = cfg.n_strands as usize;
+    let sn = 3 * n;
+    let full = ns / LANES * LANES;
+    let (xa, xb) = x[..sn * ns].split_at_mut(sn * full);
+    let (va, vb) = v[..sn * ns].split_at_mut(sn * full);
+    xa.par_chunks_mut(sn * LANES)
+        .zip(va.par_chunks_mut(sn * LANES))
+        .enumerate()
+        .for_each_init(Scratch::<LANES>::new, |sc, (c, (xs, vs))| {
+            let s = c * LANES;
+            step_strands(
+                cfg,
+                perm,
+                head,
+                motion,
+                &roots[3 * s..3 * (s + LANES)],
+                &rest[sn * s..sn * (s + LANES)],
+                xs,
+                vs,
+                sc,
+            );
+        });
+    // The last strands, fewer than a batch, one at a time.
+    let mut sc = Scratch::<1>::new();
+    for (j, (xs, vs)) in xb.chunks_mut(sn).zip(vb.chunks_mut(sn)).enumerate() {
+        let s = full + j;
+        step_strands(
+            cfg,
+            perm,
+            head,
+            motion,
+            &roots[3 * s..3 * (s + 1)],
+            &rest[sn * s..sn * (s + 1)],
+            xs,
+            vs,
+            &mut sc,
+        );
+    }
+}
+
+/// `L` strands' step, lane k holding strand k of `x`, `v` (`n_verts` vertices, xyz each),
+/// `roots` and `rest`.
+#[allow(clippy::too_many_arguments)]
+fn step_strands<const L: usize>(
+    cfg: &Config,
+    perm: &[u32],
+    head: &[f32],
+    motion: &[f32],
+    roots: &[f32],
+    rest: &[f32],
+    x: &mut [f32],
+    v: &mut [f32],
+    sc: &mut Scratch<L>,
+) {
+    let n = cfg.n_verts as usize;
+    let sn = 3 * n;
     let nu = 3 * (n - 1);
     let dt = cfg.dt;
     let (r0, t0) = motion_at(motion, cfg.step);
     let (r1, t1) = motion_at(motion, cfg.step + 1);
-    let root_new = apply(&r1, t1, root);
-    let v_root = scale(sub(root_new, apply(&r0, t0, root)), 1.0 / dt);
-    let get = |a: &[f32], i: usize| -> V3 { [a[3 * i], a[3 * i + 1], a[3 * i + 2]] };
-    // Band of the lower triangle: l[i * B1 + (i − j)] = A[i][j].
-    let mut l = [0.0f32; MAX_UNKNOWNS * B1];
-    let mut rhs = [0.0f32; MAX_UNKNOWNS];
+    let mut root_new = [[0.0f32; 3]; L];
+    let mut v_root = [[0.0f32; 3]; L];
+    for k in 0..L {
+        let root = [roots[3 * k], roots[3 * k + 1], roots[3 * k + 2]];
+        root_new[k] = apply(&r1, t1, root);
+        v_root[k] = scale(sub(root_new[k], apply(&r0, t0, root)), 1.0 / dt);
+    }
+    let get = |a: &[f32], k: usize, i: usize| -> V3 {
+        let o = k * sn + 3 * i;
+        [a[o], a[o + 1], a[o + 2]]
+    };
+    let l = &mut sc.l[..nu * B1];
+    let rhs = &mut sc.rhs[..nu];
+    l.fill([0.0; L]);
     let diag = 1.0 + dt * cfg.drag;
     for i in 1..n {
-        let xi = get(x, i);
-        let u = wind(cfg, perm, xi, cfg.time);
-        let vi = get(v, i);
-        let f = [
-            vi[0] + dt * cfg.drag * u[0],
-            vi[1] + dt * (cfg.drag * u[1] - cfg.gravity),
-            vi[2] + dt * cfg.drag * u[2],
-        ];
-        for (c, fc) in f.iter().enumerate() {
-            let r = 3 * (i - 1) + c;
-            rhs[r] = *fc;
-            l[r * B1] = diag;
+        for k in 0..L {
+            let xi = get(x, k, i);
+            let u = wind(cfg, perm, xi, cfg.time);
+            let vi = get(v, k, i);
+            let f = [
+                vi[0] + dt * cfg.drag * u[0],
+                vi[1] + dt * (cfg.drag * u[1] - cfg.gravity),
+                vi[2] + dt * cfg.drag * u[2],
+            ];
+            for (c, fc) in f.iter().enumerate() {
+                let r = 3 * (i - 1) + c;
+                rhs[r][k] = *fc;
+                l[r * B1][k] = diag;
+            }
         }
     }
     for a in 0..n - 1 {
@@ -200,40 +290,68 @@ pub fn step_strand(
             if b >= n {
                 continue;
             }
-            let l0 = rest[3 * a + fam];
-            let k = [cfg.k_stretch, cfg.k_bend, cfg.k_twist][fam];
-            let xa = get(x, a);
-            let d0 = sub(get(x, b), xa);
-            let len = dot(d0, d0).sqrt();
-            if len < 1e-12 || l0 <= 0.0 {
-                continue;
+            let kf = [cfg.k_stretch, cfg.k_bend, cfg.k_twist][fam];
+            // A lane whose spring is skipped keeps d, fe and c at zero: it adds exact zeros.
+            let mut d = [[0.0f32; L]; 3];
+            let mut fe = [[0.0f32; L]; 3];
+            let mut c = [0.0f32; L];
+            for k in 0..L {
+                let l0 = rest[k * sn + 3 * a + fam];
+                let xa = get(x, k, a);
+                let d0 = sub(get(x, k, b), xa);
+                let len = dot(d0, d0).sqrt();
+                if len < 1e-12 || l0 <= 0.0 {
+                    continue;
+                }
+                let dk = scale(d0, 1.0 / len);
+                // Elastic force on a (and its opposite on b), explicit at x.
+                let fk = scale(dk, dt * (kf / l0) * (len - l0));
+                c[k] = dt * (kf * dt + cfg.damping * kf) / l0;
+                for p in 0..3 {
+                    d[p][k] = dk[p];
+                    fe[p][k] = fk[p];
+                }
             }
-            let d = scale(d0, 1.0 / len);
-            // Elastic force on a (and its opposite on b), explicit at x.
-            let fe = scale(d, dt * (k / l0) * (len - l0));
-            let c = dt * (k * dt + cfg.damping * k) / l0;
             let bu = 3 * (b - 1);
             for p in 0..3 {
-                rhs[bu + p] -= fe[p];
+                for k in 0..L {
+                    rhs[bu + p][k] -= fe[p][k];
+                }
                 for q in 0..=p {
-                    l[(bu + p) * B1 + (p - q)] += c * d[p] * d[q];
+                    let e = &mut l[(bu + p) * B1 + (p - q)];
+                    for k in 0..L {
+                        e[k] += c[k] * d[p][k] * d[q][k];
+                    }
                 }
             }
             if a == 0 {
                 // The root's velocity is known: its spring term moves to the right.
                 for p in 0..3 {
-                    rhs[bu + p] += c * d[p] * dot(d, v_root);
+                    for k in 0..L {
+                        let dv = d[0][k] * v_root[k][0]
+                            + d[1][k] * v_root[k][1]
+                            + d[2][k] * v_root[k][2];
+                        rhs[bu + p][k] += c[k] * d[p][k] * dv;
+                    }
                 }
             } else {
                 let au = 3 * (a - 1);
                 for p in 0..3 {
-                    rhs[au + p] += fe[p];
+                    for k in 0..L {
+                        rhs[au + p][k] += fe[p][k];
+                    }
                     for q in 0..=p {
-                        l[(au + p) * B1 + (p - q)] += c * d[p] * d[q];
+                        let e = &mut l[(au + p) * B1 + (p - q)];
+                        for k in 0..L {
+                            e[k] += c[k] * d[p][k] * d[q][k];
+                        }
                     }
                     // Off-diagonal block: row of b, column of a (always below the diagonal).
                     for q in 0..3 {
-                        l[(bu + p) * B1 + (bu + p - (au + q))] -= c * d[p] * d[q];
+                        let e = &mut l[(bu + p) * B1 + (bu + p - (au + q))];
+                        for k in 0..L {
+                            e[k] -= c[k] * d[p][k] * d[q][k];
+                        }
                     }
                 }
             }
@@ -246,50 +364,114 @@ pub fn step_strand(
             let mut s = l[i * B1 + (i - j)];
             let k0 = j0.max(j.saturating_sub(BAND));
             for kk in k0..j {
-                s -= l[i * B1 + (i - kk)] * l[j * B1 + (j - kk)];
+                let (li, lj) = (l[i * B1 + (i - kk)], l[j * B1 + (j - kk)]);
+                for k in 0..L {
+                    s[k] -= li[k] * lj[k];
+                }
             }
             if i == j {
-                l[i * B1] = s.max(1e-20).sqrt();
+                for sk in s.iter_mut() {
+                    *sk = sk.max(1e-20).sqrt();
+                }
             } else {
-                l[i * B1 + (i - j)] = s / l[j * B1];
+                let dj = l[j * B1];
+                for k in 0..L {
+                    s[k] /= dj[k];
+                }
             }
+            l[i * B1 + (i - j)] = s;
         }
     }
     for i in 0..nu {
         let mut s = rhs[i];
         for kk in i.saturating_sub(BAND)..i {
-            s -= l[i * B1 + (i - kk)] * rhs[kk];
+            let (li, r) = (l[i * B1 + (i - kk)], rhs[kk]);
+            for k in 0..L {
+                s[k] -= li[k] * r[k];
+            }
         }
-        rhs[i] = s / l[i * B1];
+        let di = l[i * B1];
+        for k in 0..L {
+            s[k] /= di[k];
+        }
+        rhs[i] = s;
     }
     for i in (0..nu).rev() {
         let mut s = rhs[i];
         for kk in i + 1..(i + BAND + 1).min(nu) {
-            s -= l[kk * B1 + (kk - i)] * rhs[kk];
+            let (lk, r) = (l[kk * B1 + (kk - i)], rhs[kk]);
+            for k in 0..L {
+                s[k] -= lk[k] * r[k];
+            }
         }
-        rhs[i] = s / l[i * B1];
+        let di = l[i * B1];
+        for k in 0..L {
+            s[k] /= di[k];
+        }
+        rhs[i] = s;
     }
+    let m = Rigid { r0, t0, r1, t1, dt };
+    for k in 0..L {
+        let xs = &mut x[k * sn..(k + 1) * sn];
+        let vs = &mut v[k * sn..(k + 1) * sn];
+        let vel = |i: usize| -> V3 {
+            let r = 3 * (i - 1);
+            [rhs[r][k], rhs[r + 1][k], rhs[r + 2][k]]
+        };
+        project(
+            cfg,
+            head,
+            &m,
+            root_new[k],
+            v_root[k],
+            &rest[k * sn..],
+            vel,
+            xs,
+            vs,
+        );
+    }
+}
+
+/// After the solve: the root follows the head, and each vertex moves with its new velocity
+/// `vel(i)`, is collided and strain-limited root to tip (DFTL velocity correction).
+#[allow(clippy::too_many_arguments)]
+fn project(
+    cfg: &Config,
+    head: &[f32],
+    m: &Rigid,
+    root_new: V3,
+    v_root: V3,
+    rest: &[f32],
+    vel: impl Fn(usize) -> V3,
+    x: &mut [f32],
+    v: &mut [f32],
+) {
+    let n = cfg.n_verts as usize;
+    let dt = cfg.dt;
+    let get = |a: &[f32], i: usize| -> V3 { [a[3 * i], a[3 * i + 1], a[3 * i + 2]] };
     x[0..3].copy_from_slice(&root_new);
     v[0..3].copy_from_slice(&v_root);
-    let m = Rigid { r0, t0, r1, t1, dt };
     let mut parent = root_new;
     // The previous vertex's velocity waits for this vertex's limit correction (DFTL).
     let mut prev_v = [0.0f32; 3];
     for i in 1..n {
-        let r = 3 * (i - 1);
-        let mut vi = [rhs[r], rhs[r + 1], rhs[r + 2]];
+        let mut vi = vel(i);
         let mut xi = add(get(x, i), scale(vi, dt));
         // Collision, then strain limiting root to tip: the limit pulls a vertex towards its
         // (final) parent, which can dip the edge into the margin or the head.
-        (xi, vi) = collide(head, &m, xi, vi, cfg.margin);
+        let free = xi;
+        (xi, vi) = collide(head, m, xi, vi, cfg.margin);
         let before = xi;
         xi = limit(cfg.strain_limit, rest[3 * (i - 1)], parent, xi);
         // Where the edge wraps round the head (an ear, the nape) one push and one pull do
         // not meet: alternating projections onto "outside the head" and "within the limit
         // of the parent" converge to a point in both when there is one; the limit has the
-        // last word, so no edge ever stretches past it.
-        for _ in 0..PROJECTIONS {
-            let pushed = collide(head, &m, xi, vi, 0.5 * cfg.margin);
+        // last word, so no edge ever stretches past it. A vertex neither pushed nor limited
+        // is at least `margin` from the head, where the first test would end the loop.
+        let untouched = before == free && xi == before;
+        let rounds = if untouched { 0 } else { PROJECTIONS };
+        for _ in 0..rounds {
+            let pushed = collide(head, m, xi, vi, 0.5 * cfg.margin);
             if pushed.0 == xi {
                 break;
             }
@@ -371,31 +553,121 @@ pub fn sim_step_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
     let mut x = b[6].get_mut::<f32>();
     let mut v = b[7].get_mut::<f32>();
     // Plain slices: the binding guards are not shared across threads.
-    let (perm, head, motion, roots, rest) = (&*perm, &*head, &*motion, &*roots, &*rest);
-    let n = cfg.n_verts as usize;
-    let ns = cfg.n_strands as usize;
-    x[..3 * n * ns]
-        .par_chunks_mut(3 * n)
-        .zip(v[..3 * n * ns].par_chunks_mut(3 * n))
-        .enumerate()
-        .for_each(|(s, (xs, vs))| {
-            let root = [roots[3 * s], roots[3 * s + 1], roots[3 * s + 2]];
-            step_strand(
-                &cfg,
-                perm,
-                head,
-                motion,
-                root,
-                &rest[3 * n * s..3 * n * (s + 1)],
-                xs,
-                vs,
-            );
-        });
+    step_all(&cfg, &perm, &head, &motion, &roots, &rest, &mut x, &mut v);
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Batches of strands give the one-strand step's values to the bit: strands on the
+    /// head's surface (collisions), in gusty wind, with the head turning, and a strand count
+    /// that leaves a part batch.
+    #[test]
+    fn batched_strands_step_like_single_strands() {
+        let (n, ns) = (12usize, 2 * LANES + 5);
+        let head = crate::hair::head::Head::default().sdf_packed();
+        let perm = crate::sim::noise::perm_table();
+        let cfg = |step| Config {
+            n_strands: ns as u32,
+            n_verts: n as u32,
+            step,
+            dt: 1.0 / 300.0,
+            time: step as f32 / 300.0,
+            k_stretch: 4e4,
+            k_bend: 400.0,
+            k_twist: 100.0,
+            damping: 0.005,
+            drag: 4.0,
+            wind_x: 3.0,
+            wind_z: 1.0,
+            gust: 0.8,
+            noise_scale: 0.12,
+            noise_speed: 1.5,
+            margin: 1e-3,
+            strain_limit: 0.002,
+            ..Default::default()
+        };
+        let steps = 30u32;
+        let mut motion = Vec::new();
+        for k in 0..=steps {
+            let (s, c) = (0.004 * k as f32).sin_cos();
+            motion.extend_from_slice(&[c, 0.0, s, 0.0, 1.0, 0.0, -s, 0.0, c, 0.0, 0.0, 0.0]);
+        }
+        // Roots on the surface along directions over the top of the head; each strand runs
+        // down and outwards by 1 cm edges, its first vertices inside the margin.
+        let (mut roots, mut x) = (Vec::new(), Vec::new());
+        for s in 0..ns {
+            let a = s as f32 * 0.7;
+            let dir = [a.cos() * 0.8, 0.6, a.sin() * 0.8];
+            let (mut lo, mut hi) = (0.0f32, 0.3f32);
+            for _ in 0..40 {
+                let mid = 0.5 * (lo + hi);
+                if head_sdf(&head, scale(dir, mid)) < 0.0 {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            let root = scale(dir, hi);
+            roots.extend_from_slice(&root);
+            let step = [dir[0] * 0.5, -0.8, dir[2] * 0.5];
+            for i in 0..n {
+                x.extend_from_slice(&add(root, scale(step, 0.01 * i as f32)));
+            }
+        }
+        let mut rest = vec![0.0f32; 3 * n * ns];
+        for s in 0..ns {
+            for a in 0..n {
+                for f in 0..3 {
+                    if a + f + 1 < n {
+                        let o = 3 * (s * n + a);
+                        let b = 3 * (s * n + a + f + 1);
+                        let d = sub([x[b], x[b + 1], x[b + 2]], [x[o], x[o + 1], x[o + 2]]);
+                        rest[3 * (s * n + a) + f] = dot(d, d).sqrt();
+                    }
+                }
+            }
+        }
+        let x0 = x.clone();
+        let (mut xb, mut vb) = (x.clone(), vec![0.0f32; x.len()]);
+        let (mut xs, mut vs) = (x, vec![0.0f32; xb.len()]);
+        let mut sc = Scratch::<1>::new();
+        let sn = 3 * n;
+        for k in 0..steps {
+            let c = cfg(k);
+            step_all(&c, &perm, &head, &motion, &roots, &rest, &mut xb, &mut vb);
+            for s in 0..ns {
+                step_strands(
+                    &c,
+                    &perm,
+                    &head,
+                    &motion,
+                    &roots[3 * s..3 * s + 3],
+                    &rest[sn * s..sn * (s + 1)],
+                    &mut xs[sn * s..sn * (s + 1)],
+                    &mut vs[sn * s..sn * (s + 1)],
+                    &mut sc,
+                );
+            }
+        }
+        let bits = |a: &[f32]| a.iter().map(|f| f.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&xb), bits(&xs));
+        assert_eq!(bits(&vb), bits(&vs));
+        // The strands moved, and the collision had vertices to push out.
+        let moved = xb
+            .iter()
+            .zip(&x0)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f32::max);
+        assert!(moved > 1e-3, "{moved} m");
+        let inside = (0..ns * n)
+            .filter(|&g| {
+                g % n != 0 && head_sdf(&head, [x0[3 * g], x0[3 * g + 1], x0[3 * g + 2]]) < 1e-3
+            })
+            .count();
+        assert!(inside > 0);
+    }
 
     /// A horizontal 8-vertex strand far from the head falls under gravity and keeps its
     /// edge lengths; hanging straight down it stays put.
@@ -439,7 +711,10 @@ mod tests {
         let mut v = vec![0.0f32; 3 * n];
         let mut worst = 0.0f32;
         for _ in 0..600 {
-            step_strand(&cfg, &perm, &head, &motion, root, &rest, &mut x, &mut v);
+            let mut sc = Scratch::<1>::new();
+            step_strands(
+                &cfg, &perm, &head, &motion, &root, &rest, &mut x, &mut v, &mut sc,
+            );
             for i in 0..n - 1 {
                 let d: f32 = (0..3)
                     .map(|c| (x[3 * i + 3 + c] - x[3 * i + c]).powi(2))
