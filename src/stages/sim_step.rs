@@ -25,7 +25,7 @@
 //! component into the head (relative to the head's own motion).
 
 use crate::gpu::engine::{Bind, CpuBinding, StageDef};
-use crate::sim::head_sdf::{head_sdf, head_sdf_grad};
+use crate::sim::head_sdf::{head_sdf, head_sdf_grad, head_sdf_of, Lanes};
 use crate::sim::noise::perlin32;
 use rayon::prelude::*;
 
@@ -411,13 +411,28 @@ fn step_strands<const L: usize>(
         rhs[i] = s;
     }
     let m = Rigid { r0, t0, r1, t1, dt };
+    let vel = |k: usize, i: usize| -> V3 {
+        let r = 3 * (i - 1);
+        [rhs[r][k], rhs[r + 1][k], rhs[r + 2][k]]
+    };
+    // Every vertex's distance from the head where its first collision test takes it, all
+    // lanes at once (most vertices need no other).
+    let mut dist = [[0.0f32; L]; MAX_VERTS as usize];
+    for (i, di) in dist.iter_mut().enumerate().take(n).skip(1) {
+        let mut ph = [Lanes([0.0f32; L]); 3];
+        for k in 0..L {
+            let xi = add(get(x, k, i), scale(vel(k, i), dt));
+            let q = apply_inv(&m.r1, m.t1, xi);
+            for c in 0..3 {
+                ph[c].0[k] = q[c];
+            }
+        }
+        *di = head_sdf_of(head, ph).0;
+    }
     for k in 0..L {
         let xs = &mut x[k * sn..(k + 1) * sn];
         let vs = &mut v[k * sn..(k + 1) * sn];
-        let vel = |i: usize| -> V3 {
-            let r = 3 * (i - 1);
-            [rhs[r][k], rhs[r + 1][k], rhs[r + 2][k]]
-        };
+        let first = |i: usize| (vel(k, i), dist[i][k]);
         project(
             cfg,
             head,
@@ -425,15 +440,16 @@ fn step_strands<const L: usize>(
             root_new[k],
             v_root[k],
             &rest[k * sn..],
-            vel,
+            first,
             xs,
             vs,
         );
     }
 }
 
-/// After the solve: the root follows the head, and each vertex moves with its new velocity
-/// `vel(i)`, is collided and strain-limited root to tip (DFTL velocity correction).
+/// After the solve: the root follows the head, and each vertex moves with its new velocity,
+/// is collided and strain-limited root to tip (DFTL velocity correction). `first(i)` is
+/// vertex i's new velocity and the head's distance where that takes it.
 #[allow(clippy::too_many_arguments)]
 fn project(
     cfg: &Config,
@@ -442,7 +458,7 @@ fn project(
     root_new: V3,
     v_root: V3,
     rest: &[f32],
-    vel: impl Fn(usize) -> V3,
+    first: impl Fn(usize) -> (V3, f32),
     x: &mut [f32],
     v: &mut [f32],
 ) {
@@ -455,12 +471,20 @@ fn project(
     // The previous vertex's velocity waits for this vertex's limit correction (DFTL).
     let mut prev_v = [0.0f32; 3];
     for i in 1..n {
-        let mut vi = vel(i);
+        let (mut vi, dist) = first(i);
         let mut xi = add(get(x, i), scale(vi, dt));
         // Collision, then strain limiting root to tip: the limit pulls a vertex towards its
         // (final) parent, which can dip the edge into the margin or the head.
         let free = xi;
-        (xi, vi) = collide(head, m, xi, vi, cfg.margin);
+        (xi, vi) = push(
+            head,
+            m,
+            apply_inv(&m.r1, m.t1, xi),
+            dist,
+            xi,
+            vi,
+            cfg.margin,
+        );
         let before = xi;
         xi = limit(cfg.strain_limit, rest[3 * (i - 1)], parent, xi);
         // Where the edge wraps round the head (an ear, the nape) one push and one pull do
@@ -504,7 +528,12 @@ struct Rigid {
 /// head's own motion at that point.
 fn collide(head: &[f32], m: &Rigid, xi: V3, vi: V3, margin: f32) -> (V3, V3) {
     let ph = apply_inv(&m.r1, m.t1, xi);
-    let dist = head_sdf(head, ph);
+    push(head, m, ph, head_sdf(head, ph), xi, vi, margin)
+}
+
+/// [`collide`] of `xi` given its place `ph` in head space and the distance `dist` there.
+#[allow(clippy::too_many_arguments)]
+fn push(head: &[f32], m: &Rigid, ph: V3, dist: f32, xi: V3, vi: V3, margin: f32) -> (V3, V3) {
     if dist >= margin {
         return (xi, vi);
     }
