@@ -1,5 +1,6 @@
 //! The head's signed distance in f32 from [`Head::sdf_packed`](crate::hair::head::Head),
-//! line for line as `wgsl/shared/head_sdf.wgsl`: the collision body of the simulation
+//! the arithmetic of `wgsl/shared/head_sdf.wgsl` (its branches as selects here, so that
+//! several points can run through it as SIMD lanes): the collision body of the simulation
 //! (C13 §4: "the head is represented as a signed distance field"). Ported analytically
 //! rather than baked into a grid, so there is no bake error: the only difference from the
 //! f64 [`Head::sdf`](crate::hair::head::Head::sdf) is f32 rounding (tested below).
