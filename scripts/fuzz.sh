@@ -5,6 +5,7 @@
 #   FUZZ_SECONDS=20 FUZZ_RUNS=0 scripts/fuzz.sh      # each target for 20 s
 #   FUZZ_BUILD=dev scripts/fuzz.sh  # unoptimised targets: built in half the time, run slower
 #   scripts/fuzz.sh npy manifest    # only these targets
+#   FUZZ_JOBS=1 scripts/fuzz.sh     # one target at a time (default: one per core)
 #
 # Seeds come from the repo's test data and a small run of coif itself (never from ../shared).
 # A crash stops the script with the target's name; libFuzzer leaves the input in
@@ -73,11 +74,17 @@ fi
 
 stats=fuzz/target/fuzz-stats.tsv
 mkdir -p fuzz/target
+# Each libFuzzer process runs on one core: FUZZ_JOBS targets (default: one per core) run at
+# once, after one build of them all (runs started together would queue on cargo's lock).
+JOBS="${FUZZ_JOBS:-$(nproc)}"
 for t in "${TARGETS[@]}"; do
-    corpus="fuzz/corpus/$t"
+    (cd fuzz && cargo fuzz build -s none $PROFILE "$t")
+done
+
+run_target() {
+    local t=$1 corpus="fuzz/corpus/$1" log="fuzz/target/fuzz-$1.log"
     mkdir -p "$corpus" "fuzz/artifacts/$t"
     # Regressions join the corpus so every run re-checks them.
-    log="fuzz/target/fuzz-$t.log"
     echo "fuzz: $t (up to $RUNS runs or $SECONDS_PER_TARGET s)"
     (cd fuzz && cargo fuzz run -s none $PROFILE "$t" "corpus/$t" "../$seeds/$t" \
         $( [ -d "regressions/$t" ] && echo "regressions/$t" ) -- \
@@ -86,11 +93,24 @@ for t in "${TARGETS[@]}"; do
         -timeout=10 -print_final_stats=1) >"$log" 2>&1 || {
         tail -40 "$log"
         echo "fuzz: $t FAILED; the input is in fuzz/artifacts/$t/ and the log in $log" >&2
-        exit 1
+        return 1
     }
+    local execs secs cov
     execs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$' | tail -1)
     secs=$(grep -o 'Done [0-9]* runs in [0-9]* second' "$log" | grep -o 'in [0-9]*' | grep -o '[0-9]*' | tail -1)
     cov=$(grep -o 'cov: [0-9]*' "$log" | tail -1 | grep -o '[0-9]*')
     echo "fuzz: $t: ${execs:-?} executions in ${secs:-?} s, coverage ${cov:-?} edges, no crash"
     printf '%s\t%s\t%s\t%s\t%s\n' "$(date -u +%FT%TZ)" "$t" "${execs:-?}" "${secs:-?}" "${cov:-?}" >>"$stats"
+}
+
+# A failed target leaves a mark: `wait -n` may miss the status of a job that ended earlier.
+rm -f fuzz/target/failed-*
+for t in "${TARGETS[@]}"; do
+    while [ "$(jobs -rp | wc -l)" -ge "$JOBS" ]; do wait -n || true; done
+    { run_target "$t" || touch "fuzz/target/failed-$t"; } &
 done
+wait
+if compgen -G 'fuzz/target/failed-*' >/dev/null; then
+    echo "fuzz: failed: $(cd fuzz/target && ls failed-* | sed 's/^failed-//' | tr '\n' ' ')" >&2
+    exit 1
+fi
