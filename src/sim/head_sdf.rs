@@ -68,11 +68,7 @@ impl<const L: usize> Lanes<L> {
         Lanes(self.0.map(f))
     }
     fn zip(self, o: Self, f: impl Fn(f32, f32) -> f32) -> Self {
-        let mut r = self.0;
-        for k in 0..L {
-            r[k] = f(self.0[k], o.0[k]);
-        }
-        Lanes(r)
+        Lanes(std::array::from_fn(|k| f(self.0[k], o.0[k])))
     }
 }
 
@@ -112,13 +108,13 @@ impl<const L: usize> Num for Lanes<L> {
         self.map(|v| v.clamp(0.0, 1.0))
     }
     fn if_lt(self, o: Self, a: Self, b: Self) -> Self {
-        let mut r = b.0;
-        for k in 0..L {
+        Lanes(std::array::from_fn(|k| {
             if self.0[k] < o.0[k] {
-                r[k] = a.0[k];
+                a.0[k]
+            } else {
+                b.0[k]
             }
-        }
-        Lanes(r)
+        }))
     }
 }
 

@@ -121,7 +121,7 @@ fn grad32(hash: u32, x: f32, y: f32, z: f32) -> f32 {
 /// truncation, one down for negative non-integers; values of 2^23 and more are integers
 /// already, and NaN stays NaN. Equal to `floor` to the bit, the sign of zero included.
 fn floor32(x: f32) -> f32 {
-    if !(x.abs() < 8_388_608.0) {
+    if x.is_nan() || x.abs() >= 8_388_608.0 {
         return x;
     }
     let t = x as i32 as f32;
