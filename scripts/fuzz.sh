@@ -75,11 +75,10 @@ fi
 stats=fuzz/target/fuzz-stats.tsv
 mkdir -p fuzz/target
 # Each libFuzzer process runs on one core: FUZZ_JOBS targets (default: one per core) run at
-# once, after one build of them all (runs started together would queue on cargo's lock).
+# once, after one build of every target (runs started together would queue on cargo's lock;
+# the targets share the instrumented library, so building all costs little more than one).
 JOBS="${FUZZ_JOBS:-$(nproc)}"
-for t in "${TARGETS[@]}"; do
-    (cd fuzz && cargo fuzz build -s none $PROFILE "$t")
-done
+(cd fuzz && cargo fuzz build -s none $PROFILE)
 
 run_target() {
     local t=$1 corpus="fuzz/corpus/$1" log="fuzz/target/fuzz-$1.log"

@@ -25,7 +25,7 @@
 //! component into the head (relative to the head's own motion).
 
 use crate::gpu::engine::{Bind, CpuBinding, StageDef};
-use crate::sim::head_sdf::{head_sdf, head_sdf_grad, head_sdf_of, Lanes};
+use crate::sim::head_sdf::{head_sdf, head_sdf_grad, head_sdf_of, Lanes, Num};
 use crate::sim::noise::perlin32;
 use rayon::prelude::*;
 
@@ -165,15 +165,15 @@ const LANES: usize = 8;
 /// Per batch of `L` strands: the band of the lower triangle, l[i * B1 + (i − j)] = A[i][j],
 /// and the right-hand side, one value per lane.
 struct Scratch<const L: usize> {
-    l: Vec<[f32; L]>,
-    rhs: Vec<[f32; L]>,
+    l: Vec<Lanes<L>>,
+    rhs: Vec<Lanes<L>>,
 }
 
 impl<const L: usize> Scratch<L> {
     fn new() -> Self {
         Scratch {
-            l: vec![[0.0; L]; MAX_UNKNOWNS * B1],
-            rhs: vec![[0.0; L]; MAX_UNKNOWNS],
+            l: vec![Lanes([0.0; L]); MAX_UNKNOWNS * B1],
+            rhs: vec![Lanes([0.0; L]); MAX_UNKNOWNS],
         }
     }
 }
@@ -265,7 +265,8 @@ fn step_strands<const L: usize>(
     };
     let l = &mut sc.l[..nu * B1];
     let rhs = &mut sc.rhs[..nu];
-    l.fill([0.0; L]);
+    let zero = Lanes([0.0; L]);
+    l.fill(zero);
     let diag = 1.0 + dt * cfg.drag;
     for i in 1..n {
         for k in 0..L {
@@ -279,11 +280,13 @@ fn step_strands<const L: usize>(
             ];
             for (c, fc) in f.iter().enumerate() {
                 let r = 3 * (i - 1) + c;
-                rhs[r][k] = *fc;
-                l[r * B1][k] = diag;
+                rhs[r].0[k] = *fc;
+                l[r * B1].0[k] = diag;
             }
         }
     }
+    // The root's velocity, component by component over the lanes.
+    let vr: [Lanes<L>; 3] = std::array::from_fn(|c| Lanes(std::array::from_fn(|k| v_root[k][c])));
     for a in 0..n - 1 {
         for fam in 0..3 {
             let b = a + fam + 1;
@@ -292,9 +295,7 @@ fn step_strands<const L: usize>(
             }
             let kf = [cfg.k_stretch, cfg.k_bend, cfg.k_twist][fam];
             // A lane whose spring is skipped keeps d, fe and c at zero: it adds exact zeros.
-            let mut d = [[0.0f32; L]; 3];
-            let mut fe = [[0.0f32; L]; 3];
-            let mut c = [0.0f32; L];
+            let (mut d, mut fe, mut c) = ([zero; 3], [zero; 3], zero);
             for k in 0..L {
                 let l0 = rest[k * sn + 3 * a + fam];
                 let xa = get(x, k, a);
@@ -306,52 +307,38 @@ fn step_strands<const L: usize>(
                 let dk = scale(d0, 1.0 / len);
                 // Elastic force on a (and its opposite on b), explicit at x.
                 let fk = scale(dk, dt * (kf / l0) * (len - l0));
-                c[k] = dt * (kf * dt + cfg.damping * kf) / l0;
+                c.0[k] = dt * (kf * dt + cfg.damping * kf) / l0;
                 for p in 0..3 {
-                    d[p][k] = dk[p];
-                    fe[p][k] = fk[p];
+                    d[p].0[k] = dk[p];
+                    fe[p].0[k] = fk[p];
                 }
             }
             let bu = 3 * (b - 1);
             for p in 0..3 {
-                for k in 0..L {
-                    rhs[bu + p][k] -= fe[p][k];
-                }
+                rhs[bu + p] = rhs[bu + p] - fe[p];
                 for q in 0..=p {
                     let e = &mut l[(bu + p) * B1 + (p - q)];
-                    for k in 0..L {
-                        e[k] += c[k] * d[p][k] * d[q][k];
-                    }
+                    *e = *e + c * d[p] * d[q];
                 }
             }
             if a == 0 {
                 // The root's velocity is known: its spring term moves to the right.
+                let dv = d[0] * vr[0] + d[1] * vr[1] + d[2] * vr[2];
                 for p in 0..3 {
-                    for k in 0..L {
-                        let dv = d[0][k] * v_root[k][0]
-                            + d[1][k] * v_root[k][1]
-                            + d[2][k] * v_root[k][2];
-                        rhs[bu + p][k] += c[k] * d[p][k] * dv;
-                    }
+                    rhs[bu + p] = rhs[bu + p] + c * d[p] * dv;
                 }
             } else {
                 let au = 3 * (a - 1);
                 for p in 0..3 {
-                    for k in 0..L {
-                        rhs[au + p][k] += fe[p][k];
-                    }
+                    rhs[au + p] = rhs[au + p] + fe[p];
                     for q in 0..=p {
                         let e = &mut l[(au + p) * B1 + (p - q)];
-                        for k in 0..L {
-                            e[k] += c[k] * d[p][k] * d[q][k];
-                        }
+                        *e = *e + c * d[p] * d[q];
                     }
                     // Off-diagonal block: row of b, column of a (always below the diagonal).
                     for q in 0..3 {
                         let e = &mut l[(bu + p) * B1 + (bu + p - (au + q))];
-                        for k in 0..L {
-                            e[k] -= c[k] * d[p][k] * d[q][k];
-                        }
+                        *e = *e - c * d[p] * d[q];
                     }
                 }
             }
@@ -362,58 +349,34 @@ fn step_strands<const L: usize>(
         let j0 = i.saturating_sub(BAND);
         for j in j0..=i {
             let mut s = l[i * B1 + (i - j)];
-            let k0 = j0.max(j.saturating_sub(BAND));
-            for kk in k0..j {
-                let (li, lj) = (l[i * B1 + (i - kk)], l[j * B1 + (j - kk)]);
-                for k in 0..L {
-                    s[k] -= li[k] * lj[k];
-                }
+            for kk in j0.max(j.saturating_sub(BAND))..j {
+                s = s - l[i * B1 + (i - kk)] * l[j * B1 + (j - kk)];
             }
-            if i == j {
-                for sk in s.iter_mut() {
-                    *sk = sk.max(1e-20).sqrt();
-                }
+            l[i * B1 + (i - j)] = if i == j {
+                s.max(Lanes([1e-20; L])).sqrt()
             } else {
-                let dj = l[j * B1];
-                for k in 0..L {
-                    s[k] /= dj[k];
-                }
-            }
-            l[i * B1 + (i - j)] = s;
+                s / l[j * B1]
+            };
         }
     }
     for i in 0..nu {
         let mut s = rhs[i];
         for kk in i.saturating_sub(BAND)..i {
-            let (li, r) = (l[i * B1 + (i - kk)], rhs[kk]);
-            for k in 0..L {
-                s[k] -= li[k] * r[k];
-            }
+            s = s - l[i * B1 + (i - kk)] * rhs[kk];
         }
-        let di = l[i * B1];
-        for k in 0..L {
-            s[k] /= di[k];
-        }
-        rhs[i] = s;
+        rhs[i] = s / l[i * B1];
     }
     for i in (0..nu).rev() {
         let mut s = rhs[i];
         for kk in i + 1..(i + BAND + 1).min(nu) {
-            let (lk, r) = (l[kk * B1 + (kk - i)], rhs[kk]);
-            for k in 0..L {
-                s[k] -= lk[k] * r[k];
-            }
+            s = s - l[kk * B1 + (kk - i)] * rhs[kk];
         }
-        let di = l[i * B1];
-        for k in 0..L {
-            s[k] /= di[k];
-        }
-        rhs[i] = s;
+        rhs[i] = s / l[i * B1];
     }
     let m = Rigid { r0, t0, r1, t1, dt };
     let vel = |k: usize, i: usize| -> V3 {
         let r = 3 * (i - 1);
-        [rhs[r][k], rhs[r + 1][k], rhs[r + 2][k]]
+        [rhs[r].0[k], rhs[r + 1].0[k], rhs[r + 2].0[k]]
     };
     // Every vertex's distance from the head where its first collision test takes it, all
     // lanes at once (most vertices need no other).
