@@ -178,21 +178,21 @@ impl<const L: usize> Scratch<L> {
     }
 }
 
+/// What every strand of a step reads: the settings, the noise's permutation, the packed
+/// head and the head's motion.
+#[derive(Clone, Copy)]
+pub struct Shared<'a> {
+    pub cfg: &'a Config,
+    pub perm: &'a [u32],
+    pub head: &'a [f32],
+    pub motion: &'a [f32],
+}
+
 /// Steps every strand: `x` and `v` hold `n_strands` strands of `n_verts` vertices (xyz each),
 /// `roots` one point per strand, `rest` three spring rest lengths per vertex.
-#[allow(clippy::too_many_arguments)]
-pub fn step_all(
-    cfg: &Config,
-    perm: &[u32],
-    head: &[f32],
-    motion: &[f32],
-    roots: &[f32],
-    rest: &[f32],
-    x: &mut [f32],
-    v: &mut [f32],
-) {
-    let n = cfg.n_verts as usize;
-    let ns = cfg.n_strands as usize;
+pub fn step_all(sh: Shared, roots: &[f32], rest: &[f32], x: &mut [f32], v: &mut [f32]) {
+    let n = sh.cfg.n_verts as usize;
+    let ns = sh.cfg.n_strands as usize;
     let sn = 3 * n;
     let full = ns / LANES * LANES;
     let (xa, xb) = x[..sn * ns].split_at_mut(sn * full);
@@ -202,50 +202,37 @@ pub fn step_all(
         .enumerate()
         .for_each_init(Scratch::<LANES>::new, |sc, (c, (xs, vs))| {
             let s = c * LANES;
-            step_strands(
-                cfg,
-                perm,
-                head,
-                motion,
+            let (r, l) = (
                 &roots[3 * s..3 * (s + LANES)],
                 &rest[sn * s..sn * (s + LANES)],
-                xs,
-                vs,
-                sc,
             );
+            step_strands(sh, r, l, xs, vs, sc);
         });
     // The last strands, fewer than a batch, one at a time.
     let mut sc = Scratch::<1>::new();
     for (j, (xs, vs)) in xb.chunks_mut(sn).zip(vb.chunks_mut(sn)).enumerate() {
         let s = full + j;
-        step_strands(
-            cfg,
-            perm,
-            head,
-            motion,
-            &roots[3 * s..3 * (s + 1)],
-            &rest[sn * s..sn * (s + 1)],
-            xs,
-            vs,
-            &mut sc,
-        );
+        let (r, l) = (&roots[3 * s..3 * (s + 1)], &rest[sn * s..sn * (s + 1)]);
+        step_strands(sh, r, l, xs, vs, &mut sc);
     }
 }
 
 /// `L` strands' step, lane k holding strand k of `x`, `v` (`n_verts` vertices, xyz each),
 /// `roots` and `rest`.
-#[allow(clippy::too_many_arguments)]
 fn step_strands<const L: usize>(
-    cfg: &Config,
-    perm: &[u32],
-    head: &[f32],
-    motion: &[f32],
+    sh: Shared,
     roots: &[f32],
     rest: &[f32],
     x: &mut [f32],
     v: &mut [f32],
     sc: &mut Scratch<L>,
 ) {
+    let Shared {
+        cfg,
+        perm,
+        head,
+        motion,
+    } = sh;
     let n = cfg.n_verts as usize;
     let sn = 3 * n;
     let nu = 3 * (n - 1);
@@ -545,7 +532,13 @@ pub fn sim_step_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
     let mut x = b[6].get_mut::<f32>();
     let mut v = b[7].get_mut::<f32>();
     // Plain slices: the binding guards are not shared across threads.
-    step_all(&cfg, &perm, &head, &motion, &roots, &rest, &mut x, &mut v);
+    let sh = Shared {
+        cfg: &cfg,
+        perm: &perm,
+        head: &head,
+        motion: &motion,
+    };
+    step_all(sh, &roots, &rest, &mut x, &mut v);
 }
 
 #[cfg(test)]
@@ -628,13 +621,16 @@ mod tests {
         let sn = 3 * n;
         for k in 0..steps {
             let c = cfg(k);
-            step_all(&c, &perm, &head, &motion, &roots, &rest, &mut xb, &mut vb);
+            let sh = Shared {
+                cfg: &c,
+                perm: &perm,
+                head: &head,
+                motion: &motion,
+            };
+            step_all(sh, &roots, &rest, &mut xb, &mut vb);
             for s in 0..ns {
                 step_strands(
-                    &c,
-                    &perm,
-                    &head,
-                    &motion,
+                    sh,
                     &roots[3 * s..3 * s + 3],
                     &rest[sn * s..sn * (s + 1)],
                     &mut xs[sn * s..sn * (s + 1)],
@@ -702,11 +698,15 @@ mod tests {
             .collect();
         let mut v = vec![0.0f32; 3 * n];
         let mut worst = 0.0f32;
+        let sh = Shared {
+            cfg: &cfg,
+            perm: &perm,
+            head: &head,
+            motion: &motion,
+        };
+        let mut sc = Scratch::<1>::new();
         for _ in 0..600 {
-            let mut sc = Scratch::<1>::new();
-            step_strands(
-                &cfg, &perm, &head, &motion, &root, &rest, &mut x, &mut v, &mut sc,
-            );
+            step_strands(sh, &root, &rest, &mut x, &mut v, &mut sc);
             for i in 0..n - 1 {
                 let d: f32 = (0..3)
                     .map(|c| (x[3 * i + 3 + c] - x[3 * i + c]).powi(2))
