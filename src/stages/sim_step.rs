@@ -365,27 +365,26 @@ fn step_strands<const L: usize>(
         let r = 3 * (i - 1);
         [rhs[r].0[k], rhs[r + 1].0[k], rhs[r + 2].0[k]]
     };
-    // Every vertex's distance from the head where its first collision test takes it, all
-    // lanes at once (most vertices need no other).
+    // Every vertex's place in head space where its first collision test takes it, and the
+    // head's distance there, all lanes at once (most vertices need no other test).
+    let mut ph = [[[0.0f32; 3]; L]; MAX_VERTS as usize];
     let mut dist = [[0.0f32; L]; MAX_VERTS as usize];
-    for (i, di) in dist.iter_mut().enumerate().take(n).skip(1) {
-        let mut ph = [Lanes([0.0f32; L]); 3];
-        for k in 0..L {
-            let xi = add(get(x, k, i), scale(vel(k, i), dt));
-            let q = apply_inv(&m.r1, m.t1, xi);
+    for i in 1..n {
+        let mut q = [Lanes([0.0f32; L]); 3];
+        for (k, p) in ph[i].iter_mut().enumerate() {
+            *p = apply_inv(&m.r1, m.t1, add(get(x, k, i), scale(vel(k, i), dt)));
             for c in 0..3 {
-                ph[c].0[k] = q[c];
+                q[c].0[k] = p[c];
             }
         }
-        *di = head_sdf_of(head, ph).0;
+        dist[i] = head_sdf_of(head, q).0;
     }
     for k in 0..L {
         let xs = &mut x[k * sn..(k + 1) * sn];
         let vs = &mut v[k * sn..(k + 1) * sn];
-        let first = |i: usize| (vel(k, i), dist[i][k]);
+        let first = |i: usize| (vel(k, i), ph[i][k], dist[i][k]);
         project(
-            cfg,
-            head,
+            sh,
             &m,
             root_new[k],
             v_root[k],
@@ -399,19 +398,20 @@ fn step_strands<const L: usize>(
 
 /// After the solve: the root follows the head, and each vertex moves with its new velocity,
 /// is collided and strain-limited root to tip (DFTL velocity correction). `first(i)` is
-/// vertex i's new velocity and the head's distance where that takes it.
+/// vertex i's new velocity, the place in head space where that takes it and the head's
+/// distance there.
 #[allow(clippy::too_many_arguments)]
 fn project(
-    cfg: &Config,
-    head: &[f32],
+    sh: Shared,
     m: &Rigid,
     root_new: V3,
     v_root: V3,
     rest: &[f32],
-    first: impl Fn(usize) -> (V3, f32),
+    first: impl Fn(usize) -> (V3, V3, f32),
     x: &mut [f32],
     v: &mut [f32],
 ) {
+    let (cfg, head) = (sh.cfg, sh.head);
     let n = cfg.n_verts as usize;
     let dt = cfg.dt;
     let get = |a: &[f32], i: usize| -> V3 { [a[3 * i], a[3 * i + 1], a[3 * i + 2]] };
@@ -421,20 +421,12 @@ fn project(
     // The previous vertex's velocity waits for this vertex's limit correction (DFTL).
     let mut prev_v = [0.0f32; 3];
     for i in 1..n {
-        let (mut vi, dist) = first(i);
+        let (mut vi, ph, dist) = first(i);
         let mut xi = add(get(x, i), scale(vi, dt));
         // Collision, then strain limiting root to tip: the limit pulls a vertex towards its
         // (final) parent, which can dip the edge into the margin or the head.
         let free = xi;
-        (xi, vi) = push(
-            head,
-            m,
-            apply_inv(&m.r1, m.t1, xi),
-            dist,
-            xi,
-            vi,
-            cfg.margin,
-        );
+        (xi, vi) = push(head, m, ph, dist, xi, vi, cfg.margin);
         let before = xi;
         xi = limit(cfg.strain_limit, rest[3 * (i - 1)], parent, xi);
         // Where the edge wraps round the head (an ear, the nape) one push and one pull do
