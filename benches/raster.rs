@@ -2,7 +2,8 @@
 //! quads, per-vertex colours and alphas, 4x MSAA with alpha-to-coverage: `render` on the CPU
 //! backend and on lavapipe, next to Skia (skia-python, anti-aliased path strokes, one colour
 //! per strand; `benches/peers/raster_skia.py`) drawing the same strands in the same run.
-//! Prints times and ratios.
+//! Prints times and ratios. On lavapipe also the strands drawn by the render pipeline (the GPU
+//! path before the compute passes of `wgsl/render/strand_vis.wgsl`), for the before/after.
 //!
 //! Then growth rows: the cpu backend at 2048² and with 2x the strands, with peak memory.
 //!
@@ -15,7 +16,7 @@
 
 use coif::base::colour::to_rgba8;
 use coif::base::rng::Rng;
-use coif::render::raster::{render, Frame, RasterParams, ScreenStrands};
+use coif::render::raster::{render, render_gpu_pipeline, Frame, RasterParams, ScreenStrands};
 use coif::{BackendChoice, Engine};
 use std::io::Write;
 use std::path::Path;
@@ -231,6 +232,7 @@ fn main() {
         write_raw(Path::new(&path), &img);
     }
     let mut lavapipe = None;
+    let mut pipeline = None;
     // RASTER_BENCH_CPU_ONLY=1: the cpu backend alone (for profiling it).
     if std::env::var_os("RASTER_BENCH_CPU_ONLY").is_some() {
         return;
@@ -251,6 +253,26 @@ fn main() {
                 g.describe(),
                 tg / ours,
                 rss_mib().0
+            );
+            // The render pipeline's strands, the same way (one warm-up, one timed run).
+            let ctx = g.gpu().expect("a gpu engine");
+            let _ = render_gpu_pipeline(ctx, &frame, None, Some(&strands), &p).unwrap();
+            let t = Instant::now();
+            let pimg = render_gpu_pipeline(ctx, &frame, None, Some(&strands), &p).unwrap();
+            let tp = t.elapsed().as_secs_f64();
+            pipeline = Some(tp);
+            let (a, b) = (to_rgba8(&pimg), to_rgba8(&img));
+            let agree_p = a
+                .chunks_exact(4)
+                .zip(b.chunks_exact(4))
+                .filter(|(x, y)| x.iter().zip(y.iter()).all(|(u, v)| u.abs_diff(*v) <= 2))
+                .count() as f64
+                / (SIZE * SIZE) as f64;
+            println!(
+                "  lavapipe, strands by the render pipeline instead: {tp:.3} s ({:.3}% of pixels \
+                 within 2/255 of the cpu image); compute / pipeline {:.2}",
+                100.0 * agree_p,
+                tg / tp
             );
             let (a, b) = (to_rgba8(&gimg), to_rgba8(&img));
             let agree = a
@@ -312,6 +334,12 @@ fn main() {
             );
             if let Some(tg) = lavapipe {
                 println!("  ratio ours (lavapipe) / skia draw: {:.2}", tg / draw);
+            }
+            if let Some(tp) = pipeline {
+                println!(
+                    "  ratio ours (lavapipe, render pipeline strands) / skia draw: {:.2}",
+                    tp / draw
+                );
             }
         }
         Ok(o) => println!(

@@ -56,6 +56,8 @@ pub struct RenderStageDef {
     pub wgsl: &'static str,
     /// (vertex, fragment) entry points, one pair per pipeline the host builds from it.
     pub entry_points: &'static [(&'static str, &'static str)],
+    /// Compute entry points, for a render pass done as compute passes (`strand_vis`).
+    pub compute: &'static [&'static str],
 }
 
 /// A buffer as a CPU mirror sees it; backed by `u32` words so every 4-byte type casts.

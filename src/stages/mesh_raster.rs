@@ -19,6 +19,7 @@ pub const STAGE: RenderStageDef = RenderStageDef {
     name: "mesh_raster",
     wgsl: include_str!("../../wgsl/render/mesh_raster.wgsl"),
     entry_points: &[MESH, BACKGROUND],
+    compute: &[],
 };
 
 /// One mesh triangle as both paths see it (the WGSL `Tri`): corners (x, y, z, u), then v.

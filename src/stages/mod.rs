@@ -97,4 +97,8 @@ pub const ALL: &[&StageDef] = &[
 ];
 
 /// Every registered render pass; the host is `crate::render::raster`.
-pub const RENDER: &[&RenderStageDef] = &[&strand_raster::STAGE, &mesh_raster::STAGE];
+pub const RENDER: &[&RenderStageDef] = &[
+    &strand_raster::STAGE,
+    &strand_raster::VIS,
+    &mesh_raster::STAGE,
+];

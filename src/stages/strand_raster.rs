@@ -18,6 +18,17 @@ pub const STAGE: RenderStageDef = RenderStageDef {
     name: "strand_raster",
     wgsl: include_str!("../../wgsl/render/strand_raster.wgsl"),
     entry_points: &[STRANDS],
+    compute: &[],
+};
+
+/// The same strands as compute passes (`wgsl/render/strand_vis.wgsl`): the GPU path for
+/// 4x MSAA frames; its coverage, alpha-to-coverage, depth and colour are [`strand_quad`]'s,
+/// which is therefore its CPU mirror too (`src/render/raster/gpu.rs` says when it is used).
+pub const VIS: RenderStageDef = RenderStageDef {
+    name: "strand_vis",
+    wgsl: include_str!("../../wgsl/render/strand_vis.wgsl"),
+    entry_points: &[],
+    compute: &["zinit", "depth", "pick", "colour", "resolve"],
 };
 
 /// One strand segment as both paths see it (the WGSL `Seg`).

@@ -218,7 +218,11 @@ fn strands(lines: &[(&[[f32; 3]], [f32; 4])]) -> ScreenStrands {
     s
 }
 
-fn both(f: &Frame, m: Option<&ScreenMesh>, s: Option<&ScreenStrands>) -> [Vec<[f32; 4]>; 2] {
+/// The paths [`both`] renders with, in its order: the GPU path (compute strand passes at 4x
+/// MSAA), the CPU mirror, and the GPU with the strands by the render pipeline.
+const PATHS: [&str; 3] = ["gpu", "cpu", "gpu pipeline"];
+
+fn both(f: &Frame, m: Option<&ScreenMesh>, s: Option<&ScreenStrands>) -> [Vec<[f32; 4]>; 3] {
     both_with(f, m, s, &RasterParams::default())
 }
 
@@ -227,10 +231,11 @@ fn both_with(
     m: Option<&ScreenMesh>,
     s: Option<&ScreenStrands>,
     p: &RasterParams,
-) -> [Vec<[f32; 4]>; 2] {
+) -> [Vec<[f32; 4]>; 3] {
     [
         render_gpu(ctx(), f, m, s, p).expect("gpu render"),
         render_cpu(f, m, s, p).expect("cpu render"),
+        render_gpu_pipeline(ctx(), f, m, s, p).expect("gpu pipeline render"),
     ]
 }
 
@@ -256,10 +261,7 @@ fn horizontal_strand_coverage() {
     ];
     for (y, alpha, want) in cases {
         let s = strands(&[(&[[4.0, y, 0.0], [28.0, y, 0.0]], [1.0, 1.0, 1.0, alpha])]);
-        for (path, img) in ["gpu", "cpu"]
-            .iter()
-            .zip(both(&frame(w, h), None, Some(&s)))
-        {
+        for (path, img) in PATHS.iter().zip(both(&frame(w, h), None, Some(&s))) {
             for x in 5..27 {
                 for (row, want) in [9, 10, 11].iter().zip(want) {
                     let a = alpha_at(&img, w, x, *row);
@@ -318,7 +320,7 @@ fn sample_positions_and_mask_bits_follow_the_vulkan_standard_pattern() {
                     strand_width: 0.1,
                 };
                 let imgs = both_with(&frame(w, h), None, Some(&s), &p);
-                for (path, img) in ["gpu", "cpu"].iter().zip(imgs) {
+                for (path, img) in PATHS.iter().zip(imgs) {
                     let kept = alpha == 1.0 || (px + 2 * py + strand) % 4 == k as u32;
                     let want = if kept { 0.25 } else { 0.0 };
                     assert_eq!(
@@ -363,7 +365,8 @@ fn edges_and_corners_through_sample_positions_agree_exactly() {
             samples: 4,
             strand_width: width,
         };
-        let [gpu, cpu] = both_with(&frame(w, h), None, Some(&s), &p);
+        let [gpu, cpu, pipe] = both_with(&frame(w, h), None, Some(&s), &p);
+        agree("sample-aligned, gpu pipeline", &pipe, &cpu, 0, 1.0).unwrap();
         let same = gpu
             .iter()
             .zip(&cpu)
@@ -413,7 +416,7 @@ fn depth_test_hides_strands_behind_the_mesh() {
             &[[2.0, 16.5, depth], [30.0, 16.5, depth]],
             [0.0, 1.0, 0.0, 1.0],
         )]);
-        for (path, img) in ["gpu", "cpu"].iter().zip(both(&f, Some(&mesh), Some(&s))) {
+        for (path, img) in PATHS.iter().zip(both(&f, Some(&mesh), Some(&s))) {
             let at = |x: u32, y: u32| img[(y * w + x) as usize];
             // Over the square: green in front, red behind; outside it the strand shows on blue.
             let want_mid = if visible { [0.0, 1.0, 0.0, 1.0] } else { red };
@@ -451,10 +454,7 @@ fn depth_ties_between_strands_go_to_the_earlier_strand() {
         (&[[2.0, 20.5, 5.0], [30.0, 20.5, 5.0]], blue),
         (&[[20.5, 2.0, 9.0], [20.5, 30.0, 9.0]], [1.0, 1.0, 1.0, 1.0]),
     ]);
-    for (path, img) in ["gpu", "cpu"]
-        .iter()
-        .zip(both(&frame(w, h), None, Some(&s)))
-    {
+    for (path, img) in PATHS.iter().zip(both(&frame(w, h), None, Some(&s))) {
         let at = |x: u32, y: u32| img[(y * w + x) as usize];
         assert_eq!(at(10, 10), red, "{path}: red drawn before green");
         assert_eq!(at(10, 20), green, "{path}: green drawn before blue");
@@ -467,19 +467,13 @@ fn depth_ties_between_strands_go_to_the_earlier_strand() {
 fn back_faces_are_culled() {
     let (w, h) = (16, 16);
     let mut front = square_mesh(2.0, 2.0, 14.0, 14.0, 0.0, WHITE);
-    for (path, img) in ["gpu", "cpu"]
-        .iter()
-        .zip(both(&frame(w, h), Some(&front), None))
-    {
+    for (path, img) in PATHS.iter().zip(both(&frame(w, h), Some(&front), None)) {
         assert_eq!(alpha_at(&img, w, 8, 8), 1.0, "{path}: front face drawn");
     }
     for t in &mut front.triangles {
         t.swap(1, 2);
     }
-    for (path, img) in ["gpu", "cpu"]
-        .iter()
-        .zip(both(&frame(w, h), Some(&front), None))
-    {
+    for (path, img) in PATHS.iter().zip(both(&frame(w, h), Some(&front), None)) {
         assert!(img.iter().all(|p| p[3] == 0.0), "{path}: back face culled");
     }
 }
@@ -495,10 +489,7 @@ fn texture_is_bilinear_with_texel_centres_at_half_integers() {
         height: 1,
         texels: vec![[0.0, 0.0, 0.0, 1.0], [1.0, 1.0, 1.0, 1.0]],
     };
-    for (path, img) in ["gpu", "cpu"]
-        .iter()
-        .zip(both(&frame(w, h), Some(&mesh), None))
-    {
+    for (path, img) in PATHS.iter().zip(both(&frame(w, h), Some(&mesh), None)) {
         for x in 0..w {
             let u = (x as f32 + 0.5) / 16.0;
             let want = (2.0 * u - 0.5).clamp(0.0, 1.0);
@@ -541,10 +532,7 @@ fn texture_alpha_is_coverage_of_the_samples() {
                 s
             };
             let f = frame(w, h);
-            for (path, img) in ["gpu", "cpu"]
-                .iter()
-                .zip(both_with(&f, Some(&mesh), Some(&s), &p))
-            {
+            for (path, img) in PATHS.iter().zip(both_with(&f, Some(&mesh), Some(&s), &p)) {
                 let want = k as f32 / samples as f32;
                 for (i, px) in img.iter().enumerate() {
                     assert!(
@@ -724,19 +712,23 @@ fn gpu_matches_cpu_on_head_and_strands() {
         let cpu = render_cpu(&f, Some(&mesh), Some(&s), &p).unwrap();
         let gpu = render_gpu(ctx(), &f, Some(&mesh), Some(&s), &p).unwrap();
         agree("over background", &gpu, &cpu, 2, 0.99).unwrap();
-        let exact = gpu
-            .iter()
-            .zip(&cpu)
-            .filter(|(a, b)| {
-                a.iter()
-                    .zip(b.iter())
-                    .all(|(x, y)| x.to_bits() == y.to_bits())
-            })
-            .count();
-        println!(
-            "  float-identical pixels: {:.3}%",
-            100.0 * exact as f64 / cpu.len() as f64
-        );
+        let pipe = render_gpu_pipeline(ctx(), &f, Some(&mesh), Some(&s), &p).unwrap();
+        agree("over background, gpu pipeline", &pipe, &cpu, 2, 0.99).unwrap();
+        for (what, img) in [("gpu", &gpu), ("gpu pipeline", &pipe)] {
+            let exact = img
+                .iter()
+                .zip(&cpu)
+                .filter(|(a, b)| {
+                    a.iter()
+                        .zip(b.iter())
+                        .all(|(x, y)| x.to_bits() == y.to_bits())
+                })
+                .count();
+            println!(
+                "  {what}: float-identical pixels {:.3}%",
+                100.0 * exact as f64 / cpu.len() as f64
+            );
+        }
         if std::env::var_os("RASTER_DUMP").is_some() {
             let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"));
             for (name, img) in [("gpu", &gpu), ("cpu", &cpu)] {
@@ -796,7 +788,7 @@ fn photo_colour_reproduces_the_photo_at_its_own_view() {
         depth_range: (-200.0, 200.0),
         background: None,
     };
-    for (path, img) in ["gpu", "cpu"].iter().zip(both(&f, None, Some(&s))) {
+    for (path, img) in PATHS.iter().zip(both(&f, None, Some(&s))) {
         let (mut full, mut worst) = (0usize, 0.0f32);
         for (px, t) in img.iter().zip(&tex.texels) {
             if px[3] >= 1.0 {
@@ -861,8 +853,9 @@ fn gpu_matches_cpu_with_photo_colour() {
             depth_range: (-200.0, 200.0),
             background: Some(gradient_background(w, h)),
         };
-        let [gpu, cpu] = both(&f, None, Some(&s));
+        let [gpu, cpu, pipe] = both(&f, None, Some(&s));
         agree(what, &gpu, &cpu, 2, 0.99).unwrap();
+        agree(&format!("{what}, gpu pipeline"), &pipe, &cpu, 2, 0.99).unwrap();
         // The photo shows: the render differs from the vertex-colour render.
         let mut plain = s.clone();
         plain.photo = None;
@@ -924,8 +917,9 @@ fn bad_segments_are_skipped_identically() {
     mesh.positions.push([nan, 0.0, 0.0]);
     mesh.uvs.push([0.0, 0.0]);
     mesh.triangles.push([0, 4, 1]);
-    let [gpu, cpu] = both(&frame(w, h), Some(&mesh), Some(&s));
+    let [gpu, cpu, pipe] = both(&frame(w, h), Some(&mesh), Some(&s));
     agree("bad input", &gpu, &cpu, 0, 1.0).unwrap();
+    agree("bad input, gpu pipeline", &pipe, &cpu, 0, 1.0).unwrap();
     // Only the good geometry shows: the NaN strand and the off-screen one add nothing.
     let row = |img: &[[f32; 4]], y: u32, x0: u32| {
         (x0..w).filter(|&x| alpha_at(img, w, x, y) > 0.0).count()
@@ -969,8 +963,9 @@ fn huge_mesh_triangles_are_clipped_not_lost() {
             WHITE,
         ],
     };
-    let [gpu, cpu] = both(&frame(w, h), Some(&mesh), None);
+    let [gpu, cpu, pipe] = both(&frame(w, h), Some(&mesh), None);
     agree("clipped mesh", &gpu, &cpu, 0, 1.0).unwrap();
+    agree("clipped mesh, gpu pipeline", &pipe, &cpu, 0, 1.0).unwrap();
     for y in 0..h {
         for x in 0..w {
             assert_eq!(

@@ -76,7 +76,7 @@ fn every_wgsl_file_validates() {
     assert!(!files.is_empty(), "no shader found under wgsl/");
     assert!(
         files.iter().any(|f| f.contains('/')),
-        "no shader found in a subfolder of wgsl/ (wgsl/render/ has two)"
+        "no shader found in a subfolder of wgsl/ (wgsl/render/ has three)"
     );
     let failures: Vec<String> = files
         .iter()
@@ -161,6 +161,15 @@ fn every_render_stage_has_its_entry_points() {
                     s.name
                 );
             }
+        }
+        for ep in s.compute {
+            assert!(
+                m.entry_points
+                    .iter()
+                    .any(|e| e.name == *ep && e.stage == naga::ShaderStage::Compute),
+                "render stage {} has no compute entry point {ep}",
+                s.name
+            );
         }
     }
 }

@@ -1,7 +1,8 @@
-//! The wgpu host of the two render passes ([`crate::stages::RENDER`]): builds the background,
+//! The wgpu host of the render passes ([`crate::stages::RENDER`]): builds the background,
 //! mesh and strand pipelines, uploads the prepared scene in chunks that respect the device's
 //! binding limit, draws them into one multisampled Rgba16Float target and reads back the
-//! resolve.
+//! resolve. At 4x MSAA the strands are drawn by compute passes instead ([`vis`]), after the
+//! background and mesh, when the frame allows it.
 
 use super::Scene;
 use crate::base::colour::f16_bits_to_f32;
@@ -11,6 +12,8 @@ use crate::gpu::GpuContext;
 use crate::stages::{mesh_raster, strand_raster};
 use rayon::prelude::*;
 use wgpu::util::DeviceExt;
+
+mod vis;
 
 const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
@@ -183,6 +186,15 @@ fn texture_rgba32(
     tex.create_view(&Default::default())
 }
 
+/// The strands' photo; the shader only reads it when `cfg.photo` says so, and a 1x1
+/// texture stands in otherwise (the layout needs a binding).
+fn texture_rgba32_or_blank(ctx: &GpuContext, t: Option<&super::Texture>) -> wgpu::TextureView {
+    match t {
+        Some(t) => texture_rgba32(ctx, "raster.photo", t.width, t.height, &t.texels),
+        None => texture_rgba32(ctx, "raster.photo", 1, 1, &[[0.0; 4]]),
+    }
+}
+
 fn target(
     ctx: &GpuContext,
     label: &str,
@@ -271,7 +283,14 @@ fn bind_chunks<T: bytemuck::Pod>(
         .collect()
 }
 
-pub fn raster(ctx: &GpuContext, s: &Scene, max_chunk_bytes: u64) -> Result<Vec<[f32; 4]>> {
+/// Renders the scene; with `pipeline`, the strands by the render pipeline even where the
+/// compute passes would draw them.
+pub fn raster(
+    ctx: &GpuContext,
+    s: &Scene,
+    max_chunk_bytes: u64,
+    pipeline: bool,
+) -> Result<Vec<[f32; 4]>> {
     let d = &ctx.device;
     let (w, h, n) = (s.cfg.width, s.cfg.height, s.cfg.samples);
     let bytes_per_row = (w * 8).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
@@ -288,6 +307,12 @@ pub fn raster(ctx: &GpuContext, s: &Scene, max_chunk_bytes: u64) -> Result<Vec<[
     let chunk_bytes = ctx.max_binding_bytes().min(max_chunk_bytes);
     // Composed before the error scopes open, so an early return leaves none behind.
     let (strand_src, mesh_src) = (source(&strand_raster::STAGE)?, source(&mesh_raster::STAGE)?);
+    let vis = !pipeline && vis::usable(ctx, s);
+    let vis_src = if vis {
+        Some(source(&strand_raster::VIS)?)
+    } else {
+        None
+    };
     let validation = d.push_error_scope(wgpu::ErrorFilter::Validation);
     let oom = d.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
 
@@ -304,6 +329,12 @@ pub fn raster(ctx: &GpuContext, s: &Scene, max_chunk_bytes: u64) -> Result<Vec<[
 
     let msaa = n > 1;
     let attach = wgpu::TextureUsages::RENDER_ATTACHMENT;
+    // The compute strand passes read the background and mesh samples back.
+    let sampled = if vis {
+        wgpu::TextureUsages::TEXTURE_BINDING
+    } else {
+        wgpu::TextureUsages::empty()
+    };
     let color = target(
         ctx,
         "raster.color",
@@ -312,12 +343,12 @@ pub fn raster(ctx: &GpuContext, s: &Scene, max_chunk_bytes: u64) -> Result<Vec<[
         n,
         COLOR_FORMAT,
         if msaa {
-            attach
+            attach | sampled
         } else {
             attach | wgpu::TextureUsages::COPY_SRC
         },
     );
-    let resolve = msaa.then(|| {
+    let resolve = (msaa && !vis).then(|| {
         target(
             ctx,
             "raster.resolve",
@@ -328,7 +359,7 @@ pub fn raster(ctx: &GpuContext, s: &Scene, max_chunk_bytes: u64) -> Result<Vec<[
             attach | wgpu::TextureUsages::COPY_SRC,
         )
     });
-    let depth = target(ctx, "raster.depth", w, h, n, DEPTH_FORMAT, attach);
+    let depth = target(ctx, "raster.depth", w, h, n, DEPTH_FORMAT, attach | sampled);
     let color_view = color.create_view(&Default::default());
     let resolve_view = resolve.as_ref().map(|t| t.create_view(&Default::default()));
     let depth_view = depth.create_view(&Default::default());
@@ -386,7 +417,7 @@ pub fn raster(ctx: &GpuContext, s: &Scene, max_chunk_bytes: u64) -> Result<Vec<[
         }
         _ => None,
     };
-    let strands = (!s.segs.is_empty()).then(|| {
+    let strands = (!s.segs.is_empty() && !vis).then(|| {
         let p = pipe(
             d,
             "raster.strands",
@@ -401,12 +432,7 @@ pub fn raster(ctx: &GpuContext, s: &Scene, max_chunk_bytes: u64) -> Result<Vec<[
             less,
             n,
         );
-        // The shader only reads the photo when `cfg.photo` says so; a 1x1 texture stands
-        // in otherwise (the layout needs a binding).
-        let photo = match &s.photo {
-            Some(t) => texture_rgba32(ctx, "raster.photo", t.width, t.height, &t.texels),
-            None => texture_rgba32(ctx, "raster.photo", 1, 1, &[[0.0; 4]]),
-        };
+        let photo = texture_rgba32_or_blank(ctx, s.photo.as_ref());
         let groups = bind_chunks(
             ctx,
             &p,
@@ -422,7 +448,7 @@ pub fn raster(ctx: &GpuContext, s: &Scene, max_chunk_bytes: u64) -> Result<Vec<[
     let mut encoder = d.create_command_encoder(&wgpu::CommandEncoderDescriptor {
         label: Some("raster"),
     });
-    let mut queries = crate::gpu::timer::PassQueries::new(ctx, 1);
+    let mut queries = crate::gpu::timer::PassQueries::new(ctx, if vis { 6 } else { 1 });
     {
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("raster"),
@@ -432,7 +458,7 @@ pub fn raster(ctx: &GpuContext, s: &Scene, max_chunk_bytes: u64) -> Result<Vec<[
                 resolve_target: resolve_view.as_ref(),
                 ops: wgpu::Operations {
                     load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                    store: if msaa {
+                    store: if msaa && !vis {
                         wgpu::StoreOp::Discard
                     } else {
                         wgpu::StoreOp::Store
@@ -443,7 +469,11 @@ pub fn raster(ctx: &GpuContext, s: &Scene, max_chunk_bytes: u64) -> Result<Vec<[
                 view: &depth_view,
                 depth_ops: Some(wgpu::Operations {
                     load: wgpu::LoadOp::Clear(1.0),
-                    store: wgpu::StoreOp::Discard,
+                    store: if vis {
+                        wgpu::StoreOp::Store
+                    } else {
+                        wgpu::StoreOp::Discard
+                    },
                 }),
                 stencil_ops: None,
             }),
@@ -473,33 +503,54 @@ pub fn raster(ctx: &GpuContext, s: &Scene, max_chunk_bytes: u64) -> Result<Vec<[
             }
         }
     }
+    // The strands as compute passes, after the background and mesh.
+    let vis_out = vis_src.map(|src| {
+        vis::encode(
+            ctx,
+            module(d, src),
+            s,
+            &mut encoder,
+            queries.as_mut(),
+            &uniform,
+            chunk_bytes,
+            &color_view,
+            &depth_view,
+        )
+    });
+    // The compute resolve's rows are not padded.
+    let bytes_per_row = if vis { w * 8 } else { bytes_per_row };
+    let readback_bytes = bytes_per_row as u64 * h as u64;
     let readback = d.create_buffer(&wgpu::BufferDescriptor {
         label: Some("raster.readback"),
         size: readback_bytes,
         usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,
     });
-    encoder.copy_texture_to_buffer(
-        wgpu::TexelCopyTextureInfo {
-            texture: resolve.as_ref().unwrap_or(&color),
-            mip_level: 0,
-            origin: wgpu::Origin3d::ZERO,
-            aspect: wgpu::TextureAspect::All,
-        },
-        wgpu::TexelCopyBufferInfo {
-            buffer: &readback,
-            layout: wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(bytes_per_row),
-                rows_per_image: Some(h),
+    if let Some(out) = &vis_out {
+        encoder.copy_buffer_to_buffer(out, 0, &readback, 0, readback_bytes);
+    } else {
+        encoder.copy_texture_to_buffer(
+            wgpu::TexelCopyTextureInfo {
+                texture: resolve.as_ref().unwrap_or(&color),
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
             },
-        },
-        wgpu::Extent3d {
-            width: w,
-            height: h,
-            depth_or_array_layers: 1,
-        },
-    );
+            wgpu::TexelCopyBufferInfo {
+                buffer: &readback,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(bytes_per_row),
+                    rows_per_image: Some(h),
+                },
+            },
+            wgpu::Extent3d {
+                width: w,
+                height: h,
+                depth_or_array_layers: 1,
+            },
+        );
+    }
     if let Some(q) = &mut queries {
         q.resolve(ctx, &mut encoder);
     }

@@ -1,9 +1,10 @@
 //! Strand rasteriser (C13 §4): one frame = an optional background image, then an optional
 //! textured triangle mesh (the head), then the strands as screen-aligned quads, all
 //! depth-tested in one multisampled target with alpha-to-coverage and no depth sorting.
-//! Two implementations give the same image: wgpu render pipelines ([`render_gpu`], host in
-//! `gpu.rs`, shaders `wgsl/render/strand_raster.wgsl` and `wgsl/render/mesh_raster.wgsl`,
-//! registered in [`crate::stages::RENDER`]) and a CPU mirror ([`render_cpu`], tiled,
+//! Two implementations give the same image: wgpu ([`render_gpu`], host in `gpu.rs`: render
+//! pipelines, shaders `wgsl/render/strand_raster.wgsl` and `wgsl/render/mesh_raster.wgsl`,
+//! and at 4x MSAA the strands as compute passes, `wgsl/render/strand_vis.wgsl`, host
+//! `gpu/vis.rs`; registered in [`crate::stages::RENDER`]) and a CPU mirror ([`render_cpu`], tiled,
 //! rayon-parallel, driver in `cpu.rs`) that evaluates coverage exactly as a Vulkan rasteriser
 //! does; its per-primitive parts read like the shaders and sit next to the compute mirrors:
 //! [`crate::stages::strand_raster`], [`crate::stages::mesh_raster`] and
@@ -816,6 +817,31 @@ pub fn render_gpu_chunked(
     p: &RasterParams,
     max_chunk_bytes: u64,
 ) -> Result<Vec<[f32; 4]>> {
+    render_gpu_with(ctx, frame, mesh, strands, p, max_chunk_bytes, false)
+}
+
+/// [`render_gpu`] with the strands drawn by the render pipeline even where the compute
+/// passes would draw them (4x MSAA), for tests and benches that compare the two GPU paths.
+#[doc(hidden)]
+pub fn render_gpu_pipeline(
+    ctx: &GpuContext,
+    frame: &Frame,
+    mesh: Option<&ScreenMesh>,
+    strands: Option<&ScreenStrands>,
+    p: &RasterParams,
+) -> Result<Vec<[f32; 4]>> {
+    render_gpu_with(ctx, frame, mesh, strands, p, u64::MAX, true)
+}
+
+fn render_gpu_with(
+    ctx: &GpuContext,
+    frame: &Frame,
+    mesh: Option<&ScreenMesh>,
+    strands: Option<&ScreenStrands>,
+    p: &RasterParams,
+    max_chunk_bytes: u64,
+    pipeline: bool,
+) -> Result<Vec<[f32; 4]>> {
     let scene = Scene::new(
         frame,
         mesh,
@@ -824,7 +850,7 @@ pub fn render_gpu_chunked(
         ctx.limits.max_texture_dimension_2d,
         true,
     )?;
-    let mut img = gpu::raster(ctx, &scene, max_chunk_bytes)?;
+    let mut img = gpu::raster(ctx, &scene, max_chunk_bytes, pipeline)?;
     unpremultiply(&mut img);
     Ok(img)
 }
