@@ -38,7 +38,8 @@ struct Seg {
     z0: f32,
     z1: f32,
     strand: u32,
-    _pad: u32,
+    // Here: the segment's index within its chunk (the host reorders a chunk).
+    local: u32,
     c0: vec4<f32>,
     c1: vec4<f32>,
     o: vec4<f32>,
@@ -72,7 +73,13 @@ struct Chunk {
 // `depth`, where a stale read only ever holds a larger key than the latest (keys only
 // fall), so it can only send a sample to an atomic minimum that changes nothing.
 @group(0) @binding(10) var<storage, read_write> zplain: array<vec4<u32>>;
+// Per segment of the chunk, in input order: where the host put it in `segs`.
+@group(0) @binding(11) var<storage, read> position: array<u32>;
 @group(0) @binding(12) var<storage, read_write> iplain: array<vec4<u32>>;
+// Per segment of the chunk: 1 when `depth` found it level with or nearer than what a sample
+// held at the time. Keys only fall, so a segment without the flag holds no sample at the end
+// and `pick` skips it.
+@group(0) @binding(13) var<storage, read_write> candidate: array<u32>;
 
 // Vulkan's standard 4x sample positions, in 1/256 px and in px (`SAMPLE_POSITIONS_4`).
 const OFF_I = array<vec2<i32>, 4>(
@@ -217,12 +224,15 @@ fn a2c(r: u32, k: u32) -> u32 {
     return ((run << r) | (run >> (4u - r))) & 15u;
 }
 
-// Walks the quad of segment `local` of the chunk and, per kept sample with z in [0, 1],
+// Walks the quad of segment `slot` of the chunk and, per kept sample with z in [0, 1],
 // lowers the depth key (`pick` false) or claims the sample where its key is the least
 // (`pick` true).
-fn walk(local: u32, pick: bool) {
-    let s = segs[local];
-    let index = chunk.base + local;
+fn walk(slot: u32, pick: bool) {
+    if pick && candidate[slot] == 0u {
+        return;
+    }
+    let s = segs[slot];
+    let index = chunk.base + s.local;
     let h = cfg.half_width;
     let d = s.p1 - s.p0;
     let len = sqrt(d.x * d.x + d.y * d.y);
@@ -301,6 +311,8 @@ fn walk(local: u32, pick: bool) {
         zo[k] = g.x * OFF_F[k].x + g.y * OFF_F[k].y;
     }
     let inv_len2 = 1.0 / (len * len);
+    // Whether some sample's key was level with this segment's or farther (see `candidate`).
+    var level = false;
     for (var py = y0; py <= y1; py++) {
         var cx0 = x0;
         var cx1 = x1;
@@ -353,10 +365,12 @@ fn walk(local: u32, pick: bool) {
                 hit = ok & (v == held);
             } else {
                 hit = ok & (v < held);
+                level |= any(ok & (v == held));
             }
             if !any(hit) {
                 continue;
             }
+            level = true;
             for (var sm = 0u; sm < 4u; sm++) {
                 if hit[sm] {
                     if pick {
@@ -367,6 +381,9 @@ fn walk(local: u32, pick: bool) {
                 }
             }
         }
+    }
+    if !pick && level {
+        candidate[slot] = 1u;
     }
 }
 
@@ -492,7 +509,7 @@ fn colour(@builtin(global_invocation_id) g: vec3<u32>) {
             continue;
         }
         if local != last {
-            c = seg_colour(segs[local], g.x, g.y);
+            c = seg_colour(segs[position[local]], g.x, g.y);
             last = local;
         }
         cbuf[p * 4u + s] = vec2<u32>(f16_pair(f16_rtz(c.r), f16_rtz(c.g)), f16_pair(f16_rtz(c.b), 1.0));

@@ -221,17 +221,21 @@ fn target(
 }
 
 /// Storage buffers of at most `chunk_bytes` each, with their item counts.
+/// Items per chunk of at most `chunk_bytes` (what [`chunks`] puts in each).
+fn per_chunk<T>(chunk_bytes: u64) -> usize {
+    // A mesh chunk draws 3 vertices per item, a strand chunk one instance per item: both
+    // counts must fit a u32.
+    (chunk_bytes / std::mem::size_of::<T>() as u64).clamp(1, u32::MAX as u64 / 3) as usize
+}
+
 fn chunks<T: bytemuck::Pod>(
     ctx: &GpuContext,
     label: &str,
     items: &[T],
     chunk_bytes: u64,
 ) -> Vec<(wgpu::Buffer, u32)> {
-    // A mesh chunk draws 3 vertices per item, a strand chunk one instance per item: both
-    // counts must fit a u32.
-    let per = (chunk_bytes / std::mem::size_of::<T>() as u64).clamp(1, u32::MAX as u64 / 3);
     items
-        .chunks(per as usize)
+        .chunks(per_chunk::<T>(chunk_bytes))
         .map(|c| {
             let buf = ctx
                 .device

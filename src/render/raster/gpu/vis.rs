@@ -5,6 +5,7 @@
 use super::Scene;
 use crate::gpu::timer::PassQueries;
 use crate::gpu::GpuContext;
+use crate::stages::strand_raster::SegRec;
 use wgpu::util::DeviceExt;
 
 /// Whether the compute path draws this scene: 4 samples, strands to draw, buffers within
@@ -101,6 +102,7 @@ fn layouts(d: &wgpu::Device) -> Layouts {
                 (4, ReadWrite),
                 (5, ReadWrite),
                 (10, ReadWrite),
+                (13, ReadWrite),
             ],
         ),
         colour: layout(
@@ -112,6 +114,7 @@ fn layouts(d: &wgpu::Device) -> Layouts {
                 (2, Photo),
                 (3, Uniform),
                 (6, ReadWrite),
+                (11, Read),
                 (12, ReadWrite),
             ],
         ),
@@ -170,6 +173,52 @@ fn group(
     })
 }
 
+/// Each chunk of `per` segments in the order the walks run them, with each one's index
+/// within its chunk in `_pad`; and per chunk, where each segment went. The order is by
+/// 64 px tile of the first end, then front to back by the nearer end's depth (256
+/// levels): most later segments then find their samples already nearer, so `depth`
+/// seldom lowers a key and `pick` skips them (`candidate`), while the tile keeps the
+/// samples a walk touches close together in memory. Which segment holds a sample is
+/// decided by index, not by the order they run in, so the order changes nothing in the
+/// image.
+fn front_to_back(segs: &[SegRec], per: usize, w: u32, h: u32) -> (Vec<SegRec>, Vec<u32>) {
+    const TILE: f32 = 64.0;
+    const LEVELS: usize = 256;
+    let tiles_x = (w as f32 / TILE).ceil() as usize;
+    let tiles = tiles_x * (h as f32 / TILE).ceil() as usize;
+    let key = |s: &SegRec| {
+        let t = |v: f32, n: usize| ((v / TILE).max(0.0) as usize).min(n - 1);
+        let tile = t(s.p0[1], tiles / tiles_x) * tiles_x + t(s.p0[0], tiles_x);
+        let z = s.z0.min(s.z1).clamp(0.0, 1.0);
+        tile * LEVELS + ((z * LEVELS as f32) as usize).min(LEVELS - 1)
+    };
+    let mut sorted = Vec::with_capacity(segs.len());
+    let mut position = vec![0u32; segs.len()];
+    let mut start = vec![0usize; tiles * LEVELS + 1];
+    for (c, chunk) in segs.chunks(per).enumerate() {
+        start.iter_mut().for_each(|v| *v = 0);
+        for s in chunk {
+            start[key(s) + 1] += 1;
+        }
+        for k in 1..start.len() {
+            start[k] += start[k - 1];
+        }
+        let first = sorted.len();
+        sorted.resize(first + chunk.len(), chunk[0]);
+        for (i, s) in chunk.iter().enumerate() {
+            let k = key(s);
+            let at = start[k];
+            start[k] += 1;
+            sorted[first + at] = SegRec {
+                _pad: i as u32,
+                ..*s
+            };
+            position[c * per + i] = at as u32;
+        }
+    }
+    (sorted, position)
+}
+
 /// The WGSL `Chunk`.
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -224,11 +273,24 @@ pub fn encode(
     let out = storage("strand_vis.resolved", px * 8);
     let photo = super::texture_rgba32_or_blank(ctx, s.photo.as_ref());
 
-    let chunks = super::chunks(ctx, "strand_vis.segs", &s.segs, chunk_bytes);
+    let per = super::per_chunk::<SegRec>(chunk_bytes);
+    let (sorted, position) = front_to_back(&s.segs, per, w, h);
+    let chunks = super::chunks(ctx, "strand_vis.segs", &sorted, chunk_bytes);
+    let position: Vec<wgpu::Buffer> = position
+        .chunks(per)
+        .map(|c| {
+            d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("strand_vis.position"),
+                contents: bytemuck::cast_slice(c),
+                usage: wgpu::BufferUsages::STORAGE,
+            })
+        })
+        .collect();
     let mut base = 0u32;
     let per_chunk: Vec<(wgpu::BindGroup, wgpu::BindGroup, [u32; 2])> = chunks
         .iter()
-        .map(|(buf, count)| {
+        .zip(&position)
+        .map(|((buf, count), position)| {
             let (groups, row) = walk_groups(*count);
             let c = Chunk {
                 base,
@@ -242,6 +304,8 @@ pub fn encode(
                 contents: bytemuck::bytes_of(&c),
                 usage: wgpu::BufferUsages::UNIFORM,
             });
+            // Zeroed at creation, as wgpu clears every new buffer.
+            let candidate = storage("strand_vis.candidate", *count as u64 * 4);
             let walk = group(
                 d,
                 "strand_vis.walk",
@@ -253,6 +317,7 @@ pub fn encode(
                     (4, zbuf.as_entire_binding()),
                     (5, ibuf.as_entire_binding()),
                     (10, zbuf.as_entire_binding()),
+                    (13, candidate.as_entire_binding()),
                 ],
             );
             let colour = group(
@@ -265,6 +330,7 @@ pub fn encode(
                     (2, wgpu::BindingResource::TextureView(&photo)),
                     (3, cu.as_entire_binding()),
                     (6, cbuf.as_entire_binding()),
+                    (11, position.as_entire_binding()),
                     (12, ibuf.as_entire_binding()),
                 ],
             );
@@ -339,6 +405,63 @@ pub fn encode(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn seg(x: f32, y: f32, z: f32) -> SegRec {
+        SegRec {
+            p0: [x, y],
+            p1: [x + 3.0, y + 1.0],
+            z0: z,
+            z1: z + 0.01,
+            strand: 0,
+            _pad: 0,
+            c0: [1.0; 4],
+            c1: [1.0; 4],
+            o: [0.0; 4],
+        }
+    }
+
+    /// Per chunk: a permutation whose `_pad` is the input index and whose `position` is its
+    /// inverse, ordered by tile, then nearer depth first.
+    #[test]
+    fn front_to_back_permutes_each_chunk_and_records_the_way_back() {
+        let mut rng = crate::base::rng::Rng::new(3);
+        let segs: Vec<SegRec> = (0..1000)
+            .map(|_| {
+                seg(
+                    rng.next_f32() * 300.0 - 20.0,
+                    rng.next_f32() * 200.0,
+                    rng.next_f32() * 1.2 - 0.1,
+                )
+            })
+            .collect();
+        let per = 300;
+        let (sorted, position) = front_to_back(&segs, per, 256, 192);
+        assert_eq!(sorted.len(), segs.len());
+        for (c, chunk) in segs.chunks(per).enumerate() {
+            let out = &sorted[c * per..c * per + chunk.len()];
+            let back = &position[c * per..c * per + chunk.len()];
+            for (i, s) in chunk.iter().enumerate() {
+                let at = out[back[i] as usize];
+                assert_eq!(at._pad as usize, i);
+                assert_eq!(SegRec { _pad: 0, ..at }, *s);
+            }
+            let key = |s: &SegRec| {
+                let tile = |v: f32, n: f32| (v / 64.0).max(0.0).min(n - 1.0).floor();
+                (
+                    tile(s.p0[1], 3.0) * 4.0 + tile(s.p0[0], 4.0),
+                    s.z0.min(s.z1),
+                )
+            };
+            for pair in out.windows(2) {
+                let (a, b) = (key(&pair[0]), key(&pair[1]));
+                assert!(a.0 <= b.0, "tiles out of order");
+                // Within a tile, by 256 depth levels: never more than a level backwards.
+                if a.0 == b.0 {
+                    assert!(b.1.clamp(0.0, 1.0) >= a.1.clamp(0.0, 1.0) - 1.0 / 256.0);
+                }
+            }
+        }
+    }
 
     #[test]
     fn walk_groups_cover_every_segment_within_the_dispatch_limit() {
