@@ -21,6 +21,8 @@ pub struct GpuContext {
     timestamps: bool,
     /// GPU time per pass while timing is on (`--timings`); None: passes are not timed.
     pass_times: Mutex<Option<PassTotals>>,
+    /// Objects built once per device and kept (see [`GpuContext::cached`]).
+    kept: Mutex<std::collections::HashMap<String, Arc<dyn std::any::Any + Send + Sync>>>,
 }
 
 /// What an adapter is, for `coif info` and logs.
@@ -149,7 +151,23 @@ impl GpuContext {
             uncaptured,
             timestamps,
             pass_times: Mutex::new(None),
+            kept: Mutex::new(Default::default()),
         })
+    }
+
+    /// The value kept under `key`, built by `make` the first time it is asked for: for
+    /// pipelines a host would otherwise build on every call (a software driver compiles
+    /// each one, tens of milliseconds for the raster's). A key names one type.
+    pub fn cached<T: Send + Sync + 'static>(&self, key: &str, make: impl FnOnce() -> T) -> Arc<T> {
+        let mut kept = self.kept.lock().unwrap();
+        if let Some(v) = kept.get(key) {
+            if let Ok(v) = Arc::clone(v).downcast::<T>() {
+                return v;
+            }
+        }
+        let v = Arc::new(make());
+        kept.insert(key.to_string(), v.clone());
+        v
     }
 
     /// Whether the device has timestamp queries.

@@ -511,7 +511,7 @@ pub fn raster(
     let vis_out = vis_src.map(|src| {
         vis::encode(
             ctx,
-            module(d, src),
+            || module(d, src),
             s,
             &mut encoder,
             queries.as_mut(),

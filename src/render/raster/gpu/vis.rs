@@ -238,13 +238,14 @@ fn walk_groups(count: u32) -> ([u32; 2], u32) {
     ([x, groups.div_ceil(x)], x * WALK_GROUP)
 }
 
-/// Records the five passes into `encoder` and returns the buffer of resolved pixels
+/// Records the five passes into `encoder` (their pipelines built once per device, from the
+/// module `module` makes) and returns the buffer of resolved pixels
 /// (`width · height` linear premultiplied RGBA in f16, rows unpadded, as the render
 /// pipeline's resolve target holds them).
 #[allow(clippy::too_many_arguments)]
 pub fn encode(
     ctx: &GpuContext,
-    module: wgpu::ShaderModule,
+    module: impl FnOnce() -> wgpu::ShaderModule,
     s: &Scene,
     encoder: &mut wgpu::CommandEncoder,
     mut queries: Option<&mut PassQueries>,
@@ -256,7 +257,20 @@ pub fn encode(
     let d = &ctx.device;
     let (w, h) = (s.cfg.width, s.cfg.height);
     let px = w as u64 * h as u64;
-    let l = layouts(d);
+    let kept = ctx.cached("strand_vis", || {
+        let l = layouts(d);
+        let module = module();
+        let p = |layout: &wgpu::BindGroupLayout, entry: &str| pipeline(d, &module, layout, entry);
+        let pipes = [
+            p(&l.zinit, "zinit"),
+            p(&l.walk, "depth"),
+            p(&l.walk, "pick"),
+            p(&l.colour, "colour"),
+            p(&l.resolve, "resolve"),
+        ];
+        (l, pipes)
+    });
+    let (l, pipes) = (&kept.0, &kept.1);
     let storage = |label: &str, size: u64| {
         d.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
@@ -362,30 +376,29 @@ pub fn encode(
     );
     let pixels = [w.div_ceil(8), h.div_ceil(8)];
     // One compute pass per step: every chunk's dispatch of a step before any of the next.
-    let steps: [(&'static str, &str, &wgpu::BindGroupLayout); 5] = [
-        ("strand_vis.zinit", "zinit", &l.zinit),
-        ("strand_vis.depth", "depth", &l.walk),
-        ("strand_vis.pick", "pick", &l.walk),
-        ("strand_vis.colour", "colour", &l.colour),
-        ("strand_vis.resolve", "resolve", &l.resolve),
+    let labels = [
+        "strand_vis.zinit",
+        "strand_vis.depth",
+        "strand_vis.pick",
+        "strand_vis.colour",
+        "strand_vis.resolve",
     ];
-    for (label, entry, layout) in steps {
-        let p = pipeline(d, &module, layout, entry);
+    for (step, (label, p)) in labels.into_iter().zip(pipes).enumerate() {
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some(label),
             timestamp_writes: queries.as_mut().map(|q| q.compute(label)),
         });
-        pass.set_pipeline(&p);
-        match entry {
-            "zinit" => {
+        pass.set_pipeline(p);
+        match step {
+            0 => {
                 pass.set_bind_group(0, &zinit, &[]);
                 pass.dispatch_workgroups(pixels[0], pixels[1], 1);
             }
-            "resolve" => {
+            4 => {
                 pass.set_bind_group(0, &resolve, &[]);
                 pass.dispatch_workgroups(pixels[0], pixels[1], 1);
             }
-            "colour" => {
+            3 => {
                 for (_, colour, _) in &per_chunk {
                     pass.set_bind_group(0, colour, &[]);
                     pass.dispatch_workgroups(pixels[0], pixels[1], 1);
