@@ -41,7 +41,9 @@ pub struct SegRec {
     pub z0: f32,
     pub z1: f32,
     pub strand: u32,
-    pub _pad: u32,
+    /// Free for the GPU host: the compute walks keep the segment's index within its chunk here
+    /// (they run a chunk in their own order); 0 elsewhere.
+    pub local: u32,
     pub c0: [f32; 4],
     pub c1: [f32; 4],
     /// Photo points of the two ends (o0.xy, o1.xy); zero without a photo.

@@ -118,7 +118,7 @@ fn shaders_validate_and_structs_match_the_host() {
         offset_of!(SegRec, z0),
         offset_of!(SegRec, z1),
         offset_of!(SegRec, strand),
-        offset_of!(SegRec, _pad),
+        offset_of!(SegRec, local),
         offset_of!(SegRec, c0),
         offset_of!(SegRec, c1),
         offset_of!(SegRec, o),
@@ -237,6 +237,18 @@ fn both_with(
         render_cpu(f, m, s, p).expect("cpu render"),
         render_gpu_pipeline(ctx(), f, m, s, p).expect("gpu pipeline render"),
     ]
+}
+
+/// Pixels whose four channels are the same f32s in both images.
+fn float_identical(a: &[[f32; 4]], b: &[[f32; 4]]) -> usize {
+    a.iter()
+        .zip(b)
+        .filter(|(p, q)| {
+            p.iter()
+                .zip(q.iter())
+                .all(|(x, y)| x.to_bits() == y.to_bits())
+        })
+        .count()
 }
 
 fn alpha_at(img: &[[f32; 4]], w: u32, x: u32, y: u32) -> f32 {
@@ -367,15 +379,7 @@ fn edges_and_corners_through_sample_positions_agree_exactly() {
         };
         let [gpu, cpu, pipe] = both_with(&frame(w, h), None, Some(&s), &p);
         agree("sample-aligned, gpu pipeline", &pipe, &cpu, 0, 1.0).unwrap();
-        let same = gpu
-            .iter()
-            .zip(&cpu)
-            .filter(|(a, b)| {
-                a.iter()
-                    .zip(b.iter())
-                    .all(|(x, y)| x.to_bits() == y.to_bits())
-            })
-            .count();
+        let same = float_identical(&gpu, &cpu);
         println!(
             "width {width}: {same} of {} pixels float-identical",
             gpu.len()
@@ -715,15 +719,7 @@ fn gpu_matches_cpu_on_head_and_strands() {
         let pipe = render_gpu_pipeline(ctx(), &f, Some(&mesh), Some(&s), &p).unwrap();
         agree("over background, gpu pipeline", &pipe, &cpu, 2, 0.99).unwrap();
         for (what, img) in [("gpu", &gpu), ("gpu pipeline", &pipe)] {
-            let exact = img
-                .iter()
-                .zip(&cpu)
-                .filter(|(a, b)| {
-                    a.iter()
-                        .zip(b.iter())
-                        .all(|(x, y)| x.to_bits() == y.to_bits())
-                })
-                .count();
+            let exact = float_identical(img, &cpu);
             println!(
                 "  {what}: float-identical pixels {:.3}%",
                 100.0 * exact as f64 / cpu.len() as f64
@@ -975,6 +971,57 @@ fn huge_mesh_triangles_are_clipped_not_lost() {
             );
         }
     }
+}
+
+/// The compute strand passes (`wgsl/render/strand_vis.wgsl`) draw 4x frames and agree with
+/// the CPU mirror on a frame whose size is no multiple of their 8x8 pixel groups, with more
+/// segments than a walk's 64-invocation workgroup and in several chunks (each walked in its
+/// own order); 1-sample frames and frames too large for their i32 edge values keep the
+/// render pipeline.
+#[test]
+fn strand_vis_draws_4x_frames_and_matches_the_cpu_across_workgroups() {
+    let (w, h) = (70, 45);
+    let mut rng = Rng::new(9);
+    let mesh = head_mesh(w, h, &mut rng);
+    let s = random_strands(w, h, 150, &mut rng);
+    let mut f = frame(w, h);
+    f.depth_range = (-200.0, 200.0);
+    f.background = Some(gradient_background(w, h));
+    let p = RasterParams::default();
+    assert_eq!(p.samples, 4);
+    assert_eq!(
+        gpu_strand_path(ctx(), &f, Some(&s), &p).unwrap(),
+        "strand_vis"
+    );
+    let one = RasterParams { samples: 1, ..p };
+    assert_eq!(
+        gpu_strand_path(ctx(), &f, Some(&s), &one).unwrap(),
+        "strand_raster"
+    );
+    assert_eq!(
+        gpu_strand_path(ctx(), &f, None, &p).unwrap(),
+        "strand_raster"
+    );
+    let huge = frame(6000, 6000);
+    assert_eq!(
+        gpu_strand_path(ctx(), &huge, Some(&s), &p).unwrap(),
+        "strand_raster"
+    );
+    let cpu = render_cpu(&f, Some(&mesh), Some(&s), &p).unwrap();
+    let gpu = render_gpu(ctx(), &f, Some(&mesh), Some(&s), &p).unwrap();
+    agree("strand_vis", &gpu, &cpu, 2, 0.99).unwrap();
+    // 37 segments a chunk (80 B each): many chunks, the same image to the bit.
+    let chunked = render_gpu_chunked(ctx(), &f, Some(&mesh), Some(&s), &p, 80 * 37).unwrap();
+    assert_eq!(
+        float_identical(&gpu, &chunked),
+        gpu.len(),
+        "chunks changed the image"
+    );
+    println!(
+        "strand_vis: {} of {} pixels float-identical to the cpu mirror",
+        float_identical(&gpu, &cpu),
+        cpu.len()
+    );
 }
 
 #[test]

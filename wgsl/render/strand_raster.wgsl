@@ -24,20 +24,6 @@
 
 #include "shared/raster_common.wgsl"
 
-// Host-prepared segment (`SegRec`): screen px, depth already mapped to [0, 1] (0 = near).
-struct Seg {
-    p0: vec2<f32>,
-    p1: vec2<f32>,
-    z0: f32,
-    z1: f32,
-    strand: u32,
-    _pad: u32,
-    c0: vec4<f32>,
-    c1: vec4<f32>,
-    // Photo points of the ends: o0 = o.xy, o1 = o.zw.
-    o: vec4<f32>,
-}
-
 @group(0) @binding(0) var<uniform> cfg: Config;
 @group(0) @binding(1) var<storage, read> segs: array<Seg>;
 @group(0) @binding(2) var photo: texture_2d<f32>;

@@ -31,20 +31,6 @@
 #include "shared/raster_common.wgsl"
 #include "shared/colour.wgsl"
 
-// Host-prepared segment, as `strand_raster.wgsl`'s `Seg` (`SegRec`).
-struct Seg {
-    p0: vec2<f32>,
-    p1: vec2<f32>,
-    z0: f32,
-    z1: f32,
-    strand: u32,
-    // Here: the segment's index within its chunk (the host reorders a chunk).
-    local: u32,
-    c0: vec4<f32>,
-    c1: vec4<f32>,
-    o: vec4<f32>,
-}
-
 // One chunk of segments: global index of its first, its count, and invocations per row of
 // the dispatch (a chunk may need more than 65535 workgroups in x).
 struct Chunk {

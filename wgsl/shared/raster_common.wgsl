@@ -1,5 +1,6 @@
-// The uniform of both render passes, `render/strand_raster.wgsl` and `render/mesh_raster.wgsl`
-// (one buffer serves both draws). Rust side: `stages::raster_common::Config`.
+// The uniform of the render passes, `render/strand_raster.wgsl`, `render/mesh_raster.wgsl` and
+// `render/strand_vis.wgsl` (one buffer serves them all), and the strand segment the two strand
+// passes read. Rust side: `stages::raster_common::Config`, `stages::strand_raster::SegRec`.
 struct Config {
     width: u32,
     height: u32,
@@ -16,4 +17,20 @@ struct Config {
     saturation: f32,
     value: f32,
     _pad: u32,
+}
+
+// Host-prepared segment (`SegRec`): screen px, depth already mapped to [0, 1] (0 = near).
+struct Seg {
+    p0: vec2<f32>,
+    p1: vec2<f32>,
+    z0: f32,
+    z1: f32,
+    strand: u32,
+    // For the compute walks: the segment's index within its chunk (the host reorders a
+    // chunk); unused by the render pipeline.
+    local: u32,
+    c0: vec4<f32>,
+    c1: vec4<f32>,
+    // Photo points of the ends: o0 = o.xy, o1 = o.zw.
+    o: vec4<f32>,
 }

@@ -287,6 +287,11 @@ fn bind_chunks<T: bytemuck::Pod>(
         .collect()
 }
 
+/// Whether [`raster`] draws this scene's strands by the compute passes.
+pub fn strands_by_compute(ctx: &GpuContext, s: &Scene) -> bool {
+    vis::usable(ctx, s)
+}
+
 /// Renders the scene; with `pipeline`, the strands by the render pipeline even where the
 /// compute passes would draw them.
 pub fn raster(

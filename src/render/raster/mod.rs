@@ -689,7 +689,7 @@ impl SegPrep {
             z0: za,
             z1: zb,
             strand,
-            _pad: 0,
+            local: 0,
             c0: ca,
             c1: cb,
             o: [oa[0], oa[1], ob[0], ob[1]],
@@ -831,6 +831,24 @@ pub fn render_gpu_pipeline(
     p: &RasterParams,
 ) -> Result<Vec<[f32; 4]>> {
     render_gpu_with(ctx, frame, mesh, strands, p, u64::MAX, true)
+}
+
+/// Which GPU path [`render_gpu`] draws these strands with: `"strand_vis"` (the compute
+/// passes) or `"strand_raster"` (the render pipeline), for tests.
+#[doc(hidden)]
+pub fn gpu_strand_path(
+    ctx: &GpuContext,
+    frame: &Frame,
+    strands: Option<&ScreenStrands>,
+    p: &RasterParams,
+) -> Result<&'static str> {
+    let max_dim = ctx.limits.max_texture_dimension_2d;
+    let scene = Scene::new(frame, None, strands, p, max_dim, true)?;
+    Ok(if gpu::strands_by_compute(ctx, &scene) {
+        "strand_vis"
+    } else {
+        "strand_raster"
+    })
 }
 
 fn render_gpu_with(

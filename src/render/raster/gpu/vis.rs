@@ -174,7 +174,7 @@ fn group(
 }
 
 /// Each chunk of `per` segments in the order the walks run them, with each one's index
-/// within its chunk in `_pad`; and per chunk, where each segment went. The order is by
+/// within its chunk in `local`; and per chunk, where each segment went. The order is by
 /// 64 px tile of the first end, then front to back by the nearer end's depth (256
 /// levels): most later segments then find their samples already nearer, so `depth`
 /// seldom lowers a key and `pick` skips them (`candidate`), while the tile keeps the
@@ -210,7 +210,7 @@ fn front_to_back(segs: &[SegRec], per: usize, w: u32, h: u32) -> (Vec<SegRec>, V
             let at = start[k];
             start[k] += 1;
             sorted[first + at] = SegRec {
-                _pad: i as u32,
+                local: i as u32,
                 ..*s
             };
             position[c * per + i] = at as u32;
@@ -426,14 +426,14 @@ mod tests {
             z0: z,
             z1: z + 0.01,
             strand: 0,
-            _pad: 0,
+            local: 0,
             c0: [1.0; 4],
             c1: [1.0; 4],
             o: [0.0; 4],
         }
     }
 
-    /// Per chunk: a permutation whose `_pad` is the input index and whose `position` is its
+    /// Per chunk: a permutation whose `local` is the input index and whose `position` is its
     /// inverse, ordered by tile, then nearer depth first.
     #[test]
     fn front_to_back_permutes_each_chunk_and_records_the_way_back() {
@@ -455,8 +455,8 @@ mod tests {
             let back = &position[c * per..c * per + chunk.len()];
             for (i, s) in chunk.iter().enumerate() {
                 let at = out[back[i] as usize];
-                assert_eq!(at._pad as usize, i);
-                assert_eq!(SegRec { _pad: 0, ..at }, *s);
+                assert_eq!(at.local as usize, i);
+                assert_eq!(SegRec { local: 0, ..at }, *s);
             }
             let key = |s: &SegRec| {
                 let tile = |v: f32, n: f32| (v / 64.0).max(0.0).min(n - 1.0).floor();
