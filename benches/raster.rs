@@ -27,6 +27,16 @@ const SIZE: u32 = 1024;
 const STRANDS: usize = 30_000;
 const VERTS: usize = 50;
 
+/// Share of pixels whose 8-bit sRGB channels all lie within 2 levels of the other image's.
+fn within_2(a: &[[f32; 4]], b: &[[f32; 4]]) -> f64 {
+    let (a, b) = (to_rgba8(a), to_rgba8(b));
+    a.chunks_exact(4)
+        .zip(b.chunks_exact(4))
+        .filter(|(x, y)| x.iter().zip(y.iter()).all(|(u, v)| u.abs_diff(*v) <= 2))
+        .count() as f64
+        / (a.len() / 4) as f64
+}
+
 fn median(mut t: Vec<f64>) -> f64 {
     t.sort_by(f64::total_cmp);
     t[t.len() / 2]
@@ -261,26 +271,14 @@ fn main() {
             let pimg = render_gpu_pipeline(ctx, &frame, None, Some(&strands), &p).unwrap();
             let tp = t.elapsed().as_secs_f64();
             pipeline = Some(tp);
-            let (a, b) = (to_rgba8(&pimg), to_rgba8(&img));
-            let agree_p = a
-                .chunks_exact(4)
-                .zip(b.chunks_exact(4))
-                .filter(|(x, y)| x.iter().zip(y.iter()).all(|(u, v)| u.abs_diff(*v) <= 2))
-                .count() as f64
-                / (SIZE * SIZE) as f64;
+            let agree_p = within_2(&pimg, &img);
             println!(
                 "  lavapipe, strands by the render pipeline instead: {tp:.3} s ({:.3}% of pixels \
                  within 2/255 of the cpu image); compute / pipeline {:.2}",
                 100.0 * agree_p,
                 tg / tp
             );
-            let (a, b) = (to_rgba8(&gimg), to_rgba8(&img));
-            let agree = a
-                .chunks_exact(4)
-                .zip(b.chunks_exact(4))
-                .filter(|(x, y)| x.iter().zip(y.iter()).all(|(u, v)| u.abs_diff(*v) <= 2))
-                .count() as f64
-                / (SIZE * SIZE) as f64;
+            let agree = within_2(&gimg, &img);
             println!("  gpu vs cpu: {:.3}% of pixels within 2/255", 100.0 * agree);
             // What every call pays regardless of content (pipelines, targets, read-back).
             let tiny = Frame {
