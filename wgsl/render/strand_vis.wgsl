@@ -7,15 +7,18 @@
 // whole 4x4 blocks); here a segment costs its own covered samples and nothing more.
 // Compute rasterisation of strands is what hair renderers do on real GPUs too.
 //
-// Passes (host: `src/render/raster/gpu.rs`; background and mesh are drawn first by the
-// render pipelines of `mesh_raster.wgsl` into a stored MSAA colour and depth target):
+// Passes (host: `src/render/raster/gpu/vis.rs`, which also orders each chunk's segments by
+// tile and front to back; background and mesh are drawn first by the render pipelines of
+// `mesh_raster.wgsl` into a stored MSAA colour and depth target):
 // 1. `zinit`   per pixel: zbuf = 2·bits(mesh depth), ibuf = 0 (nothing), per sample.
 // 2. `depth`   per segment: every covered, kept sample with z in [0, 1] does
 //              atomicMin(zbuf, 2·bits(z) + 1). Positive f32 order as their bits; the
 //              doubling makes `Less` against the mesh strict (a strand needs 2b+1 < 2m, that
 //              is b < m) while strands tying each other stay equal.
 // 3. `pick`    per segment: where its value equals zbuf, atomicMax(ibuf, !index): the lowest
-//              index among exact ties wins, as drawing in input order with `Less` gives.
+//              index among exact ties wins, as drawing in input order with `Less` gives
+//              (so the order the walks run in changes nothing); segments `depth` never
+//              found level or nearer are skipped (`candidate`).
 // 4. `colour`  per pixel: a sample held by a segment of this chunk gets its colour at the
 //              pixel centre (f16, rounded toward zero as the target stores it).
 // 5. `resolve` per pixel: the mean of the four samples (strand colour or the MSAA target's
