@@ -325,7 +325,6 @@ pub fn raster(
     let validation = d.push_error_scope(wgpu::ErrorFilter::Validation);
     let oom = d.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
 
-    let strand_module = module(d, strand_src);
     let mesh_module = module(d, mesh_src);
     let less = wgpu::CompareFunction::Less;
     let mut ub = encase::UniformBuffer::new(Vec::<u8>::new());
@@ -426,7 +425,9 @@ pub fn raster(
         }
         _ => None,
     };
+    // Only this path uses the strand module: the compute passes have their own.
     let strands = (!s.segs.is_empty() && !vis).then(|| {
+        let strand_module = module(d, strand_src);
         let p = pipe(
             d,
             "raster.strands",
