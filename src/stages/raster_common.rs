@@ -350,9 +350,13 @@ pub fn trunc_i32(x: f32) -> i32 {
 /// little.
 pub const ZBLOCK: i32 = 2;
 
+/// Pixels past the end of [`TileBuf::depth`], read and never used by the strand loop's
+/// last group of a tile (at most 8 lanes of 1 sample).
+pub const TILE_PAD: usize = 8;
+
 /// Slack of the depth-bound tests ([`TileBuf::hidden`], [`TileBuf::pixel_hidden`]) for the
 /// rounding of per-sample depths to f32.
-const DEPTH_ROUNDING: f32 = 1e-6;
+pub const DEPTH_ROUNDING: f32 = 1e-6;
 
 impl<const N: usize> TileBuf<N> {
     /// Sizes the tile at (x0, y0), w x h, with every depth 1, every depth bound fresh, and no
@@ -361,8 +365,10 @@ impl<const N: usize> TileBuf<N> {
         (self.x0, self.y0, self.w, self.h) = (x0, y0, w, h);
         let npx = (w * h) as usize;
         self.color.clear();
+        // Padded by TILE_PAD pixels: the strand loop reads its pixels' depths a group at a
+        // time, and a group may run past the tile's last pixel.
         self.depth.clear();
-        self.depth.resize(npx, [1.0; N]);
+        self.depth.resize(npx + TILE_PAD, [1.0; N]);
         self.rank.clear();
         self.rank.resize(npx, [0; N]);
         self.zmax.clear();

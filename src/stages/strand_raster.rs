@@ -8,7 +8,7 @@ use crate::gpu::engine::RenderStageDef;
 use crate::render::raster::Texture;
 use crate::stages::raster_common::{
     a2c_mask, bilinear_at, mask32, snap, trunc_i32, Config, Fb, Narrow, Offsets, Plane, Poly,
-    TileBuf, SUBPIXEL,
+    TileBuf, DEPTH_ROUNDING, SUBPIXEL,
 };
 
 /// Entry points (vertex, fragment) of the strand pipeline.
@@ -326,6 +326,7 @@ fn scan_quad<const N: usize>(
         std::array::from_fn(|l| so[k][l % N].wrapping_add(st[k].wrapping_mul((l / N) as i32)))
     });
     let group: [i32; 4] = std::array::from_fn(|k| st[k].wrapping_mul(px_per as i32));
+    let z_far = shade.z_near - DEPTH_ROUNDING;
     // Edge values at the first column of each row, stepped down row by row in i32.
     let mut row = quad.edges32(buf.x0 + cols.0, buf.y0 + rows.0);
     for ly in rows.0..=rows.1 {
@@ -355,6 +356,21 @@ fn scan_quad<const N: usize>(
             if left < px_per {
                 bits &= (1u32 << (left * N)) - 1;
             }
+            if bits == 0 {
+                lx += px_per as i32;
+                continue;
+            }
+            // Samples already nearer than the quad's nearest depth fail `Less` whatever the
+            // quad's depth there: cleared for the group's pixels side by side (with heavy
+            // overdraw most covered samples are; `Shade::pixel` then sees the others only).
+            // The buffer is padded, so the group's last pixel may lie past the tile.
+            let i = (ly * buf.w + lx) as usize;
+            let depth = &buf.depth[i..i + px_per].as_flattened()[..LANES];
+            let mut live = 0u32;
+            for l in 0..LANES {
+                live |= ((depth[l] > z_far) as u32) << l;
+            }
+            bits &= live;
             while bits != 0 {
                 let j = bits.trailing_zeros() as usize / N;
                 let cov = (bits >> (j * N)) & ((1u32 << N) - 1);
@@ -397,13 +413,7 @@ struct PhotoShade<'a> {
 impl<const N: usize> Shade<'_, N> {
     #[inline(always)]
     fn pixel(&self, buf: &mut TileBuf<N>, lx: i32, ly: i32, cov: u32) {
-        // Before anything else: a pixel whose every sample is nearer than the segment's
-        // nearest depth (the bound the tile's block test uses) fails `Less` in all of them.
-        // Most fragments of a front-to-back tile end here.
         let i = (ly * buf.w + lx) as usize;
-        if buf.pixel_hidden(i, self.z_near) {
-            return;
-        }
         let n = N as u32;
         let (px, py) = (buf.x0 + lx, buf.y0 + ly);
         // Position along the segment at the pixel centre, clamped.
@@ -494,7 +504,7 @@ fn scan<const E: usize, const N: usize>(
                         e[i][k] = e[i][k].wrapping_add(st[k]);
                     }
                 }
-                if cov != 0 {
+                if cov != 0 && !buf.pixel_hidden((ly * buf.w + lx) as usize, shade.z_near) {
                     shade.pixel(buf, lx, ly, cov);
                 }
             }
@@ -510,7 +520,7 @@ fn scan<const E: usize, const N: usize>(
                         e[i][k] += st[k];
                     }
                 }
-                if cov != 0 {
+                if cov != 0 && !buf.pixel_hidden((ly * buf.w + lx) as usize, shade.z_near) {
                     shade.pixel(buf, lx, ly, cov);
                 }
             }

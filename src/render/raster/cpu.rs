@@ -17,7 +17,7 @@
 
 #![allow(clippy::needless_range_loop)]
 
-use super::Scene;
+use super::{Scene, SegCull};
 use crate::base::colour::f16_store;
 use crate::stages::mesh_raster::{mesh_tri, tri_bounds};
 use crate::stages::raster_common::{sample_offsets, trunc_i32, Fb, TileBuf};
@@ -78,9 +78,9 @@ fn bin_tris(s: &Scene, tiles_x: u32, tiles_y: u32) -> Vec<Vec<u32>> {
     bins
 }
 
-/// Per binning task, per tile: (first vertex, strand) of every segment whose quad may touch
-/// the tile, in input order, by [`seg_bounds`] of the raw end points.
-fn bin_segs(s: &Scene, tiles_x: u32, tiles_y: u32) -> Vec<Vec<Vec<[u32; 2]>>> {
+/// Per binning task, per tile: the cull record of every segment whose quad may touch the
+/// tile, in input order, by [`seg_bounds`] of the raw end points.
+fn bin_segs(s: &Scene, tiles_x: u32, tiles_y: u32) -> Vec<Vec<Vec<SegCull>>> {
     let Some(src) = &s.src else {
         return Vec::new();
     };
@@ -103,9 +103,10 @@ fn bin_segs(s: &Scene, tiles_x: u32, tiles_y: u32) -> Vec<Vec<Vec<[u32; 2]>>> {
                     let Some(r) = tile_range(b, w, h, tiles_x, tiles_y) else {
                         continue;
                     };
+                    let rec = src.cull(i as u32, k as u32, p, q, b);
                     for ty in r[1]..=r[3] {
                         for tx in r[0]..=r[2] {
-                            bins[(ty * tiles_x + tx) as usize].push([i as u32, k as u32]);
+                            bins[(ty * tiles_x + tx) as usize].push(rec);
                         }
                     }
                 }
@@ -170,57 +171,59 @@ const PREFETCH_AHEAD: usize = 8;
 /// depth test), few enough that clearing the counts costs nothing.
 const DEPTH_BUCKETS: usize = 4096;
 
-/// A tile's segments front to back, by a counting sort of their nearer end's depth into
-/// [`DEPTH_BUCKETS`] (a comparison sort of the exact depths was 5% of the profile, with
-/// no fewer fragments shaded). Scratch reused across a worker's tiles.
+/// A tile's segments front to back, by a counting sort of their nearest depth
+/// ([`SegCull::z`]) into [`DEPTH_BUCKETS`] (a comparison sort of the exact depths was 5%
+/// of the profile, with no fewer fragments shaded). Scratch reused across a worker's tiles.
 #[derive(Default)]
 struct DrawOrder {
-    keys: Vec<(f32, [u32; 2])>,
     counts: Vec<u32>,
-    sorted: Vec<[u32; 2]>,
+    sorted: Vec<SegCull>,
 }
 
 impl DrawOrder {
-    /// The segments `segs` ((first vertex, strand) each) nearest first, by the nearer end's
-    /// depth (larger = nearer) from the raw points: the depth mapping is monotone and
-    /// clipping only moves an end along its segment, so this orders the prepared segments
-    /// well enough; any order gives the same image.
+    /// The segments of `segs` nearest first, by [`SegCull::z`] (depth-buffer units, smaller
+    /// = nearer: the nearer end's depth less a margin, which orders the prepared segments
+    /// well enough); any order gives the same image.
     fn front_to_back<'b>(
         &mut self,
-        pts: &[[f32; 3]],
-        segs: impl Iterator<Item = &'b [[u32; 2]]>,
-    ) -> &[[u32; 2]] {
-        self.keys.clear();
-        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-        for &[i, k] in segs.flatten() {
-            let (a, b) = (pts[i as usize][2], pts[i as usize + 1][2]);
-            let z = if b > a { b } else { a };
-            lo = lo.min(z);
-            hi = hi.max(z);
-            self.keys.push((z, [i, k]));
+        segs: impl Iterator<Item = &'b [SegCull]> + Clone,
+    ) -> &[SegCull] {
+        let (mut lo, mut hi, mut n) = (f32::INFINITY, f32::NEG_INFINITY, 0);
+        for c in segs.clone().flatten() {
+            // (`min`/`max` pass over NaN.)
+            lo = lo.min(c.z);
+            hi = hi.max(c.z);
+            n += 1;
         }
-        // Nearest (largest z) in bucket 0; NaN depths (never drawn) in the last one (the
-        // truncation gives i32::MIN for NaN).
+        // Nearest (smallest z) in bucket 0; NaN depths (never skipped, rarely drawn) in the
+        // last one (the truncation gives i32::MIN for NaN).
         let scale = if hi > lo {
             (DEPTH_BUCKETS - 1) as f32 / (hi - lo)
         } else {
             0.0
         };
-        let bucket = |z: f32| (trunc_i32((hi - z) * scale) as u32 as usize).min(DEPTH_BUCKETS - 1);
+        let bucket = |z: f32| (trunc_i32((z - lo) * scale) as u32 as usize).min(DEPTH_BUCKETS - 1);
         self.counts.clear();
         self.counts.resize(DEPTH_BUCKETS + 1, 0);
-        for &(z, _) in &self.keys {
-            self.counts[bucket(z) + 1] += 1;
+        for c in segs.clone().flatten() {
+            self.counts[bucket(c.z) + 1] += 1;
         }
         for b in 1..=DEPTH_BUCKETS {
             self.counts[b] += self.counts[b - 1];
         }
         self.sorted.clear();
-        self.sorted.resize(self.keys.len(), [0; 2]);
-        for &(z, seg) in &self.keys {
-            let c = &mut self.counts[bucket(z)];
-            self.sorted[*c as usize] = seg;
-            *c += 1;
+        let blank = SegCull {
+            i: 0,
+            k: 0,
+            z: 0.0,
+            lo: [0; 2],
+            hi: [0; 2],
+        };
+        self.sorted.resize(n, blank);
+        for c in segs.flatten() {
+            let at = &mut self.counts[bucket(c.z)];
+            self.sorted[*at as usize] = *c;
+            *at += 1;
         }
         &self.sorted
     }
@@ -249,7 +252,7 @@ unsafe fn tile_avx2<'b, const N: usize>(
     tx: u32,
     ty: u32,
     tris: &[u32],
-    segs: impl Iterator<Item = &'b [[u32; 2]]>,
+    segs: impl Iterator<Item = &'b [SegCull]> + Clone,
 ) -> Vec<[f32; 4]> {
     tile::<N>(s, buf, order, tx, ty, tris, segs)
 }
@@ -262,7 +265,7 @@ fn tile<'b, const N: usize>(
     tx: u32,
     ty: u32,
     tris: &[u32],
-    segs: impl Iterator<Item = &'b [[u32; 2]]>,
+    segs: impl Iterator<Item = &'b [SegCull]> + Clone,
 ) -> Vec<[f32; 4]> {
     let cfg = &s.cfg;
     let (x0, y0) = ((tx * TILE) as i32, (ty * TILE) as i32);
@@ -289,25 +292,23 @@ fn tile<'b, const N: usize>(
     }
     if let Some(src) = &s.src {
         let photo = s.photo.as_ref().filter(|_| cfg.photo != 0);
-        // Front to back: by the nearer end's depth (larger = nearer), from the raw points
-        // (the depth mapping is monotone and clipping only moves an end along its segment,
-        // so this orders the prepared segments well enough; any order gives the same image).
+        // Front to back (see `DrawOrder`); any order gives the same image.
         let mut since = ZMAX_EVERY;
-        let sorted = order.front_to_back(&src.s.points, segs);
-        for (n, &[i, k]) in sorted.iter().enumerate() {
-            if let Some(&[j, _]) = sorted.get(n + PREFETCH_AHEAD) {
-                src.prefetch(j as usize);
+        let sorted = order.front_to_back(segs);
+        for (n, c) in sorted.iter().enumerate() {
+            if let Some(ahead) = sorted.get(n + PREFETCH_AHEAD) {
+                src.prefetch(ahead.i as usize);
             }
             if since == ZMAX_EVERY {
                 buf.refresh_zmax();
                 since = 0;
             }
             since += 1;
-            if src.surely_hidden(buf, i as usize) {
+            if c.hidden(buf) {
                 continue;
             }
-            if let Some(seg) = src.seg(i as usize, k) {
-                strand_quad(buf, &seg, cfg, photo, &fb, &offs, i + 1);
+            if let Some(seg) = src.seg(c.i as usize, c.k) {
+                strand_quad(buf, &seg, cfg, photo, &fb, &offs, c.i + 1);
             }
         }
     }

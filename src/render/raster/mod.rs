@@ -70,8 +70,7 @@ mod gpu;
 
 use crate::error::{Error, Result};
 use crate::gpu::GpuContext;
-use crate::stages::raster_common::{trunc_i32, TileBuf};
-use crate::stages::strand_raster::seg_bounds;
+use crate::stages::raster_common::TileBuf;
 use crate::Engine;
 use rayon::prelude::*;
 
@@ -206,6 +205,44 @@ struct SegSource<'a> {
     starts: Vec<usize>,
 }
 
+/// What the CPU tile loop knows of a segment before preparing it, worked out once when it
+/// is binned and stored in each tile's list, so that ordering a tile's segments and
+/// skipping the hidden ones read that list in order and not the strands' arrays (which the
+/// tile visits in an order unrelated to their layout).
+#[derive(Clone, Copy)]
+pub(super) struct SegCull {
+    /// First vertex and strand.
+    pub i: u32,
+    pub k: u32,
+    /// No nearer than the nearest depth [`strand_quad`](crate::stages::strand_raster::strand_quad)
+    /// would test (clipping only moves an end along the segment, and its snapping margin
+    /// is at most |Δz|·0.01 / 2h); NaN when an end's depth is not finite.
+    pub z: f32,
+    /// Frame pixel box of the quad widened by a pixel, inclusive.
+    pub lo: [i16; 2],
+    pub hi: [i16; 2],
+}
+
+impl SegCull {
+    /// Whether the segment is surely hidden in the tile: its [`SegCull::z`] behind every
+    /// sample already drawn over its box. False when unsure (the quad then decides).
+    #[inline(always)]
+    pub fn hidden<const N: usize>(&self, buf: &TileBuf<N>) -> bool {
+        let (x0, y0) = (self.lo[0] as i32 - buf.x0, self.lo[1] as i32 - buf.y0);
+        let (x1, y1) = (self.hi[0] as i32 - buf.x0, self.hi[1] as i32 - buf.y0);
+        if x1 < 0 || y1 < 0 || x0 >= buf.w || y0 >= buf.h {
+            return false;
+        }
+        buf.hidden(
+            x0.max(0),
+            y0.max(0),
+            x1.min(buf.w - 1),
+            y1.min(buf.h - 1),
+            self.z,
+        )
+    }
+}
+
 impl SegSource<'_> {
     /// Asks the CPU to fetch what [`Self::seg`] will read for vertex `i` into cache (the
     /// tile draws its segments front to back, so their data is read in an order unrelated
@@ -216,57 +253,47 @@ impl SegSource<'_> {
         {
             use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
             let s = self.s;
-            let at = |p: *const i8| {
-                // SAFETY: a prefetch never faults, and every pointer comes from a live slice.
-                unsafe { _mm_prefetch::<_MM_HINT_T0>(p) }
-            };
-            let points = s.points.get(i..i + 2).into_iter().flatten();
-            let colors = s.colors.get(i..i + 2).into_iter().flatten();
-            let photo = s.photo.as_ref().and_then(|ph| ph.points.get(i));
-            points
-                .map(|p| p.as_ptr().cast())
-                .chain(colors.map(|c| c.as_ptr().cast()))
-                .chain(photo.map(|o| o.as_ptr().cast()))
-                .for_each(at);
+            // SAFETY: a prefetch never faults, and every pointer comes from a live slice.
+            let at = |p: *const [f32; 3]| unsafe { _mm_prefetch::<_MM_HINT_T0>(p.cast()) };
+            let at4 = |p: *const [f32; 4]| unsafe { _mm_prefetch::<_MM_HINT_T0>(p.cast()) };
+            if i + 1 < s.points.len() && i + 1 < s.colors.len() {
+                at(&s.points[i]);
+                at(&s.points[i + 1]);
+                at4(&s.colors[i]);
+                at4(&s.colors[i + 1]);
+            }
+            if let Some(o) = s.photo.as_ref().and_then(|ph| ph.points.get(i)) {
+                // SAFETY: as above.
+                unsafe { _mm_prefetch::<_MM_HINT_T0>(o.as_ptr().cast()) };
+            }
         }
         #[cfg(not(target_arch = "x86_64"))]
         let _ = i;
     }
 
-    /// Whether the segment from vertex `i` is surely hidden in the tile: behind every sample
-    /// already drawn over a conservative pixel box, with a nearest depth no nearer than what
-    /// [`strand_quad`](crate::stages::strand_raster::strand_quad) would test (clipping only
-    /// moves an end along the segment, and its snapping margin is at most |Δz|·0.01 / 2h).
-    /// Read before [`Self::seg`], so a hidden segment costs its two points only; false when
-    /// unsure (`seg` and the quad then decide as before).
+    /// The cull record of the segment from vertex `i` of strand `k` (see [`SegCull`]), from
+    /// its raw end points `a`, `b` and their (finite) pixel bounds `bb`
+    /// ([`seg_bounds`](crate::stages::strand_raster::seg_bounds)).
     #[inline(always)]
-    fn surely_hidden<const N: usize>(&self, buf: &TileBuf<N>, i: usize) -> bool {
-        let (a, b) = (self.s.points[i], self.s.points[i + 1]);
+    fn cull(&self, i: u32, k: u32, a: [f32; 3], b: [f32; 3], bb: [f32; 4]) -> SegCull {
         let (za, zb) = (self.prep.depth.z(a[2]), self.prep.depth.z(b[2]));
-        let bb = seg_bounds([a[0], a[1]], [b[0], b[1]], self.prep.half);
-        if !(za.is_finite() && zb.is_finite() && bb.iter().all(|v| v.is_finite())) {
-            return false;
-        }
-        // The box widened by a pixel, in tile px, clamped to the tile before truncation (so
-        // truncation is the floor, of a finite value in range).
-        let (ox, oy) = (buf.x0 as f32, buf.y0 as f32);
-        let (lo, hi) = (
-            [bb[0] - 1.0 - ox, bb[1] - 1.0 - oy],
-            [bb[2] + 1.0 - ox, bb[3] + 1.0 - oy],
-        );
-        let (wl, hl) = ((buf.w - 1) as f32, (buf.h - 1) as f32);
-        if !(hi[0] >= 0.0 && hi[1] >= 0.0 && lo[0] < wl + 1.0 && lo[1] < hl + 1.0) {
-            return false;
-        }
-        let (x0, y0, x1, y1) = (
-            trunc_i32(lo[0].max(0.0)),
-            trunc_i32(lo[1].max(0.0)),
-            trunc_i32(hi[0].min(wl)),
-            trunc_i32(hi[1].min(hl)),
-        );
         let margin = (za - zb).abs() * 0.01 / (2.0 * self.prep.half).max(MIN_SEGMENT_PX);
         // 1e-6 more: a clipped end's lerped depth may round an ulp below min(za, zb).
-        buf.hidden(x0, y0, x1, y1, za.min(zb) - margin - 1e-6)
+        let z = za.min(zb) - margin - 1e-6;
+        // The box widened by a pixel, floored, clamped to a range every frame fits in
+        // (a clamped side lies off the frame, so only its clamped value is ever used).
+        let px = |v: f32| v.floor().clamp(-1.0, CPU_MAX_DIM as f32 + 1.0) as i16;
+        SegCull {
+            i,
+            k,
+            z: if za.is_finite() && zb.is_finite() {
+                z
+            } else {
+                f32::NAN
+            },
+            lo: [px(bb[0] - 1.0), px(bb[1] - 1.0)],
+            hi: [px(bb[2] + 1.0), px(bb[3] + 1.0)],
+        }
     }
 
     /// The segment from vertex `i` to `i + 1` of strand `k`, prepared; None when skipped.
