@@ -327,6 +327,18 @@ pub struct TileBuf<const N: usize> {
     pub dirty: Vec<u32>,
 }
 
+/// Whether the AVX2 builds of the CPU rasteriser's loops can run here (checked once;
+/// `COIF_NO_AVX2=1` turns them off, to run the baseline x86-64 build).
+#[cfg(target_arch = "x86_64")]
+pub fn has_avx2() -> bool {
+    static HAS: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *HAS.get_or_init(|| {
+        std::arch::is_x86_feature_detected!("avx2")
+            && std::arch::is_x86_feature_detected!("bmi2")
+            && std::env::var_os("COIF_NO_AVX2").is_none()
+    })
+}
+
 /// `x as i32` for an `x` the caller knows to be finite and in range, without the
 /// saturation and NaN fix-ups `as` adds: SSE's truncating conversion on x86-64 (defined
 /// for every input: outside the range it gives i32::MIN), `as` elsewhere.
@@ -351,7 +363,7 @@ pub fn trunc_i32(x: f32) -> i32 {
 pub const ZBLOCK: i32 = 2;
 
 /// Pixels past the end of [`TileBuf::depth`], read and never used by the strand loop's
-/// last group of a tile (at most 8 lanes of 1 sample).
+/// last group of a tile (at most 8 pixels: 8 lanes of 1 sample, or a window of 4 pixels).
 pub const TILE_PAD: usize = 8;
 
 /// Slack of the depth-bound tests ([`TileBuf::hidden`], [`TileBuf::pixel_hidden`]) for the

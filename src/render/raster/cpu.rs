@@ -229,16 +229,8 @@ impl DrawOrder {
     }
 }
 
-/// Whether the AVX2 build of the tile loop can run here (checked once).
 #[cfg(target_arch = "x86_64")]
-fn avx2() -> bool {
-    static HAS: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    *HAS.get_or_init(|| {
-        std::arch::is_x86_feature_detected!("avx2")
-            && std::arch::is_x86_feature_detected!("bmi2")
-            && std::env::var_os("COIF_NO_AVX2").is_none()
-    })
-}
+use crate::stages::raster_common::has_avx2 as avx2;
 
 /// [`tile`] compiled for AVX2: the same arithmetic (Rust never fuses a multiply and an
 /// add on its own, so the image is bit-identical), with wider vectors for the sample
