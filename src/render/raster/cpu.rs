@@ -150,16 +150,20 @@ fn raster_n<const N: usize>(s: &Scene) -> Vec<[f32; 4]> {
             },
         )
         .collect();
+    // Copied band by band of tile rows in parallel (serial, this copy was 5% of the bench).
     let mut img = vec![[0.0f32; 4]; w as usize * h as usize];
-    for (t, px) in tiles.iter().enumerate() {
-        let t = t as u32;
-        let (x0, y0) = ((t % tiles_x) * TILE, (t / tiles_x) * TILE);
-        let tw = TILE.min(w - x0) as usize;
-        for (ly, row) in px.chunks(tw).enumerate() {
-            let o = (y0 as usize + ly) * w as usize + x0 as usize;
-            img[o..o + tw].copy_from_slice(row);
-        }
-    }
+    img.par_chunks_mut((w * TILE) as usize)
+        .zip(tiles.par_chunks(tiles_x as usize))
+        .for_each(|(band, row_tiles)| {
+            for (tx, px) in row_tiles.iter().enumerate() {
+                let x0 = tx * TILE as usize;
+                let tw = (TILE as usize).min(w as usize - x0);
+                for (ly, row) in px.chunks(tw).enumerate() {
+                    let o = ly * w as usize + x0;
+                    band[o..o + tw].copy_from_slice(row);
+                }
+            }
+        });
     img
 }
 
