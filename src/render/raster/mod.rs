@@ -282,7 +282,13 @@ impl SegSource<'_> {
         let z = za.min(zb) - margin - 1e-6;
         // The box widened by a pixel, floored, clamped to a range every frame fits in
         // (a clamped side lies off the frame, so only its clamped value is ever used).
-        let px = |v: f32| v.floor().clamp(-1.0, CPU_MAX_DIM as f32 + 1.0) as i16;
+        // (The floor by truncation and a fix-up: `f32::floor` is a libm call in the binning
+        // loop, which is compiled for baseline x86-64.)
+        let px = |v: f32| {
+            let c = v.clamp(-1.0, CPU_MAX_DIM as f32 + 1.0);
+            let t = c as i32;
+            (t - ((t as f32 > c) as i32)) as i16
+        };
         SegCull {
             i,
             k,
