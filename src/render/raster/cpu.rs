@@ -3,11 +3,12 @@
 //! mirrors in [`crate::stages::mesh_raster`] and [`crate::stages::strand_raster`], and
 //! resolves the samples as the GPU's f16 target does.
 //!
-//! Segments are binned straight from the strands' points and prepared
-//! ([`super::SegSource::seg`]) in each tile that draws them: a segment rarely straddles two
-//! tiles, so this costs less than materialising every prepared segment first.
+//! Segments are binned straight from the strands' points, each with its cull record
+//! ([`SegCull`]: nearest depth and pixel box), and prepared ([`super::SegSource::seg`]) in
+//! each tile that draws them: a segment rarely straddles two tiles, so this costs less than
+//! materialising every prepared segment first.
 //!
-//! Each tile draws its segments front to back (by their nearer end, bucketed:
+//! Each tile draws its segments front to back (by their nearest depth, bucketed:
 //! [`DrawOrder`]), not in input order:
 //! with heavy overdraw most later fragments then fail the depth test before they are
 //! shaded, and whole segments behind what is drawn are skipped by the depth bounds (with
