@@ -324,7 +324,7 @@ fn scan_quad_best<const N: usize>(
         // SAFETY: the CPU has the features `scan_quad_avx2` is compiled for.
         return unsafe { scan_quad_avx2(buf, quad, rows, cols, spans, shade) };
     }
-    scan_quad_plain(buf, quad, rows, cols, spans, shade)
+    scan_quad(buf, quad, rows, cols, spans, shade)
 }
 
 /// Most fragments a narrow quad can list at 4x MSAA: 4 per 4-pixel window, at most
@@ -333,7 +333,7 @@ const MAX_FRAGS: usize = 4 * 17 * 65;
 
 #[cfg(test)]
 thread_local! {
-    /// Tests set it to draw with `scan_quad_plain` where `scan_quad_avx2` would run.
+    /// Tests set it to draw with `scan_quad` where `scan_quad_avx2` would run.
     static FORCE_PLAIN: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
 }
 
@@ -442,24 +442,12 @@ unsafe fn scan_quad_avx2<const N: usize>(
     }
 }
 
-#[inline(never)]
-fn scan_quad_plain<const N: usize>(
-    buf: &mut TileBuf<N>,
-    quad: &Poly<4, N>,
-    rows: (i32, i32),
-    cols: (i32, i32),
-    spans: &mut Spans,
-    shade: &Shade<N>,
-) {
-    scan_quad(buf, quad, rows, cols, spans, shade)
-}
-
 /// [`scan`] for one narrow convex quad, the common case. A row's span is walked
 /// `LANES / N` pixels at a time (two at 4x MSAA): per edge one vector of the edge values at
 /// those pixels' samples, stepped along the row; a sample is inside when none of its four
 /// values is negative, so the pixels' masks are the sign bits of the vectors' OR (the same
 /// test as `mask32`), one compare-and-branch per group of pixels rather than per pixel.
-#[inline(always)]
+#[inline(never)]
 fn scan_quad<const N: usize>(
     buf: &mut TileBuf<N>,
     quad: &Poly<4, N>,
