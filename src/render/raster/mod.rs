@@ -253,18 +253,19 @@ impl SegSource<'_> {
         {
             use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
             let s = self.s;
-            // SAFETY: a prefetch never faults, and every pointer comes from a live slice.
-            let at = |p: *const [f32; 3]| unsafe { _mm_prefetch::<_MM_HINT_T0>(p.cast()) };
-            let at4 = |p: *const [f32; 4]| unsafe { _mm_prefetch::<_MM_HINT_T0>(p.cast()) };
+            #[inline(always)]
+            fn at<T>(p: &T) {
+                // SAFETY: a prefetch never faults, and `p` is a live reference.
+                unsafe { _mm_prefetch::<_MM_HINT_T0>((p as *const T).cast()) }
+            }
             if i + 1 < s.points.len() && i + 1 < s.colors.len() {
                 at(&s.points[i]);
                 at(&s.points[i + 1]);
-                at4(&s.colors[i]);
-                at4(&s.colors[i + 1]);
+                at(&s.colors[i]);
+                at(&s.colors[i + 1]);
             }
             if let Some(o) = s.photo.as_ref().and_then(|ph| ph.points.get(i)) {
-                // SAFETY: as above.
-                unsafe { _mm_prefetch::<_MM_HINT_T0>(o.as_ptr().cast()) };
+                at(o);
             }
         }
         #[cfg(not(target_arch = "x86_64"))]
