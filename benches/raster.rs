@@ -12,7 +12,8 @@
 //! run; needs `pip install skia-python numpy` for the peer; RASTER_BENCH_PNG=dir writes our
 //! two images there; RASTER_BENCH_RAW=file writes the cpu image as raw f32 RGBA, for
 //! bit-exact before/after checks; RASTER_BENCH_CPU_ONLY=1 stops after the cpu backend, for
-//! profiling it; COIF_NO_AVX2=1 runs the baseline x86-64 build of the tile loop.)
+//! profiling it; RASTER_BENCH_GPU_ONLY=1 times lavapipe alone (its
+//! image to RASTER_BENCH_RAW); COIF_NO_AVX2=1 runs the baseline x86-64 build of the tile loop.)
 
 use coif::base::colour::to_rgba8;
 use coif::base::rng::Rng;
@@ -210,6 +211,28 @@ fn main() {
         "strand raster: {STRANDS} strands x {VERTS} vertices at {SIZE}², width {} px, {} samples:",
         p.strand_width, p.samples
     );
+    // RASTER_BENCH_GPU_ONLY=1: lavapipe alone, one warm-up and `reps` timed runs (for
+    // profiling it).
+    if std::env::var_os("RASTER_BENCH_GPU_ONLY").is_some() {
+        let g = Engine::new(BackendChoice::Gpu).expect("a GPU backend");
+        let img = render(&g, &frame, None, Some(&strands), &p).unwrap();
+        if let Some(path) = std::env::var_os("RASTER_BENCH_RAW") {
+            write_raw(Path::new(&path), &img);
+        }
+        let times: Vec<f64> = (0..reps)
+            .map(|_| {
+                let t = Instant::now();
+                let _ = render(&g, &frame, None, Some(&strands), &p).unwrap();
+                t.elapsed().as_secs_f64()
+            })
+            .collect();
+        println!(
+            "  {}: {:.3} s median of {reps}",
+            g.describe(),
+            median(times)
+        );
+        return;
+    }
     let cpu = Engine::cpu();
     let mut img = Vec::new();
     let mut cpu_s = 0.0;
@@ -264,13 +287,30 @@ fn main() {
                 tg / ours,
                 rss_mib().0
             );
-            // The render pipeline's strands, the same way (one warm-up, one timed run).
             let ctx = g.gpu().expect("a gpu engine");
+            // The render pipeline's strands, the same way (one warm-up, one timed run).
             let _ = render_gpu_pipeline(ctx, &frame, None, Some(&strands), &p).unwrap();
             let t = Instant::now();
             let pimg = render_gpu_pipeline(ctx, &frame, None, Some(&strands), &p).unwrap();
             let tp = t.elapsed().as_secs_f64();
             pipeline = Some(tp);
+            // Last, one more run with timestamps around each pass: where lavapipe's time goes.
+            if ctx.time_passes() {
+                let t = Instant::now();
+                let _ = render(&g, &frame, None, Some(&strands), &p).unwrap();
+                let total = t.elapsed().as_secs_f64();
+                let passes = ctx.take_pass_times().unwrap_or_default();
+                let gpu: f64 = passes.iter().map(|p| p.seconds).sum();
+                let list: Vec<String> = passes
+                    .iter()
+                    .map(|p| format!("{} {:.3} s", p.name, p.seconds))
+                    .collect();
+                println!(
+                    "  lavapipe passes (timed run, {total:.3} s; host and transfers {:.3} s): {}",
+                    total - gpu,
+                    list.join(", ")
+                );
+            }
             let agree_p = within_2(&pimg, &img);
             println!(
                 "  lavapipe, strands by the render pipeline instead: {tp:.3} s ({:.3}% of pixels \

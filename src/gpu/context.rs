@@ -19,6 +19,7 @@ pub struct GpuContext {
     uncaptured: Arc<Mutex<Vec<String>>>,
     /// The device has timestamp queries (the adapter offers `TIMESTAMP_QUERY`).
     timestamps: bool,
+    int64_atomics: bool,
     /// GPU time per pass while timing is on (`--timings`); None: passes are not timed.
     pass_times: Mutex<Option<PassTotals>>,
     /// Objects built once per device and kept (see [`GpuContext::cached`]).
@@ -117,11 +118,18 @@ impl GpuContext {
         };
         // Timestamps only when the adapter has them: GPU time per pass for `--timings`.
         let timestamps = chosen.features().contains(wgpu::Features::TIMESTAMP_QUERY);
-        let required_features = if timestamps {
+        let mut required_features = if timestamps {
             wgpu::Features::TIMESTAMP_QUERY
         } else {
             wgpu::Features::empty()
         };
+        // 64-bit atomic minima when the adapter has them: the strand rasteriser's one-walk
+        // visibility (`wgsl/render/strand_vis64.wgsl`).
+        let int64 = wgpu::Features::SHADER_INT64 | wgpu::Features::SHADER_INT64_ATOMIC_MIN_MAX;
+        let int64_atomics = chosen.features().contains(int64);
+        if int64_atomics {
+            required_features |= int64;
+        }
         let (device, queue) = pollster::block_on(chosen.request_device(&wgpu::DeviceDescriptor {
             label: Some("coif"),
             required_features,
@@ -137,11 +145,13 @@ impl GpuContext {
             sink.lock().unwrap().push(e.to_string());
         }));
         log::info!(
-            "GPU adapter: {}; max storage binding {} B, max buffer {} B, timestamp queries {}",
+            "GPU adapter: {}; max storage binding {} B, max buffer {} B, timestamp queries {}, \
+             64-bit atomics {}",
             describe(&info),
             required_limits.max_storage_buffer_binding_size,
             required_limits.max_buffer_size,
-            if timestamps { "yes" } else { "no" }
+            if timestamps { "yes" } else { "no" },
+            if int64_atomics { "yes" } else { "no" }
         );
         Ok(GpuContext {
             device,
@@ -150,6 +160,7 @@ impl GpuContext {
             limits: required_limits,
             uncaptured,
             timestamps,
+            int64_atomics,
             pass_times: Mutex::new(None),
             kept: Mutex::new(Default::default()),
         })
@@ -173,6 +184,11 @@ impl GpuContext {
     /// Whether the device has timestamp queries.
     pub fn has_timestamps(&self) -> bool {
         self.timestamps
+    }
+
+    /// Whether the device has 64-bit atomic min/max in shaders (and they were enabled).
+    pub fn has_int64_atomics(&self) -> bool {
+        self.int64_atomics
     }
 
     /// Starts timing every pass from now on; false when the device has no timestamps.

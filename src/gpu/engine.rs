@@ -58,6 +58,9 @@ pub struct RenderStageDef {
     pub entry_points: &'static [(&'static str, &'static str)],
     /// Compute entry points, for a render pass done as compute passes (`strand_vis`).
     pub compute: &'static [&'static str],
+    /// Whether the shader uses 64-bit atomic min/max (`SHADER_INT64_ATOMIC_MIN_MAX`), which
+    /// only some devices have; the host checks [`crate::gpu::GpuContext::has_int64_atomics`].
+    pub int64_atomics: bool,
 }
 
 /// A buffer as a CPU mirror sees it; backed by `u32` words so every 4-byte type casts.

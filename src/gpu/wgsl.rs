@@ -67,6 +67,10 @@ pub const SHARED: &[(&str, &str)] = &[
         "shared/raster_common.wgsl",
         include_str!("../../wgsl/shared/raster_common.wgsl"),
     ),
+    (
+        "shared/strand_vis.wgsl",
+        include_str!("../../wgsl/shared/strand_vis.wgsl"),
+    ),
 ];
 
 /// The include path of a directive line, or None for any other line.

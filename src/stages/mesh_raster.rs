@@ -20,6 +20,7 @@ pub const STAGE: RenderStageDef = RenderStageDef {
     wgsl: include_str!("../../wgsl/render/mesh_raster.wgsl"),
     entry_points: &[MESH, BACKGROUND],
     compute: &[],
+    int64_atomics: false,
 };
 
 /// One mesh triangle as both paths see it (the WGSL `Tri`): corners (x, y, z, u), then v.

@@ -100,5 +100,6 @@ pub const ALL: &[&StageDef] = &[
 pub const RENDER: &[&RenderStageDef] = &[
     &strand_raster::STAGE,
     &strand_raster::VIS,
+    &strand_raster::VIS64,
     &mesh_raster::STAGE,
 ];

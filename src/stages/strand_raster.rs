@@ -21,6 +21,7 @@ pub const STAGE: RenderStageDef = RenderStageDef {
     wgsl: include_str!("../../wgsl/render/strand_raster.wgsl"),
     entry_points: &[STRANDS],
     compute: &[],
+    int64_atomics: false,
 };
 
 /// The same strands as compute passes (`wgsl/render/strand_vis.wgsl`): the GPU path for
@@ -31,6 +32,17 @@ pub const VIS: RenderStageDef = RenderStageDef {
     wgsl: include_str!("../../wgsl/render/strand_vis.wgsl"),
     entry_points: &[],
     compute: &["zinit", "depth", "pick", "colour", "resolve"],
+    int64_atomics: false,
+};
+
+/// [`VIS`] with its `depth` and `pick` in one walk, by 64-bit atomic minima
+/// (`wgsl/render/strand_vis64.wgsl`), for devices that have them: the same image.
+pub const VIS64: RenderStageDef = RenderStageDef {
+    name: "strand_vis64",
+    wgsl: include_str!("../../wgsl/render/strand_vis64.wgsl"),
+    entry_points: &[],
+    compute: &["zinit", "depth", "colour", "resolve"],
+    int64_atomics: true,
 };
 
 /// One strand segment as both paths see it (the WGSL `Seg`).

@@ -973,11 +973,12 @@ fn huge_mesh_triangles_are_clipped_not_lost() {
     }
 }
 
-/// The compute strand passes (`wgsl/render/strand_vis.wgsl`) draw 4x frames and agree with
-/// the CPU mirror on a frame whose size is no multiple of their 8x8 pixel groups, with more
-/// segments than a walk's 64-invocation workgroup and in several chunks (each walked in its
-/// own order); 1-sample frames and frames too large for their i32 edge values keep the
-/// render pipeline.
+/// The compute strand passes (`wgsl/render/strand_vis64.wgsl` where the device has 64-bit
+/// atomics, as lavapipe does, else `strand_vis.wgsl`) draw 4x frames and agree with the CPU
+/// mirror on a frame whose size is no multiple of their 8x8 pixel groups, with more segments
+/// than a walk's 64-invocation workgroup and in several chunks (each walked in its own
+/// order); the one-walk and two-walk passes give the same image to the bit; 1-sample frames
+/// and frames too large for their i32 edge values keep the render pipeline.
 #[test]
 fn strand_vis_draws_4x_frames_and_matches_the_cpu_across_workgroups() {
     let (w, h) = (70, 45);
@@ -989,10 +990,12 @@ fn strand_vis_draws_4x_frames_and_matches_the_cpu_across_workgroups() {
     f.background = Some(gradient_background(w, h));
     let p = RasterParams::default();
     assert_eq!(p.samples, 4);
-    assert_eq!(
-        gpu_strand_path(ctx(), &f, Some(&s), &p).unwrap(),
+    let compute = if ctx().has_int64_atomics() {
+        "strand_vis64"
+    } else {
         "strand_vis"
-    );
+    };
+    assert_eq!(gpu_strand_path(ctx(), &f, Some(&s), &p).unwrap(), compute);
     let one = RasterParams { samples: 1, ..p };
     assert_eq!(
         gpu_strand_path(ctx(), &f, Some(&s), &one).unwrap(),
@@ -1009,13 +1012,20 @@ fn strand_vis_draws_4x_frames_and_matches_the_cpu_across_workgroups() {
     );
     let cpu = render_cpu(&f, Some(&mesh), Some(&s), &p).unwrap();
     let gpu = render_gpu(ctx(), &f, Some(&mesh), Some(&s), &p).unwrap();
-    agree("strand_vis", &gpu, &cpu, 2, 0.99).unwrap();
+    agree(compute, &gpu, &cpu, 2, 0.99).unwrap();
     // 37 segments a chunk (80 B each): many chunks, the same image to the bit.
     let chunked = render_gpu_chunked(ctx(), &f, Some(&mesh), Some(&s), &p, 80 * 37).unwrap();
     assert_eq!(
         float_identical(&gpu, &chunked),
         gpu.len(),
         "chunks changed the image"
+    );
+    // The two-walk passes (in chunks too): the same image to the bit.
+    let two = render_gpu_two_walks(ctx(), &f, Some(&mesh), Some(&s), &p, 80 * 37).unwrap();
+    assert_eq!(
+        float_identical(&gpu, &two),
+        gpu.len(),
+        "{compute} and the two-walk passes differ"
     );
     println!(
         "strand_vis: {} of {} pixels float-identical to the cpu mirror",

@@ -53,17 +53,28 @@ fn registered() -> Vec<(String, &'static str, &'static str)> {
     compute.chain(render).collect()
 }
 
+/// What a shader may use beyond the defaults: 64-bit atomic min/max for the render stages
+/// that declare them (the host runs those only on devices that have them).
+fn capabilities(name: &str) -> naga::valid::Capabilities {
+    use naga::valid::Capabilities as C;
+    let wide = stages::RENDER.iter().any(|s| {
+        s.int64_atomics && (name == s.name || name == format!("wgsl/render/{}.wgsl", s.name))
+    });
+    if wide {
+        C::default() | C::SHADER_INT64 | C::SHADER_INT64_ATOMIC_MIN_MAX
+    } else {
+        C::default()
+    }
+}
+
 /// Composes (expands the includes), parses and validates.
 fn parse(name: &str, src: &str) -> Result<naga::Module, String> {
     let src = compose(name, src).map_err(|e| e.to_string())?;
     let module = naga::front::wgsl::parse_str(&src)
         .map_err(|e| format!("{name}: parse error:\n{}", e.emit_to_string(&src)))?;
-    naga::valid::Validator::new(
-        naga::valid::ValidationFlags::all(),
-        naga::valid::Capabilities::default(),
-    )
-    .validate(&module)
-    .map_err(|e| format!("{name}: validation error: {:?}", e.into_inner()))?;
+    naga::valid::Validator::new(naga::valid::ValidationFlags::all(), capabilities(name))
+        .validate(&module)
+        .map_err(|e| format!("{name}: validation error: {:?}", e.into_inner()))?;
     Ok(module)
 }
 
@@ -76,7 +87,7 @@ fn every_wgsl_file_validates() {
     assert!(!files.is_empty(), "no shader found under wgsl/");
     assert!(
         files.iter().any(|f| f.contains('/')),
-        "no shader found in a subfolder of wgsl/ (wgsl/render/ has three)"
+        "no shader found in a subfolder of wgsl/ (wgsl/render/ has four)"
     );
     let failures: Vec<String> = files
         .iter()

@@ -4,7 +4,7 @@
 //! resolve. At 4x MSAA the strands are drawn by compute passes instead ([`vis`]), after the
 //! background and mesh, when the frame allows it.
 
-use super::Scene;
+use super::{GpuStrands, Scene};
 use crate::base::colour::f16_bits_to_f32;
 use crate::error::{Error, Result};
 use crate::gpu::engine::RenderStageDef;
@@ -287,18 +287,23 @@ fn bind_chunks<T: bytemuck::Pod>(
         .collect()
 }
 
-/// Whether [`raster`] draws this scene's strands by the compute passes.
-pub fn strands_by_compute(ctx: &GpuContext, s: &Scene) -> bool {
-    vis::usable(ctx, s)
+/// The stage that draws this scene's strands when `path` is asked for: the compute passes
+/// where the frame allows them (one walk with 64-bit atomics where the device has them, two
+/// walks where not or where `path` asks), else the render pipeline.
+pub fn strand_stage(ctx: &GpuContext, s: &Scene, path: GpuStrands) -> &'static RenderStageDef {
+    if path == GpuStrands::Pipeline || !vis::usable(ctx, s) {
+        &strand_raster::STAGE
+    } else {
+        vis::stage(ctx, path == GpuStrands::TwoWalks)
+    }
 }
 
-/// Renders the scene; with `pipeline`, the strands by the render pipeline even where the
-/// compute passes would draw them.
+/// Renders the scene, its strands by the path [`strand_stage`] picks for `path`.
 pub fn raster(
     ctx: &GpuContext,
     s: &Scene,
     max_chunk_bytes: u64,
-    pipeline: bool,
+    path: GpuStrands,
 ) -> Result<Vec<[f32; 4]>> {
     let d = &ctx.device;
     let (w, h, n) = (s.cfg.width, s.cfg.height, s.cfg.samples);
@@ -316,9 +321,10 @@ pub fn raster(
     let chunk_bytes = ctx.max_binding_bytes().min(max_chunk_bytes);
     // Composed before the error scopes open, so an early return leaves none behind.
     let (strand_src, mesh_src) = (source(&strand_raster::STAGE)?, source(&mesh_raster::STAGE)?);
-    let vis = !pipeline && vis::usable(ctx, s);
+    let strand_stage = strand_stage(ctx, s, path);
+    let vis = strand_stage.name != strand_raster::STAGE.name;
     let vis_src = if vis {
-        Some(source(&strand_raster::VIS)?)
+        Some(source(strand_stage)?)
     } else {
         None
     };
@@ -517,6 +523,7 @@ pub fn raster(
     let vis_out = vis_src.map(|src| {
         vis::encode(
             ctx,
+            strand_stage,
             || module(d, src),
             s,
             &mut encoder,

@@ -851,7 +851,15 @@ pub fn render_gpu_chunked(
     p: &RasterParams,
     max_chunk_bytes: u64,
 ) -> Result<Vec<[f32; 4]>> {
-    render_gpu_with(ctx, frame, mesh, strands, p, max_chunk_bytes, false)
+    render_gpu_with(
+        ctx,
+        frame,
+        mesh,
+        strands,
+        p,
+        max_chunk_bytes,
+        GpuStrands::Best,
+    )
 }
 
 /// [`render_gpu`] with the strands drawn by the render pipeline even where the compute
@@ -864,11 +872,43 @@ pub fn render_gpu_pipeline(
     strands: Option<&ScreenStrands>,
     p: &RasterParams,
 ) -> Result<Vec<[f32; 4]>> {
-    render_gpu_with(ctx, frame, mesh, strands, p, u64::MAX, true)
+    render_gpu_with(ctx, frame, mesh, strands, p, u64::MAX, GpuStrands::Pipeline)
 }
 
-/// Which GPU path [`render_gpu`] draws these strands with: `"strand_vis"` (the compute
-/// passes) or `"strand_raster"` (the render pipeline), for tests.
+/// [`render_gpu_chunked`] with the strands' compute passes in two walks (depth, then pick)
+/// even on a device with 64-bit atomics, for tests and benches that compare the two.
+#[doc(hidden)]
+pub fn render_gpu_two_walks(
+    ctx: &GpuContext,
+    frame: &Frame,
+    mesh: Option<&ScreenMesh>,
+    strands: Option<&ScreenStrands>,
+    p: &RasterParams,
+    max_chunk_bytes: u64,
+) -> Result<Vec<[f32; 4]>> {
+    render_gpu_with(
+        ctx,
+        frame,
+        mesh,
+        strands,
+        p,
+        max_chunk_bytes,
+        GpuStrands::TwoWalks,
+    )
+}
+
+/// Which strand path a GPU render takes: the best the device and frame allow, or one forced.
+#[doc(hidden)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GpuStrands {
+    Best,
+    TwoWalks,
+    Pipeline,
+}
+
+/// Which GPU path [`render_gpu`] draws these strands with, for tests: `"strand_vis64"` (the
+/// compute passes, one walk by 64-bit atomics), `"strand_vis"` (the compute passes in two
+/// walks) or `"strand_raster"` (the render pipeline).
 #[doc(hidden)]
 pub fn gpu_strand_path(
     ctx: &GpuContext,
@@ -878,11 +918,7 @@ pub fn gpu_strand_path(
 ) -> Result<&'static str> {
     let max_dim = ctx.limits.max_texture_dimension_2d;
     let scene = Scene::new(frame, None, strands, p, max_dim, true)?;
-    Ok(if gpu::strands_by_compute(ctx, &scene) {
-        "strand_vis"
-    } else {
-        "strand_raster"
-    })
+    Ok(gpu::strand_stage(ctx, &scene, GpuStrands::Best).name)
 }
 
 fn render_gpu_with(
@@ -892,7 +928,7 @@ fn render_gpu_with(
     strands: Option<&ScreenStrands>,
     p: &RasterParams,
     max_chunk_bytes: u64,
-    pipeline: bool,
+    path: GpuStrands,
 ) -> Result<Vec<[f32; 4]>> {
     let scene = Scene::new(
         frame,
@@ -902,7 +938,7 @@ fn render_gpu_with(
         ctx.limits.max_texture_dimension_2d,
         true,
     )?;
-    let mut img = gpu::raster(ctx, &scene, max_chunk_bytes, pipeline)?;
+    let mut img = gpu::raster(ctx, &scene, max_chunk_bytes, path)?;
     unpremultiply(&mut img);
     Ok(img)
 }

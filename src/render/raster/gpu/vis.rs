@@ -1,12 +1,25 @@
 //! The strands as compute passes (`wgsl/render/strand_vis.wgsl`, whose header gives the
-//! passes and why): used for 4x MSAA frames with strands, after the render pipelines have
-//! drawn the background and the mesh into a stored MSAA target.
+//! passes and why, or `strand_vis64.wgsl`, its depth and pick in one walk, where the device
+//! has 64-bit atomics): used for 4x MSAA frames with strands, after the render pipelines
+//! have drawn the background and the mesh into a stored MSAA target.
 
 use super::Scene;
+use crate::gpu::engine::RenderStageDef;
 use crate::gpu::timer::PassQueries;
 use crate::gpu::GpuContext;
-use crate::stages::strand_raster::SegRec;
+use crate::stages::strand_raster::{self, SegRec};
+use rayon::prelude::*;
 use wgpu::util::DeviceExt;
+
+/// The compute strand stage a device runs: one walk with 64-bit atomics where it has them
+/// (unless `two_walks` asks for the other, as tests do), else depth and pick in two walks.
+pub fn stage(ctx: &GpuContext, two_walks: bool) -> &'static RenderStageDef {
+    if ctx.has_int64_atomics() && !two_walks {
+        &strand_raster::VIS64
+    } else {
+        &strand_raster::VIS
+    }
+}
 
 /// Whether the compute path draws this scene: 4 samples, strands to draw, buffers within
 /// the device's limits, and edge values that fit the shader's wrapping i32. A row span
@@ -24,7 +37,8 @@ pub fn usable(ctx: &GpuContext, s: &Scene) -> bool {
     let edge_ok = (diag + width) * (width + 4.0) * 65536.0 < (1u64 << 31) as f64;
     let px = c.width as u64 * c.height as u64;
     let limit = ctx.max_binding_bytes();
-    // The largest buffer: 4 samples of 8 B colour per pixel.
+    // The largest buffers: 4 samples of 8 B colour (and of 8 B visibility, `strand_vis64`)
+    // per pixel.
     edge_ok && px * 32 <= limit
 }
 
@@ -79,32 +93,44 @@ fn layout(d: &wgpu::Device, label: &str, entries: &[(u32, Kind)]) -> wgpu::BindG
     })
 }
 
-fn layouts(d: &wgpu::Device) -> Layouts {
+/// The layouts of the two stages: `strand_vis` keeps holders apart (ibuf 5, its plain view
+/// 12, the candidate flags 13), `strand_vis64` holds them in zbuf's low words, so its colour
+/// and resolve read zbuf's plain view (10).
+fn layouts(d: &wgpu::Device, wide: bool) -> Layouts {
     use Kind::*;
+    let holders = if wide { 10 } else { 12 };
+    let walk: &[(u32, Kind)] = if wide {
+        &[
+            (0, Uniform),
+            (1, Read),
+            (3, Uniform),
+            (4, ReadWrite),
+            (10, ReadWrite),
+        ]
+    } else {
+        &[
+            (0, Uniform),
+            (1, Read),
+            (3, Uniform),
+            (4, ReadWrite),
+            (5, ReadWrite),
+            (10, ReadWrite),
+            (13, ReadWrite),
+        ]
+    };
+    let zinit: &[(u32, Kind)] = if wide {
+        &[(0, Uniform), (8, MsaaDepth), (10, ReadWrite)]
+    } else {
+        &[
+            (0, Uniform),
+            (8, MsaaDepth),
+            (10, ReadWrite),
+            (12, ReadWrite),
+        ]
+    };
     Layouts {
-        zinit: layout(
-            d,
-            "strand_vis.zinit",
-            &[
-                (0, Uniform),
-                (8, MsaaDepth),
-                (10, ReadWrite),
-                (12, ReadWrite),
-            ],
-        ),
-        walk: layout(
-            d,
-            "strand_vis.walk",
-            &[
-                (0, Uniform),
-                (1, Read),
-                (3, Uniform),
-                (4, ReadWrite),
-                (5, ReadWrite),
-                (10, ReadWrite),
-                (13, ReadWrite),
-            ],
-        ),
+        zinit: layout(d, "strand_vis.zinit", zinit),
+        walk: layout(d, "strand_vis.walk", walk),
         colour: layout(
             d,
             "strand_vis.colour",
@@ -115,7 +141,7 @@ fn layouts(d: &wgpu::Device) -> Layouts {
                 (3, Uniform),
                 (6, ReadWrite),
                 (11, Read),
-                (12, ReadWrite),
+                (holders, ReadWrite),
             ],
         ),
         resolve: layout(
@@ -126,7 +152,7 @@ fn layouts(d: &wgpu::Device) -> Layouts {
                 (6, ReadWrite),
                 (7, MsaaColor),
                 (9, ReadWrite),
-                (12, ReadWrite),
+                (holders, ReadWrite),
             ],
         ),
     }
@@ -173,50 +199,96 @@ fn group(
     })
 }
 
-/// Each chunk of `per` segments in the order the walks run them, with each one's index
-/// within its chunk in `local`; and per chunk, where each segment went. The order is by
-/// 64 px tile of the first end, then front to back by the nearer end's depth (256
-/// levels): most later segments then find their samples already nearer, so `depth`
-/// seldom lowers a key and `pick` skips them (`candidate`), while the tile keeps the
-/// samples a walk touches close together in memory. Which segment holds a sample is
-/// decided by index, not by the order they run in, so the order changes nothing in the
-/// image.
-fn front_to_back(segs: &[SegRec], per: usize, w: u32, h: u32) -> (Vec<SegRec>, Vec<u32>) {
+/// The order the walks run a chunk's segments in: `order[slot]` is the input index of the
+/// segment in that slot and `position[i]` the slot of input index i. By 64 px tile of the
+/// first end, then front to back by the nearer end's depth (256 levels): most later segments
+/// then find their samples already nearer, so `depth` seldom lowers a key (and `pick` skips
+/// them, `candidate`), while the tile keeps the samples a walk touches close together in
+/// memory. Which segment holds a sample is decided by index, not by the order they run in,
+/// so the order changes nothing in the image. A counting sort of indices, stable; the keys
+/// in parallel.
+fn front_to_back(chunk: &[SegRec], w: u32, h: u32) -> (Vec<u32>, Vec<u32>) {
     const TILE: f32 = 64.0;
     const LEVELS: usize = 256;
     let tiles_x = (w as f32 / TILE).ceil() as usize;
     let tiles = tiles_x * (h as f32 / TILE).ceil() as usize;
-    let key = |s: &SegRec| {
-        let t = |v: f32, n: usize| ((v / TILE).max(0.0) as usize).min(n - 1);
-        let tile = t(s.p0[1], tiles / tiles_x) * tiles_x + t(s.p0[0], tiles_x);
-        let z = s.z0.min(s.z1).clamp(0.0, 1.0);
-        tile * LEVELS + ((z * LEVELS as f32) as usize).min(LEVELS - 1)
-    };
-    let mut sorted = Vec::with_capacity(segs.len());
-    let mut position = vec![0u32; segs.len()];
-    let mut start = vec![0usize; tiles * LEVELS + 1];
-    for (c, chunk) in segs.chunks(per).enumerate() {
-        start.iter_mut().for_each(|v| *v = 0);
-        for s in chunk {
-            start[key(s) + 1] += 1;
-        }
-        for k in 1..start.len() {
-            start[k] += start[k - 1];
-        }
-        let first = sorted.len();
-        sorted.resize(first + chunk.len(), chunk[0]);
-        for (i, s) in chunk.iter().enumerate() {
-            let k = key(s);
-            let at = start[k];
-            start[k] += 1;
-            sorted[first + at] = SegRec {
-                local: i as u32,
-                ..*s
-            };
-            position[c * per + i] = at as u32;
-        }
+    let keys: Vec<u32> = chunk
+        .par_iter()
+        .map(|s| {
+            let t = |v: f32, n: usize| ((v / TILE).max(0.0) as usize).min(n - 1);
+            let tile = t(s.p0[1], tiles / tiles_x) * tiles_x + t(s.p0[0], tiles_x);
+            let z = s.z0.min(s.z1).clamp(0.0, 1.0);
+            (tile * LEVELS + ((z * LEVELS as f32) as usize).min(LEVELS - 1)) as u32
+        })
+        .collect();
+    let mut start = vec![0u32; tiles * LEVELS + 1];
+    for &k in &keys {
+        start[k as usize + 1] += 1;
     }
-    (sorted, position)
+    for k in 1..start.len() {
+        start[k] += start[k - 1];
+    }
+    let mut order = vec![0u32; chunk.len()];
+    let mut position = vec![0u32; chunk.len()];
+    for (i, &k) in keys.iter().enumerate() {
+        let at = start[k as usize];
+        start[k as usize] += 1;
+        order[at as usize] = i as u32;
+        position[i] = at;
+    }
+    (order, position)
+}
+
+/// A storage buffer holding `chunk` in `order`, each record's `local` set to its input
+/// index, gathered in parallel straight into the buffer's mapping (a sorted copy on the host
+/// cost as much again as the gather).
+fn upload_ordered(d: &wgpu::Device, chunk: &[SegRec], order: &[u32]) -> wgpu::Buffer {
+    const SIZE: usize = std::mem::size_of::<SegRec>();
+    let buf = d.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("strand_vis.segs"),
+        size: (order.len() * SIZE) as u64,
+        usage: wgpu::BufferUsages::STORAGE,
+        mapped_at_creation: true,
+    });
+    {
+        let mut view = buf
+            .slice(..)
+            .get_mapped_range_mut()
+            .expect("a buffer mapped at creation maps");
+        let mut out = view.slice(..);
+        assert_eq!(out.len(), order.len() * SIZE);
+        /// The mapping's start, shared by the gather's threads.
+        struct Out(std::ptr::NonNull<u8>);
+        // SAFETY: the threads write disjoint slots only (their own byte ranges), and the
+        // mapping outlives the gather.
+        unsafe impl Sync for Out {}
+        let base = Out(out.as_raw_element_ptr());
+        const PIECE: usize = 4096;
+        order
+            .par_chunks(PIECE)
+            .enumerate()
+            .for_each(|(piece, idx)| {
+                let base = &base;
+                for (j, &i) in idx.iter().enumerate() {
+                    let rec = SegRec {
+                        local: i,
+                        ..chunk[i as usize]
+                    };
+                    // SAFETY: slot piece·PIECE + j < order.len(), inside the mapping (checked
+                    // above), written by this thread alone; unaligned writes need no alignment
+                    // of the mapping; a SegRec is plain data.
+                    unsafe {
+                        base.0
+                            .as_ptr()
+                            .add((piece * PIECE + j) * SIZE)
+                            .cast::<SegRec>()
+                            .write_unaligned(rec);
+                    }
+                }
+            });
+    }
+    buf.unmap();
+    buf
 }
 
 /// The WGSL `Chunk`.
@@ -238,13 +310,14 @@ fn walk_groups(count: u32) -> ([u32; 2], u32) {
     ([x, groups.div_ceil(x)], x * WALK_GROUP)
 }
 
-/// Records the five passes into `encoder` (their pipelines built once per device, from the
-/// module `module` makes) and returns the buffer of resolved pixels
+/// Records the passes of `stage` (see [`stage`]) into `encoder` (their pipelines built once
+/// per device, from the module `module` makes) and returns the buffer of resolved pixels
 /// (`width · height` linear premultiplied RGBA in f16, rows unpadded, as the render
 /// pipeline's resolve target holds them).
 #[allow(clippy::too_many_arguments)]
 pub fn encode(
     ctx: &GpuContext,
+    stage: &RenderStageDef,
     module: impl FnOnce() -> wgpu::ShaderModule,
     s: &Scene,
     encoder: &mut wgpu::CommandEncoder,
@@ -257,20 +330,25 @@ pub fn encode(
     let d = &ctx.device;
     let (w, h) = (s.cfg.width, s.cfg.height);
     let px = w as u64 * h as u64;
-    let kept = ctx.cached("strand_vis", || {
-        let l = layouts(d);
+    // One walk (`depth`) with 64-bit atomics, else `depth` then `pick`.
+    let wide = stage.int64_atomics;
+    let kept = ctx.cached(stage.name, || {
+        let l = layouts(d, wide);
         let module = module();
         let p = |layout: &wgpu::BindGroupLayout, entry: &str| pipeline(d, &module, layout, entry);
+        let walks: Vec<wgpu::ComputePipeline> = if wide {
+            vec![p(&l.walk, "depth")]
+        } else {
+            vec![p(&l.walk, "depth"), p(&l.walk, "pick")]
+        };
         let pipes = [
             p(&l.zinit, "zinit"),
-            p(&l.walk, "depth"),
-            p(&l.walk, "pick"),
             p(&l.colour, "colour"),
             p(&l.resolve, "resolve"),
         ];
-        (l, pipes)
+        (l, walks, pipes)
     });
-    let (l, pipes) = (&kept.0, &kept.1);
+    let (l, walks, [zinit_pipe, colour_pipe, resolve_pipe]) = (&kept.0, &kept.1, &kept.2);
     let storage = |label: &str, size: u64| {
         d.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
@@ -279,36 +357,35 @@ pub fn encode(
             mapped_at_creation: false,
         })
     };
-    // Per pixel: 4 samples of depth key and holder (u32 each), of colour (2 x u32); and
-    // the resolved RGBA in f16.
-    let zbuf = storage("strand_vis.zbuf", px * 16);
-    let ibuf = storage("strand_vis.ibuf", px * 16);
+    // Per pixel, 4 samples of: depth key and holder (u32 each, or one u64), colour
+    // (2 x u32); and the resolved RGBA in f16.
+    let zbuf = storage("strand_vis.zbuf", px * if wide { 32 } else { 16 });
+    let ibuf = (!wide).then(|| storage("strand_vis.ibuf", px * 16));
+    // Where colour and resolve find the holders: ibuf, or zbuf's low words.
+    let holders = ibuf.as_ref().unwrap_or(&zbuf);
+    let holders_at = if wide { 10 } else { 12 };
     let cbuf = storage("strand_vis.cbuf", px * 32);
     let out = storage("strand_vis.resolved", px * 8);
     let photo = super::texture_rgba32_or_blank(ctx, s.photo.as_ref());
 
     let per = super::per_chunk::<SegRec>(chunk_bytes);
-    let (sorted, position) = front_to_back(&s.segs, per, w, h);
-    let chunks = super::chunks(ctx, "strand_vis.segs", &sorted, chunk_bytes);
-    let position: Vec<wgpu::Buffer> = position
-        .chunks(per)
-        .map(|c| {
-            d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("strand_vis.position"),
-                contents: bytemuck::cast_slice(c),
-                usage: wgpu::BufferUsages::STORAGE,
-            })
-        })
-        .collect();
     let mut base = 0u32;
-    let per_chunk: Vec<(wgpu::BindGroup, wgpu::BindGroup, [u32; 2])> = chunks
-        .iter()
-        .zip(&position)
-        .map(|((buf, count), position)| {
-            let (groups, row) = walk_groups(*count);
+    let per_chunk: Vec<(wgpu::BindGroup, wgpu::BindGroup, [u32; 2])> = s
+        .segs
+        .chunks(per)
+        .map(|segs| {
+            let count = segs.len() as u32;
+            let (order, position) = front_to_back(segs, w, h);
+            let buf = upload_ordered(d, segs, &order);
+            let position = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("strand_vis.position"),
+                contents: bytemuck::cast_slice(&position),
+                usage: wgpu::BufferUsages::STORAGE,
+            });
+            let (groups, row) = walk_groups(count);
             let c = Chunk {
                 base,
-                count: *count,
+                count,
                 row,
                 _pad: 0,
             };
@@ -318,22 +395,20 @@ pub fn encode(
                 contents: bytemuck::bytes_of(&c),
                 usage: wgpu::BufferUsages::UNIFORM,
             });
+            let mut walk = vec![
+                (0, uniform.as_entire_binding()),
+                (1, buf.as_entire_binding()),
+                (3, cu.as_entire_binding()),
+                (4, zbuf.as_entire_binding()),
+                (10, zbuf.as_entire_binding()),
+            ];
             // Zeroed at creation, as wgpu clears every new buffer.
-            let candidate = storage("strand_vis.candidate", *count as u64 * 4);
-            let walk = group(
-                d,
-                "strand_vis.walk",
-                &l.walk,
-                &[
-                    (0, uniform.as_entire_binding()),
-                    (1, buf.as_entire_binding()),
-                    (3, cu.as_entire_binding()),
-                    (4, zbuf.as_entire_binding()),
-                    (5, ibuf.as_entire_binding()),
-                    (10, zbuf.as_entire_binding()),
-                    (13, candidate.as_entire_binding()),
-                ],
-            );
+            let candidate = (!wide).then(|| storage("strand_vis.candidate", count as u64 * 4));
+            if let (Some(ibuf), Some(candidate)) = (&ibuf, &candidate) {
+                walk.push((5, ibuf.as_entire_binding()));
+                walk.push((13, candidate.as_entire_binding()));
+            }
+            let walk = group(d, "strand_vis.walk", &l.walk, &walk);
             let colour = group(
                 d,
                 "strand_vis.colour",
@@ -345,23 +420,21 @@ pub fn encode(
                     (3, cu.as_entire_binding()),
                     (6, cbuf.as_entire_binding()),
                     (11, position.as_entire_binding()),
-                    (12, ibuf.as_entire_binding()),
+                    (holders_at, holders.as_entire_binding()),
                 ],
             );
             (walk, colour, groups)
         })
         .collect();
-    let zinit = group(
-        d,
-        "strand_vis.zinit",
-        &l.zinit,
-        &[
-            (0, uniform.as_entire_binding()),
-            (8, wgpu::BindingResource::TextureView(depth)),
-            (10, zbuf.as_entire_binding()),
-            (12, ibuf.as_entire_binding()),
-        ],
-    );
+    let mut zinit = vec![
+        (0, uniform.as_entire_binding()),
+        (8, wgpu::BindingResource::TextureView(depth)),
+        (10, zbuf.as_entire_binding()),
+    ];
+    if let Some(ibuf) = &ibuf {
+        zinit.push((12, ibuf.as_entire_binding()));
+    }
+    let zinit = group(d, "strand_vis.zinit", &l.zinit, &zinit);
     let resolve = group(
         d,
         "strand_vis.resolve",
@@ -371,43 +444,52 @@ pub fn encode(
             (6, cbuf.as_entire_binding()),
             (7, wgpu::BindingResource::TextureView(color)),
             (9, out.as_entire_binding()),
-            (12, ibuf.as_entire_binding()),
+            (holders_at, holders.as_entire_binding()),
         ],
     );
     let pixels = [w.div_ceil(8), h.div_ceil(8)];
     // One compute pass per step: every chunk's dispatch of a step before any of the next.
-    let labels = [
-        "strand_vis.zinit",
-        "strand_vis.depth",
-        "strand_vis.pick",
-        "strand_vis.colour",
-        "strand_vis.resolve",
-    ];
-    for (step, (label, p)) in labels.into_iter().zip(pipes).enumerate() {
+    enum Step<'a> {
+        // Once, per pixel.
+        Frame(&'a wgpu::BindGroup),
+        // Per chunk, per segment.
+        Walk,
+        // Per chunk, per pixel.
+        Colour,
+    }
+    let walk_labels = ["strand_vis.depth", "strand_vis.pick"];
+    let steps = std::iter::once(("strand_vis.zinit", zinit_pipe, Step::Frame(&zinit)))
+        .chain(
+            walk_labels
+                .into_iter()
+                .zip(walks)
+                .map(|(l, p)| (l, p, Step::Walk)),
+        )
+        .chain([
+            ("strand_vis.colour", colour_pipe, Step::Colour),
+            ("strand_vis.resolve", resolve_pipe, Step::Frame(&resolve)),
+        ]);
+    for (label, p, step) in steps {
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some(label),
             timestamp_writes: queries.as_mut().map(|q| q.compute(label)),
         });
         pass.set_pipeline(p);
         match step {
-            0 => {
-                pass.set_bind_group(0, &zinit, &[]);
+            Step::Frame(g) => {
+                pass.set_bind_group(0, g, &[]);
                 pass.dispatch_workgroups(pixels[0], pixels[1], 1);
             }
-            4 => {
-                pass.set_bind_group(0, &resolve, &[]);
-                pass.dispatch_workgroups(pixels[0], pixels[1], 1);
-            }
-            3 => {
-                for (_, colour, _) in &per_chunk {
-                    pass.set_bind_group(0, colour, &[]);
-                    pass.dispatch_workgroups(pixels[0], pixels[1], 1);
-                }
-            }
-            _ => {
+            Step::Walk => {
                 for (walk, _, groups) in &per_chunk {
                     pass.set_bind_group(0, walk, &[]);
                     pass.dispatch_workgroups(groups[0], groups[1], 1);
+                }
+            }
+            Step::Colour => {
+                for (_, colour, _) in &per_chunk {
+                    pass.set_bind_group(0, colour, &[]);
+                    pass.dispatch_workgroups(pixels[0], pixels[1], 1);
                 }
             }
         }
@@ -433,10 +515,10 @@ mod tests {
         }
     }
 
-    /// Per chunk: a permutation whose `local` is the input index and whose `position` is its
-    /// inverse, ordered by tile, then nearer depth first.
+    /// A permutation (`order`) with its inverse (`position`), ordered by tile, then nearer
+    /// depth first, input order kept among equal keys (the sort is stable).
     #[test]
-    fn front_to_back_permutes_each_chunk_and_records_the_way_back() {
+    fn front_to_back_permutes_and_records_the_way_back() {
         let mut rng = crate::base::rng::Rng::new(3);
         let segs: Vec<SegRec> = (0..1000)
             .map(|_| {
@@ -447,32 +529,20 @@ mod tests {
                 )
             })
             .collect();
-        let per = 300;
-        let (sorted, position) = front_to_back(&segs, per, 256, 192);
-        assert_eq!(sorted.len(), segs.len());
-        for (c, chunk) in segs.chunks(per).enumerate() {
-            let out = &sorted[c * per..c * per + chunk.len()];
-            let back = &position[c * per..c * per + chunk.len()];
-            for (i, s) in chunk.iter().enumerate() {
-                let at = out[back[i] as usize];
-                assert_eq!(at.local as usize, i);
-                assert_eq!(SegRec { local: 0, ..at }, *s);
-            }
-            let key = |s: &SegRec| {
-                let tile = |v: f32, n: f32| (v / 64.0).max(0.0).min(n - 1.0).floor();
-                (
-                    tile(s.p0[1], 3.0) * 4.0 + tile(s.p0[0], 4.0),
-                    s.z0.min(s.z1),
-                )
-            };
-            for pair in out.windows(2) {
-                let (a, b) = (key(&pair[0]), key(&pair[1]));
-                assert!(a.0 <= b.0, "tiles out of order");
-                // Within a tile, by 256 depth levels: never more than a level backwards.
-                if a.0 == b.0 {
-                    assert!(b.1.clamp(0.0, 1.0) >= a.1.clamp(0.0, 1.0) - 1.0 / 256.0);
-                }
-            }
+        let (order, position) = front_to_back(&segs, 256, 192);
+        assert_eq!(order.len(), segs.len());
+        for (i, &at) in position.iter().enumerate() {
+            assert_eq!(order[at as usize] as usize, i);
+        }
+        let key = |i: u32| {
+            let s = &segs[i as usize];
+            let tile = |v: f32, n: f32| (v / 64.0).max(0.0).min(n - 1.0).floor();
+            let level = (s.z0.min(s.z1).clamp(0.0, 1.0) * 256.0).min(255.0).floor();
+            (tile(s.p0[1], 3.0) * 4.0 + tile(s.p0[0], 4.0), level, i)
+        };
+        for pair in order.windows(2) {
+            let (a, b) = (key(pair[0]), key(pair[1]));
+            assert!(a < b, "{a:?} before {b:?}");
         }
     }
 
