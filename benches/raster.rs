@@ -294,23 +294,6 @@ fn main() {
             let pimg = render_gpu_pipeline(ctx, &frame, None, Some(&strands), &p).unwrap();
             let tp = t.elapsed().as_secs_f64();
             pipeline = Some(tp);
-            // Last, one more run with timestamps around each pass: where lavapipe's time goes.
-            if ctx.time_passes() {
-                let t = Instant::now();
-                let _ = render(&g, &frame, None, Some(&strands), &p).unwrap();
-                let total = t.elapsed().as_secs_f64();
-                let passes = ctx.take_pass_times().unwrap_or_default();
-                let gpu: f64 = passes.iter().map(|p| p.seconds).sum();
-                let list: Vec<String> = passes
-                    .iter()
-                    .map(|p| format!("{} {:.3} s", p.name, p.seconds))
-                    .collect();
-                println!(
-                    "  lavapipe passes (timed run, {total:.3} s; host and transfers {:.3} s): {}",
-                    total - gpu,
-                    list.join(", ")
-                );
-            }
             let agree_p = within_2(&pimg, &img);
             println!(
                 "  lavapipe, strands by the render pipeline instead: {tp:.3} s ({:.3}% of pixels \

@@ -31,7 +31,7 @@ pub const VIS: RenderStageDef = RenderStageDef {
     name: "strand_vis",
     wgsl: include_str!("../../wgsl/render/strand_vis.wgsl"),
     entry_points: &[],
-    compute: &["zinit", "depth", "pick", "colour", "resolve"],
+    compute: &["zinit", "depth", "pick", "colour", "resolve", "shade"],
     int64_atomics: false,
 };
 
@@ -41,7 +41,7 @@ pub const VIS64: RenderStageDef = RenderStageDef {
     name: "strand_vis64",
     wgsl: include_str!("../../wgsl/render/strand_vis64.wgsl"),
     entry_points: &[],
-    compute: &["zinit", "depth", "colour", "resolve"],
+    compute: &["zinit", "depth", "colour", "resolve", "shade"],
     int64_atomics: true,
 };
 

@@ -452,10 +452,45 @@ fn resolve(@builtin(global_invocation_id) g: vec3<u32>) {
             acc += textureLoad(msaa_color, vec2<i32>(g.xy), i32(s));
         }
     }
-    // The mean of f16 samples, stored as the f16 target does (toward zero).
+    store_mean(p, acc);
+}
+
+// The mean of the four f16 samples summed in `acc`, stored as the f16 target does (toward
+// zero).
+fn store_mean(p: u32, acc: vec4<f32>) {
     let m = acc * 0.25;
     resolved[p] = vec2<u32>(
         f16_pair(f16_rtz(m.x), f16_rtz(m.y)),
         f16_pair(f16_rtz(m.z), f16_rtz(m.w)),
     );
+}
+
+// --- colour and resolve in one pass ----------------------------------------------------
+
+// `colour` then `resolve` for a frame whose segments are one chunk: each held sample's
+// colour rounded to f16 as `colour` stores it and summed as `resolve` reads it back (an f16
+// value is an f32 exactly), without the per-sample colour buffer between them.
+@compute @workgroup_size(8, 8)
+fn shade(@builtin(global_invocation_id) g: vec3<u32>) {
+    if g.x >= cfg.width || g.y >= cfg.height {
+        return;
+    }
+    let p = g.y * cfg.width + g.x;
+    let held = holders(p);
+    var last = 0xffffffffu;
+    var c = vec3<f32>(0.0);
+    var acc = vec4<f32>(-0.0);
+    for (var s = 0u; s < 4u; s++) {
+        if held[s] != 0u {
+            let local = ~held[s] - chunk.base;
+            if local != last {
+                c = seg_colour(segs[position[local]], g.x, g.y);
+                last = local;
+            }
+            acc += vec4<f32>(f16_rtz(c.r), f16_rtz(c.g), f16_rtz(c.b), 1.0);
+        } else {
+            acc += textureLoad(msaa_color, vec2<i32>(g.xy), i32(s));
+        }
+    }
+    store_mean(p, acc);
 }

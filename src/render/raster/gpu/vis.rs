@@ -47,6 +47,7 @@ struct Layouts {
     walk: wgpu::BindGroupLayout,
     colour: wgpu::BindGroupLayout,
     resolve: wgpu::BindGroupLayout,
+    shade: wgpu::BindGroupLayout,
 }
 
 #[derive(Clone, Copy)]
@@ -152,6 +153,20 @@ fn layouts(d: &wgpu::Device, wide: bool) -> Layouts {
                 (6, ReadWrite),
                 (7, MsaaColor),
                 (9, ReadWrite),
+                (holders, ReadWrite),
+            ],
+        ),
+        shade: layout(
+            d,
+            "strand_vis.shade",
+            &[
+                (0, Uniform),
+                (1, Read),
+                (2, Photo),
+                (3, Uniform),
+                (7, MsaaColor),
+                (9, ReadWrite),
+                (11, Read),
                 (holders, ReadWrite),
             ],
         ),
@@ -345,10 +360,12 @@ pub fn encode(
             p(&l.zinit, "zinit"),
             p(&l.colour, "colour"),
             p(&l.resolve, "resolve"),
+            p(&l.shade, "shade"),
         ];
         (l, walks, pipes)
     });
-    let (l, walks, [zinit_pipe, colour_pipe, resolve_pipe]) = (&kept.0, &kept.1, &kept.2);
+    let (l, walks, [zinit_pipe, colour_pipe, resolve_pipe, shade_pipe]) =
+        (&kept.0, &kept.1, &kept.2);
     let storage = |label: &str, size: u64| {
         d.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
@@ -364,13 +381,17 @@ pub fn encode(
     // Where colour and resolve find the holders: ibuf, or zbuf's low words.
     let holders = ibuf.as_ref().unwrap_or(&zbuf);
     let holders_at = if wide { 10 } else { 12 };
-    let cbuf = storage("strand_vis.cbuf", px * 32);
     let out = storage("strand_vis.resolved", px * 8);
     let photo = super::texture_rgba32_or_blank(ctx, s.photo.as_ref());
 
     let per = super::per_chunk::<SegRec>(chunk_bytes);
+    // One chunk (the usual case: a chunk holds the binding limit's worth, 1.6M segments on
+    // lavapipe) is coloured and resolved in one pass (`shade`); more need the per-sample
+    // colour buffer between a colour pass per chunk and the resolve.
+    let one_chunk = s.segs.len() <= per;
+    let cbuf = storage("strand_vis.cbuf", if one_chunk { 8 } else { px * 32 });
     let mut base = 0u32;
-    let per_chunk: Vec<(wgpu::BindGroup, wgpu::BindGroup, [u32; 2])> = s
+    let per_chunk: Vec<(wgpu::BindGroup, wgpu::BindGroup, wgpu::BindGroup, [u32; 2])> = s
         .segs
         .chunks(per)
         .map(|segs| {
@@ -423,7 +444,22 @@ pub fn encode(
                     (holders_at, holders.as_entire_binding()),
                 ],
             );
-            (walk, colour, groups)
+            let shade = group(
+                d,
+                "strand_vis.shade",
+                &l.shade,
+                &[
+                    (0, uniform.as_entire_binding()),
+                    (1, buf.as_entire_binding()),
+                    (2, wgpu::BindingResource::TextureView(&photo)),
+                    (3, cu.as_entire_binding()),
+                    (7, wgpu::BindingResource::TextureView(color)),
+                    (9, out.as_entire_binding()),
+                    (11, position.as_entire_binding()),
+                    (holders_at, holders.as_entire_binding()),
+                ],
+            );
+            (walk, colour, shade, groups)
         })
         .collect();
     let mut zinit = vec![
@@ -458,6 +494,14 @@ pub fn encode(
         Colour,
     }
     let walk_labels = ["strand_vis.depth", "strand_vis.pick"];
+    let last: Vec<(&str, &wgpu::ComputePipeline, Step)> = if one_chunk {
+        vec![("strand_vis.shade", shade_pipe, Step::Frame(&per_chunk[0].2))]
+    } else {
+        vec![
+            ("strand_vis.colour", colour_pipe, Step::Colour),
+            ("strand_vis.resolve", resolve_pipe, Step::Frame(&resolve)),
+        ]
+    };
     let steps = std::iter::once(("strand_vis.zinit", zinit_pipe, Step::Frame(&zinit)))
         .chain(
             walk_labels
@@ -465,10 +509,7 @@ pub fn encode(
                 .zip(walks)
                 .map(|(l, p)| (l, p, Step::Walk)),
         )
-        .chain([
-            ("strand_vis.colour", colour_pipe, Step::Colour),
-            ("strand_vis.resolve", resolve_pipe, Step::Frame(&resolve)),
-        ]);
+        .chain(last);
     for (label, p, step) in steps {
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some(label),
@@ -481,13 +522,13 @@ pub fn encode(
                 pass.dispatch_workgroups(pixels[0], pixels[1], 1);
             }
             Step::Walk => {
-                for (walk, _, groups) in &per_chunk {
+                for (walk, _, _, groups) in &per_chunk {
                     pass.set_bind_group(0, walk, &[]);
                     pass.dispatch_workgroups(groups[0], groups[1], 1);
                 }
             }
             Step::Colour => {
-                for (_, colour, _) in &per_chunk {
+                for (_, colour, _, _) in &per_chunk {
                     pass.set_bind_group(0, colour, &[]);
                     pass.dispatch_workgroups(pixels[0], pixels[1], 1);
                 }
