@@ -8,10 +8,11 @@
 //! Then growth rows: the cpu backend at 2048² and with 2x the strands, with peak memory.
 //!
 //! Run: `CARGO_TARGET_DIR=/work/target cargo bench --bench raster`
-//! (COIF_BENCH_REPS sets CPU repetitions, default 3; lavapipe gets one warm-up and one timed
-//! run; needs `pip install skia-python numpy` for the peer; RASTER_BENCH_PNG=dir writes our
+//! (COIF_BENCH_REPS sets the rounds, default 3: after a warm-up, rounds of one cpu render
+//! and one skia draw, then rounds of one lavapipe render and one skia draw, so that the
+//! ratios, medians over rounds, compare neighbours in time; needs `pip install skia-python numpy` for the peer; RASTER_BENCH_PNG=dir writes our
 //! two images there; RASTER_BENCH_RAW=file writes the cpu image as raw f32 RGBA, for
-//! bit-exact before/after checks; RASTER_BENCH_CPU_ONLY=1 stops after the cpu backend, for
+//! bit-exact before/after checks; RASTER_BENCH_CPU_ONLY=1 runs the cpu backend alone, for
 //! profiling it; RASTER_BENCH_GPU_ONLY=1 times lavapipe alone (its
 //! image to RASTER_BENCH_RAW); COIF_NO_AVX2=1 runs the baseline x86-64 build of the tile loop.)
 
@@ -166,13 +167,6 @@ fn write_raw<T: bytemuck::Pod>(path: &Path, data: &[T]) {
         .unwrap();
 }
 
-fn json_f64(s: &str, key: &str) -> Option<f64> {
-    let at = s.find(&format!("\"{key}\":"))? + key.len() + 3;
-    let rest = s[at..].trim_start();
-    let end = rest.find([',', '}']).unwrap_or(rest.len());
-    rest[..end].trim().parse().ok()
-}
-
 fn drawn_share(img: &[[f32; 4]]) -> f64 {
     img.iter().filter(|p| p[3] > 0.0).count() as f64 / img.len() as f64
 }
@@ -185,6 +179,73 @@ fn save(img: &[[f32; 4]], name: &str) {
             .save(&path)
             .unwrap();
         println!("  wrote {}", path.display());
+    }
+}
+
+/// The skia peer (`benches/peers/raster_skia.py serve`), kept running between rounds.
+struct Skia {
+    child: std::process::Child,
+    out: std::io::BufReader<std::process::ChildStdout>,
+}
+
+impl Skia {
+    /// Starts the peer on the strands in `dir` and waits until its paths are built; None
+    /// (with the reason printed) where python3 or skia-python is missing.
+    fn start(dir: &Path, width: f32) -> Option<Skia> {
+        use std::io::BufRead;
+        use std::process::Stdio;
+        let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/peers/raster_skia.py");
+        let child = Command::new("python3")
+            .arg(&script)
+            .arg(dir)
+            .arg(SIZE.to_string())
+            .arg(SIZE.to_string())
+            .arg(width.to_string())
+            .arg("serve")
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn();
+        let mut child = match child {
+            Ok(c) => c,
+            Err(e) => {
+                println!("  cannot run python3 for the skia peer: {e}");
+                return None;
+            }
+        };
+        let mut out = std::io::BufReader::new(child.stdout.take().unwrap());
+        let mut ready = String::new();
+        if out.read_line(&mut ready).unwrap_or(0) == 0 || !ready.contains("\"ready\"") {
+            let mut err = String::new();
+            use std::io::Read;
+            let _ = child.stderr.take().unwrap().read_to_string(&mut err);
+            println!("  skia peer failed (pip install skia-python numpy): {err}");
+            return None;
+        }
+        Some(Skia { child, out })
+    }
+
+    /// One draw; its seconds.
+    fn draw(&mut self) -> f64 {
+        use std::io::BufRead;
+        let stdin = self.child.stdin.as_mut().unwrap();
+        writeln!(stdin, "draw").unwrap();
+        stdin.flush().unwrap();
+        let mut line = String::new();
+        self.out.read_line(&mut line).unwrap();
+        line.trim()
+            .parse()
+            .expect("the peer prints a draw's seconds")
+    }
+
+    /// Stops the peer; its closing JSON line.
+    fn finish(mut self) -> String {
+        use std::io::Read;
+        drop(self.child.stdin.take());
+        let mut rest = String::new();
+        let _ = self.out.read_to_string(&mut rest);
+        let _ = self.child.wait();
+        rest
     }
 }
 
@@ -233,141 +294,171 @@ fn main() {
         );
         return;
     }
+    // The peer first: its paths are built before anything is timed (two cores), then it
+    // draws one frame whenever a round asks.
+    let dir = tempfile::tempdir().unwrap();
+    write_raw(&dir.path().join("points.f32"), &strands.points);
+    write_raw(&dir.path().join("counts.u32"), &strands.counts);
+    write_raw(&dir.path().join("colors.f32"), &strands.colors);
+    // RASTER_BENCH_CPU_ONLY=1: the cpu backend alone (for profiling it).
+    let cpu_only = std::env::var_os("RASTER_BENCH_CPU_ONLY").is_some();
+    let mut skia = if cpu_only {
+        None
+    } else {
+        Skia::start(dir.path(), p.strand_width)
+    };
     let cpu = Engine::cpu();
-    let mut img = Vec::new();
-    let mut cpu_s = 0.0;
+    let gpu = if cpu_only {
+        None
+    } else {
+        match Engine::new(BackendChoice::Gpu) {
+            Ok(g) => Some(g),
+            Err(e) => {
+                println!("  no GPU backend: {e}");
+                None
+            }
+        }
+    };
+    // Warm-ups (allocation, shader compilation, caches), then `reps` rounds of one cpu
+    // render and one skia draw, then `reps` rounds of one lavapipe render and one skia draw:
+    // the machine's speed drifts over a run (by 1.4x between runs here), so each round's
+    // ratio compares neighbours in time, and the medians are taken over rounds. (The cpu
+    // backend keeps its own phase: right after a lavapipe render, whose buffers the
+    // allocator has just returned, its first allocations fault in fresh pages.)
     let rss_before = rss_mib().1;
     reset_peak();
-    let times: Vec<f64> = (0..reps + 1)
-        .map(|i| {
-            let (t, c) = (Instant::now(), cpu_seconds());
-            img = render(&cpu, &frame, None, Some(&strands), &p).unwrap();
-            if i > 0 {
-                cpu_s += (cpu_seconds() - c) / reps as f64;
+    let mut img = render(&cpu, &frame, None, Some(&strands), &p).unwrap();
+    let cpu_peak_warm = rss_mib().0;
+    if let Some(sk) = skia.as_mut() {
+        sk.draw();
+    }
+    let (mut t_cpu, mut t_gpu, mut cpu_s) = (vec![], vec![], 0.0);
+    let (mut skia_cpu, mut skia_gpu) = (vec![], vec![]);
+    for _ in 0..reps {
+        let (t, c) = (Instant::now(), cpu_seconds());
+        img = render(&cpu, &frame, None, Some(&strands), &p).unwrap();
+        t_cpu.push(t.elapsed().as_secs_f64());
+        cpu_s += (cpu_seconds() - c) / reps as f64;
+        if let Some(sk) = skia.as_mut() {
+            skia_cpu.push(sk.draw());
+        }
+    }
+    let mut gimg = gpu
+        .as_ref()
+        .map(|g| render(g, &frame, None, Some(&strands), &p).unwrap());
+    if let Some(g) = &gpu {
+        for _ in 0..reps {
+            let t = Instant::now();
+            gimg = Some(render(g, &frame, None, Some(&strands), &p).unwrap());
+            // The render's buffers are freed at the device's next poll: counted here, not
+            // left to slow the skia draw that follows.
+            let ctx = g.gpu().expect("a gpu engine");
+            ctx.device
+                .poll(wgpu::PollType::wait_indefinitely())
+                .expect("device poll");
+            t_gpu.push(t.elapsed().as_secs_f64());
+            if let Some(sk) = skia.as_mut() {
+                skia_gpu.push(sk.draw());
             }
-            t.elapsed().as_secs_f64()
-        })
-        .skip(1)
-        .collect();
-    let ours = median(times);
+        }
+    }
+    let ours = median(t_cpu.clone());
     println!(
         "  {}: {ours:.3} s median of {reps} ({cpu_s:.2} CPU-s per render); {:.1}% of pixels drawn",
         cpu.describe(),
         100.0 * drawn_share(&img)
     );
     println!(
-        "  peak RSS during the cpu renders: {:.0} MiB ({rss_before:.0} MiB before them)",
-        rss_mib().0
+        "  peak RSS of the first cpu render: {cpu_peak_warm:.0} MiB ({rss_before:.0} MiB before it)"
     );
     save(&img, "raster_cpu.png");
     if let Some(path) = std::env::var_os("RASTER_BENCH_RAW") {
         // The cpu backend's image as raw f32 RGBA (for bit-exact before/after checks).
         write_raw(Path::new(&path), &img);
     }
-    let mut lavapipe = None;
     let mut pipeline = None;
-    // RASTER_BENCH_CPU_ONLY=1: the cpu backend alone (for profiling it).
-    if std::env::var_os("RASTER_BENCH_CPU_ONLY").is_some() {
+    if let (Some(g), Some(gimg)) = (&gpu, &gimg) {
+        let tg = median(t_gpu.clone());
+        println!(
+            "  {}: {tg:.3} s median of {reps}; lavapipe / cpu backend: {:.2}x; peak RSS {:.0} MiB \
+             (lavapipe's own memory is the process's)",
+            g.describe(),
+            tg / ours,
+            rss_mib().0
+        );
+        // The render pipeline's strands (one warm-up, one timed run: the before of the
+        // compute passes, not a figure of the issue).
+        let ctx = g.gpu().expect("a gpu engine");
+        let _ = render_gpu_pipeline(ctx, &frame, None, Some(&strands), &p).unwrap();
+        let t = Instant::now();
+        let pimg = render_gpu_pipeline(ctx, &frame, None, Some(&strands), &p).unwrap();
+        let tp = t.elapsed().as_secs_f64();
+        pipeline = Some(tp);
+        let agree_p = within_2(&pimg, &img);
+        println!(
+            "  lavapipe, strands by the render pipeline instead: {tp:.3} s ({:.3}% of pixels \
+             within 2/255 of the cpu image); compute / pipeline {:.2}",
+            100.0 * agree_p,
+            tg / tp
+        );
+        let agree = within_2(gimg, &img);
+        println!("  gpu vs cpu: {:.3}% of pixels within 2/255", 100.0 * agree);
+        // What every call pays regardless of content (pipelines, targets, read-back).
+        let tiny = Frame {
+            width: 8,
+            height: 8,
+            depth_range: frame.depth_range,
+            background: None,
+        };
+        let one = ScreenStrands {
+            points: vec![[1.0, 1.0, 0.0], [6.0, 6.0, 0.0]],
+            counts: vec![2],
+            colors: vec![[1.0; 4]; 2],
+            photo: None,
+        };
+        let t = Instant::now();
+        render(g, &tiny, None, Some(&one), &p).unwrap();
+        println!(
+            "  lavapipe fixed cost per call (8x8 frame, one segment): {:.3} s",
+            t.elapsed().as_secs_f64()
+        );
+        save(gimg, "raster_gpu.png");
+    }
+    if let Some(sk) = skia.take() {
+        let info = sk.finish();
+        let draw = median([skia_cpu.as_slice(), &skia_gpu].concat());
+        println!(
+            "  skia (AA path strokes, one colour per strand): {draw:.3} s median of {} draws; {}",
+            skia_cpu.len() + skia_gpu.len(),
+            info.trim()
+        );
+        let per_round = |ours: &[f64], skia: &[f64]| {
+            median(ours.iter().zip(skia).map(|(o, s)| o / s).collect())
+        };
+        println!(
+            "  ratio ours (cpu backend) / skia draw: {:.2} (median over rounds; {ours:.3} s vs \
+             {:.3} s; skia's Python path building not counted)",
+            per_round(&t_cpu, &skia_cpu),
+            median(skia_cpu.clone())
+        );
+        if !t_gpu.is_empty() {
+            println!(
+                "  ratio ours (lavapipe) / skia draw: {:.2} (median over rounds; {:.3} s vs \
+                 {:.3} s)",
+                per_round(&t_gpu, &skia_gpu),
+                median(t_gpu.clone()),
+                median(skia_gpu.clone())
+            );
+        }
+        if let Some(tp) = pipeline {
+            println!(
+                "  ratio ours (lavapipe, render pipeline strands) / skia draw: {:.2}",
+                tp / draw
+            );
+        }
+    }
+    if cpu_only {
         return;
-    }
-    match Engine::new(BackendChoice::Gpu) {
-        Ok(g) => {
-            // lavapipe: one warm-up (shader compilation, allocation), one timed run.
-            let rss_before = rss_mib().1;
-            reset_peak();
-            let _ = render(&g, &frame, None, Some(&strands), &p).unwrap();
-            let t = Instant::now();
-            let gimg = render(&g, &frame, None, Some(&strands), &p).unwrap();
-            let tg = t.elapsed().as_secs_f64();
-            lavapipe = Some(tg);
-            println!(
-                "  {}: {tg:.3} s; lavapipe / cpu backend: {:.2}x; peak RSS {:.0} MiB \
-                 ({rss_before:.0} MiB before; lavapipe's own memory is the process's)",
-                g.describe(),
-                tg / ours,
-                rss_mib().0
-            );
-            let ctx = g.gpu().expect("a gpu engine");
-            // The render pipeline's strands, the same way (one warm-up, one timed run).
-            let _ = render_gpu_pipeline(ctx, &frame, None, Some(&strands), &p).unwrap();
-            let t = Instant::now();
-            let pimg = render_gpu_pipeline(ctx, &frame, None, Some(&strands), &p).unwrap();
-            let tp = t.elapsed().as_secs_f64();
-            pipeline = Some(tp);
-            let agree_p = within_2(&pimg, &img);
-            println!(
-                "  lavapipe, strands by the render pipeline instead: {tp:.3} s ({:.3}% of pixels \
-                 within 2/255 of the cpu image); compute / pipeline {:.2}",
-                100.0 * agree_p,
-                tg / tp
-            );
-            let agree = within_2(&gimg, &img);
-            println!("  gpu vs cpu: {:.3}% of pixels within 2/255", 100.0 * agree);
-            // What every call pays regardless of content (pipelines, targets, read-back).
-            let tiny = Frame {
-                width: 8,
-                height: 8,
-                depth_range: frame.depth_range,
-                background: None,
-            };
-            let one = ScreenStrands {
-                points: vec![[1.0, 1.0, 0.0], [6.0, 6.0, 0.0]],
-                counts: vec![2],
-                colors: vec![[1.0; 4]; 2],
-                photo: None,
-            };
-            let t = Instant::now();
-            render(&g, &tiny, None, Some(&one), &p).unwrap();
-            println!(
-                "  lavapipe fixed cost per call (8x8 frame, one segment): {:.3} s",
-                t.elapsed().as_secs_f64()
-            );
-            save(&gimg, "raster_gpu.png");
-        }
-        Err(e) => println!("  no GPU backend: {e}"),
-    }
-    let dir = tempfile::tempdir().unwrap();
-    write_raw(&dir.path().join("points.f32"), &strands.points);
-    write_raw(&dir.path().join("counts.u32"), &strands.counts);
-    write_raw(&dir.path().join("colors.f32"), &strands.colors);
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/peers/raster_skia.py");
-    let out = Command::new("python3")
-        .arg(&script)
-        .arg(dir.path())
-        .arg(SIZE.to_string())
-        .arg(SIZE.to_string())
-        .arg(p.strand_width.to_string())
-        .arg(reps.to_string())
-        .output();
-    match out {
-        Ok(o) if o.status.success() => {
-            let s = String::from_utf8_lossy(&o.stdout).to_string();
-            println!(
-                "  skia (AA path strokes, one colour per strand): {}",
-                s.trim()
-            );
-            let draw = json_f64(&s, "draw_s").expect("peer prints draw_s");
-            let build = json_f64(&s, "build_s").expect("peer prints build_s");
-            println!(
-                "  ratio ours (cpu backend) / skia draw: {:.2} ({ours:.3} s vs {draw:.3} s; \
-                 skia's Python path building, {build:.3} s, not counted)",
-                ours / draw
-            );
-            if let Some(tg) = lavapipe {
-                println!("  ratio ours (lavapipe) / skia draw: {:.2}", tg / draw);
-            }
-            if let Some(tp) = pipeline {
-                println!(
-                    "  ratio ours (lavapipe, render pipeline strands) / skia draw: {:.2}",
-                    tp / draw
-                );
-            }
-        }
-        Ok(o) => println!(
-            "  skia peer failed (pip install skia-python numpy): {}",
-            String::from_utf8_lossy(&o.stderr)
-        ),
-        Err(e) => println!("  cannot run python3: {e}"),
     }
     growth(reps);
 }

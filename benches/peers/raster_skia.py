@@ -7,9 +7,11 @@ half a width. Raster N32 premultiplied 8-bit surface, Skia's usual (non-linear) 
 
 Inputs in DIR, raw little-endian: points.f32 (n x 3: x px, y px, depth), counts.u32,
 colors.f32 (n x 4, linear straight RGBA). Prints one JSON line: path build time, draw
-time (median of REPS), and the share of pixels drawn.
+time (median of REPS), and the share of pixels drawn. With "serve" for REPS: prints a
+"ready" JSON line once the paths are built, then draws once per "draw" line on stdin and
+prints its seconds, until another line or the end of stdin; then the JSON line.
 
-usage: raster_skia.py DIR WIDTH HEIGHT STROKE_WIDTH [REPS]
+usage: raster_skia.py DIR WIDTH HEIGHT STROKE_WIDTH [REPS | serve]
 """
 import json
 import sys
@@ -26,7 +28,8 @@ def srgb(lin):
 
 def main():
     d, w, h, width = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), float(sys.argv[4])
-    reps = int(sys.argv[5]) if len(sys.argv) > 5 else 3
+    reps = int(sys.argv[5]) if len(sys.argv) > 5 and sys.argv[5] != "serve" else 3
+    serve = len(sys.argv) > 5 and sys.argv[5] == "serve"
     pts = np.fromfile(f"{d}/points.f32", dtype="<f4").reshape(-1, 3)
     counts = np.fromfile(f"{d}/counts.u32", dtype="<u4").astype(np.int64)
     cols = np.fromfile(f"{d}/colors.f32", dtype="<f4").reshape(-1, 4)
@@ -54,26 +57,37 @@ def main():
     t1 = time.perf_counter()
 
     surface = skia.Surface(w, h)
-    times = []
-    for _ in range(reps):
+
+    def draw():
         canvas = surface.getCanvas()
         t2 = time.perf_counter()
         canvas.clear(skia.ColorTRANSPARENT)
         for path, paint in items:
             canvas.drawPath(path, paint)
         surface.flushAndSubmit()
-        times.append(time.perf_counter() - t2)
+        return time.perf_counter() - t2
+
+    if serve:
+        # Driven by the bench: one draw per "draw" line, its seconds printed back, so that
+        # its rounds interleave with ours (the machine's speed drifts over a run).
+        print(json.dumps({"ready": True, "paths": len(items), "build_s": t1 - t0}), flush=True)
+        for line in sys.stdin:
+            if line.strip() != "draw":
+                break
+            print(draw(), flush=True)
+        reps = 0
+    times = sorted(draw() for _ in range(reps))
     arr = surface.toarray()
     drawn = float((arr[..., 3] > 0).mean())
-    times.sort()
-    print(json.dumps({
+    out = {
         "paths": len(items),
         "build_s": t1 - t0,
-        "draw_s": times[len(times) // 2],
-        "draw_reps": reps,
         "drawn_share": drawn,
         "skia_python": getattr(skia, "__version__", "?"),
-    }))
+    }
+    if times:
+        out.update(draw_s=times[len(times) // 2], draw_reps=reps)
+    print(json.dumps(out))
 
 
 if __name__ == "__main__":

@@ -20,6 +20,7 @@ pub struct GpuContext {
     /// The device has timestamp queries (the adapter offers `TIMESTAMP_QUERY`).
     timestamps: bool,
     int64_atomics: bool,
+    maps_storage: bool,
     /// GPU time per pass while timing is on (`--timings`); None: passes are not timed.
     pass_times: Mutex<Option<PassTotals>>,
     /// Objects built once per device and kept (see [`GpuContext::cached`]).
@@ -130,6 +131,15 @@ impl GpuContext {
         if int64_atomics {
             required_features |= int64;
         }
+        // On a CPU driver device memory is host memory: buffers the host fills once may then
+        // be mapped for writing directly (no staging copy), `GpuContext::maps_storage`.
+        let maps_storage = info.device_type == wgpu::DeviceType::Cpu
+            && chosen
+                .features()
+                .contains(wgpu::Features::MAPPABLE_PRIMARY_BUFFERS);
+        if maps_storage {
+            required_features |= wgpu::Features::MAPPABLE_PRIMARY_BUFFERS;
+        }
         let (device, queue) = pollster::block_on(chosen.request_device(&wgpu::DeviceDescriptor {
             label: Some("coif"),
             required_features,
@@ -161,6 +171,7 @@ impl GpuContext {
             uncaptured,
             timestamps,
             int64_atomics,
+            maps_storage,
             pass_times: Mutex::new(None),
             kept: Mutex::new(Default::default()),
         })
@@ -189,6 +200,13 @@ impl GpuContext {
     /// Whether the device has 64-bit atomic min/max in shaders (and they were enabled).
     pub fn has_int64_atomics(&self) -> bool {
         self.int64_atomics
+    }
+
+    /// Whether storage buffers may be created mappable for writing (`MAP_WRITE`), which the
+    /// context allows on CPU drivers only: there the mapping is the buffer's own memory, on
+    /// a real GPU it would be slow memory for the shaders.
+    pub fn maps_storage(&self) -> bool {
+        self.maps_storage
     }
 
     /// Starts timing every pass from now on; false when the device has no timestamps.

@@ -256,13 +256,18 @@ fn front_to_back(chunk: &[SegRec], w: u32, h: u32) -> (Vec<u32>, Vec<u32>) {
 
 /// A storage buffer holding `chunk` in `order`, each record's `local` set to its input
 /// index, gathered in parallel straight into the buffer's mapping (a sorted copy on the host
-/// cost as much again as the gather).
-fn upload_ordered(d: &wgpu::Device, chunk: &[SegRec], order: &[u32]) -> wgpu::Buffer {
+/// cost as much again as the gather); on a CPU driver the mapping is the buffer itself
+/// ([`GpuContext::maps_storage`]), elsewhere a staging buffer wgpu copies from.
+fn upload_ordered(ctx: &GpuContext, chunk: &[SegRec], order: &[u32]) -> wgpu::Buffer {
     const SIZE: usize = std::mem::size_of::<SegRec>();
-    let buf = d.create_buffer(&wgpu::BufferDescriptor {
+    let mut usage = wgpu::BufferUsages::STORAGE;
+    if ctx.maps_storage() {
+        usage |= wgpu::BufferUsages::MAP_WRITE;
+    }
+    let buf = ctx.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("strand_vis.segs"),
         size: (order.len() * SIZE) as u64,
-        usage: wgpu::BufferUsages::STORAGE,
+        usage,
         mapped_at_creation: true,
     });
     {
@@ -397,7 +402,7 @@ pub fn encode(
         .map(|segs| {
             let count = segs.len() as u32;
             let (order, position) = front_to_back(segs, w, h);
-            let buf = upload_ordered(d, segs, &order);
+            let buf = upload_ordered(ctx, segs, &order);
             let position = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("strand_vis.position"),
                 contents: bytemuck::cast_slice(&position),
