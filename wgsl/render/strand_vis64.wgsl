@@ -32,7 +32,7 @@ fn zinit(@builtin(global_invocation_id) g: vec3<u32>) {
     }
     var z: vec4<u32>;
     for (var s = 0u; s < 4u; s++) {
-        z[s] = key(textureLoad(msaa_depth, vec2<i32>(g.xy), i32(s))) * 2u;
+        z[s] = mesh_key(g.xy, s);
     }
     let p = g.y * cfg.width + g.x;
     let none = 0xffffffffu;

@@ -51,6 +51,19 @@ fn key(z: f32) -> u32 {
     return select(bitcast<u32>(z), 0u, z == 0.0);
 }
 
+// Whether a mesh was drawn into the depth target; without one every depth is the clear
+// value, 1, and `zinit` need not read the multisampled target (a texel fetch per sample is
+// dear on a CPU driver).
+override mesh_drawn: bool = true;
+
+// The key of the mesh (or nothing) at sample s of pixel xy: 2·bits(depth), even.
+fn mesh_key(xy: vec2<u32>, s: u32) -> u32 {
+    if !mesh_drawn {
+        return key(1.0) * 2u;
+    }
+    return key(textureLoad(msaa_depth, vec2<i32>(xy), i32(s))) * 2u;
+}
+
 // Screen px -> framebuffer px through NDC and the viewport, as `raster_common.rs` `Fb::map`.
 fn fb_map(p: vec2<f32>) -> vec2<f32> {
     let hw = f32(cfg.width) * 0.5;

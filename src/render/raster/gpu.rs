@@ -526,6 +526,7 @@ pub fn raster(
             strand_stage,
             || module(d, src),
             s,
+            mesh.is_some(),
             &mut encoder,
             queries.as_mut(),
             &uniform,

@@ -178,6 +178,7 @@ fn pipeline(
     module: &wgpu::ShaderModule,
     layout: &wgpu::BindGroupLayout,
     entry: &str,
+    constants: &[(&str, f64)],
 ) -> wgpu::ComputePipeline {
     let pl = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: Some(entry),
@@ -189,7 +190,10 @@ fn pipeline(
         layout: Some(&pl),
         module,
         entry_point: Some(entry),
-        compilation_options: Default::default(),
+        compilation_options: wgpu::PipelineCompilationOptions {
+            constants,
+            ..Default::default()
+        },
         cache: None,
     })
 }
@@ -331,7 +335,8 @@ fn walk_groups(count: u32) -> ([u32; 2], u32) {
 }
 
 /// Records the passes of `stage` (see [`stage`]) into `encoder` (their pipelines built once
-/// per device, from the module `module` makes) and returns the buffer of resolved pixels
+/// per device, from the module `module` makes; `mesh_drawn` says whether the render
+/// pipelines drew a mesh into `depth`) and returns the buffer of resolved pixels
 /// (`width · height` linear premultiplied RGBA in f16, rows unpadded, as the render
 /// pipeline's resolve target holds them).
 #[allow(clippy::too_many_arguments)]
@@ -340,6 +345,7 @@ pub fn encode(
     stage: &RenderStageDef,
     module: impl FnOnce() -> wgpu::ShaderModule,
     s: &Scene,
+    mesh_drawn: bool,
     encoder: &mut wgpu::CommandEncoder,
     mut queries: Option<&mut PassQueries>,
     uniform: &wgpu::Buffer,
@@ -355,7 +361,8 @@ pub fn encode(
     let kept = ctx.cached(stage.name, || {
         let l = layouts(d, wide);
         let module = module();
-        let p = |layout: &wgpu::BindGroupLayout, entry: &str| pipeline(d, &module, layout, entry);
+        let p =
+            |layout: &wgpu::BindGroupLayout, entry: &str| pipeline(d, &module, layout, entry, &[]);
         let walks: Vec<wgpu::ComputePipeline> = if wide {
             vec![p(&l.walk, "depth")]
         } else {
@@ -363,14 +370,16 @@ pub fn encode(
         };
         let pipes = [
             p(&l.zinit, "zinit"),
+            pipeline(d, &module, &l.zinit, "zinit", &[("mesh_drawn", 0.0)]),
             p(&l.colour, "colour"),
             p(&l.resolve, "resolve"),
             p(&l.shade, "shade"),
         ];
         (l, walks, pipes)
     });
-    let (l, walks, [zinit_pipe, colour_pipe, resolve_pipe, shade_pipe]) =
+    let (l, walks, [zinit_mesh, zinit_bare, colour_pipe, resolve_pipe, shade_pipe]) =
         (&kept.0, &kept.1, &kept.2);
+    let zinit_pipe = if mesh_drawn { zinit_mesh } else { zinit_bare };
     let storage = |label: &str, size: u64| {
         d.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
