@@ -1021,7 +1021,16 @@ fn strand_vis_draws_4x_frames_and_matches_the_cpu_across_workgroups() {
         "chunks changed the image"
     );
     // The two-walk passes (in chunks too): the same image to the bit.
-    let two = render_gpu_two_walks(ctx(), &f, Some(&mesh), Some(&s), &p, 80 * 37).unwrap();
+    let two = render_gpu_with(
+        ctx(),
+        &f,
+        Some(&mesh),
+        Some(&s),
+        &p,
+        80 * 37,
+        GpuStrands::TwoWalks,
+    )
+    .unwrap();
     assert_eq!(
         float_identical(&gpu, &two),
         gpu.len(),

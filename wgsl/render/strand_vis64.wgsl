@@ -30,10 +30,7 @@ fn zinit(@builtin(global_invocation_id) g: vec3<u32>) {
     if g.x >= cfg.width || g.y >= cfg.height {
         return;
     }
-    var z: vec4<u32>;
-    for (var s = 0u; s < 4u; s++) {
-        z[s] = mesh_key(g.xy, s);
-    }
+    let z = mesh_keys(g.xy);
     let p = g.y * cfg.width + g.x;
     let none = 0xffffffffu;
     zplain[2u * p] = vec4<u32>(none, z[0], none, z[1]);

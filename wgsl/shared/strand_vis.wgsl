@@ -56,12 +56,16 @@ fn key(z: f32) -> u32 {
 // dear on a CPU driver).
 override mesh_drawn: bool = true;
 
-// The key of the mesh (or nothing) at sample s of pixel xy: 2·bits(depth), even.
-fn mesh_key(xy: vec2<u32>, s: u32) -> u32 {
+// The keys of the mesh (or nothing) at the four samples of pixel xy: 2·bits(depth), even.
+fn mesh_keys(xy: vec2<u32>) -> vec4<u32> {
     if !mesh_drawn {
-        return key(1.0) * 2u;
+        return vec4<u32>(key(1.0) * 2u);
     }
-    return key(textureLoad(msaa_depth, vec2<i32>(xy), i32(s))) * 2u;
+    var z: vec4<u32>;
+    for (var s = 0u; s < 4u; s++) {
+        z[s] = key(textureLoad(msaa_depth, vec2<i32>(xy), i32(s))) * 2u;
+    }
+    return z;
 }
 
 // Screen px -> framebuffer px through NDC and the viewport, as `raster_common.rs` `Fb::map`.
@@ -416,6 +420,18 @@ fn f16_value(h: u32) -> f32 {
     return bitcast<f32>(((h & 0x8000u) << 16u) | ((e + 112u) << 23u) | (m << 13u));
 }
 
+// The colour at pixel xy of the segment of this chunk with index `local`, rounded toward
+// zero to f16 as the target stores it; `last` and `c` keep the previous sample's holder and
+// colour (a pixel's samples mostly share one).
+fn held_colour(local: u32, xy: vec2<u32>, last: ptr<function, u32>, c: ptr<function, vec3<f32>>) -> vec3<f32> {
+    if local != *last {
+        *c = seg_colour(segs[position[local]], xy.x, xy.y);
+        *last = local;
+    }
+    let v = *c;
+    return vec3<f32>(f16_rtz(v.r), f16_rtz(v.g), f16_rtz(v.b));
+}
+
 // Per sample: the holder's !index, 0 for none, from the including shader's `holders`.
 @compute @workgroup_size(8, 8)
 fn colour(@builtin(global_invocation_id) g: vec3<u32>) {
@@ -434,11 +450,8 @@ fn colour(@builtin(global_invocation_id) g: vec3<u32>) {
         if local >= chunk.count {
             continue;
         }
-        if local != last {
-            c = seg_colour(segs[position[local]], g.x, g.y);
-            last = local;
-        }
-        cbuf[p * 4u + s] = vec2<u32>(f16_pair(f16_rtz(c.r), f16_rtz(c.g)), f16_pair(f16_rtz(c.b), 1.0));
+        let q = held_colour(local, g.xy, &last, &c);
+        cbuf[p * 4u + s] = vec2<u32>(f16_pair(q.r, q.g), f16_pair(q.b, 1.0));
     }
 }
 
@@ -495,12 +508,7 @@ fn shade(@builtin(global_invocation_id) g: vec3<u32>) {
     var acc = vec4<f32>(-0.0);
     for (var s = 0u; s < 4u; s++) {
         if held[s] != 0u {
-            let local = ~held[s] - chunk.base;
-            if local != last {
-                c = seg_colour(segs[position[local]], g.x, g.y);
-                last = local;
-            }
-            acc += vec4<f32>(f16_rtz(c.r), f16_rtz(c.g), f16_rtz(c.b), 1.0);
+            acc += vec4<f32>(held_colour(~held[s] - chunk.base, g.xy, &last, &c), 1.0);
         } else {
             acc += textureLoad(msaa_color, vec2<i32>(g.xy), i32(s));
         }

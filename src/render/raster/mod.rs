@@ -875,28 +875,6 @@ pub fn render_gpu_pipeline(
     render_gpu_with(ctx, frame, mesh, strands, p, u64::MAX, GpuStrands::Pipeline)
 }
 
-/// [`render_gpu_chunked`] with the strands' compute passes in two walks (depth, then pick)
-/// even on a device with 64-bit atomics, for tests and benches that compare the two.
-#[doc(hidden)]
-pub fn render_gpu_two_walks(
-    ctx: &GpuContext,
-    frame: &Frame,
-    mesh: Option<&ScreenMesh>,
-    strands: Option<&ScreenStrands>,
-    p: &RasterParams,
-    max_chunk_bytes: u64,
-) -> Result<Vec<[f32; 4]>> {
-    render_gpu_with(
-        ctx,
-        frame,
-        mesh,
-        strands,
-        p,
-        max_chunk_bytes,
-        GpuStrands::TwoWalks,
-    )
-}
-
 /// Which strand path a GPU render takes: the best the device and frame allow, or one forced.
 #[doc(hidden)]
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -921,7 +899,10 @@ pub fn gpu_strand_path(
     Ok(gpu::strand_stage(ctx, &scene, GpuStrands::Best).name)
 }
 
-fn render_gpu_with(
+/// [`render_gpu_chunked`] with the strands drawn by the path `path` asks for (tests and
+/// benches compare them: [`GpuStrands::TwoWalks`] on a device with 64-bit atomics).
+#[doc(hidden)]
+pub fn render_gpu_with(
     ctx: &GpuContext,
     frame: &Frame,
     mesh: Option<&ScreenMesh>,
