@@ -3,8 +3,9 @@
 //! depth-tested in one multisampled target with alpha-to-coverage and no depth sorting.
 //! Two implementations give the same image: wgpu ([`render_gpu`], host in `gpu.rs`: render
 //! pipelines, shaders `wgsl/render/strand_raster.wgsl` and `wgsl/render/mesh_raster.wgsl`,
-//! and at 4x MSAA the strands as compute passes, `wgsl/render/strand_vis.wgsl`, host
-//! `gpu/vis.rs`; registered in [`crate::stages::RENDER`]) and a CPU mirror ([`render_cpu`], tiled,
+//! and at 4x MSAA the strands as compute passes, `wgsl/render/strand_vis64.wgsl` where the
+//! device has 64-bit atomics, else `strand_vis.wgsl`, host `gpu/vis.rs`; registered in
+//! [`crate::stages::RENDER`]) and a CPU mirror ([`render_cpu`], tiled,
 //! rayon-parallel, driver in `cpu.rs`) that evaluates coverage exactly as a Vulkan rasteriser
 //! does; its per-primitive parts read like the shaders and sit next to the compute mirrors:
 //! [`crate::stages::strand_raster`], [`crate::stages::mesh_raster`] and
