@@ -27,7 +27,8 @@
 //              pixel centre (f16, rounded toward zero as the target stores it).
 // 5. `resolve` per pixel: the mean of the four samples (strand colour or the MSAA target's
 //              background/mesh colour) in f32, stored in f16 as the target does.
-// Passes 2-4 run once per chunk of segments (the device's binding limit).
+// Passes 2-4 run once per chunk of segments (the device's binding limit); when the segments
+// fit one chunk, 4 and 5 are one pass, `shade` (`shared/strand_vis.wgsl`).
 
 #include "shared/strand_vis.wgsl"
 
