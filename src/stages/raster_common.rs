@@ -28,6 +28,27 @@ pub struct Config {
     pub _pad: u32,
 }
 
+impl Config {
+    /// A w x h frame of `samples` samples with strands `half_width` px wide, vertex colours
+    /// and no HSV adjustment (the photo fields are set by whoever has a photo).
+    pub fn frame(width: u32, height: u32, samples: u32, half_width: f32) -> Config {
+        Config {
+            width,
+            height,
+            samples,
+            half_width,
+            ndc_scale_x: 2.0 / width as f32,
+            ndc_scale_y: 2.0 / height as f32,
+            photo: 0,
+            photo_half_width: 0.0,
+            hue_deg: 0.0,
+            saturation: 1.0,
+            value: 1.0,
+            _pad: 0,
+        }
+    }
+}
+
 /// Vulkan's standard 4x sample positions within a pixel (x right, y down).
 pub const SAMPLE_POSITIONS_4: [[f32; 2]; 4] = [
     [0.375, 0.125],

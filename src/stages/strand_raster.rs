@@ -690,20 +690,7 @@ mod tests {
     /// loop does: colour, depth and rank of every sample.
     fn draw(plain: bool, half_width: f32, seed: u64) -> Vec<u32> {
         FORCE_PLAIN.with(|f| f.set(plain));
-        let cfg = Config {
-            width: 100,
-            height: 90,
-            samples: 4,
-            half_width,
-            ndc_scale_x: 2.0 / 100.0,
-            ndc_scale_y: 2.0 / 90.0,
-            photo: 0,
-            photo_half_width: 0.0,
-            hue_deg: 0.0,
-            saturation: 1.0,
-            value: 1.0,
-            _pad: 0,
-        };
+        let cfg = Config::frame(100, 90, 4, half_width);
         let mut buf = TileBuf::<4>::default();
         buf.reset(16, 8, 64, 64);
         buf.color.resize(64 * 64, [[0.0; 4]; 4]);

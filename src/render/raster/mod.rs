@@ -495,20 +495,7 @@ impl<'a> Scene<'a> {
                     .collect(),
             ),
         };
-        let cfg = Config {
-            width: w,
-            height: h,
-            samples: p.samples,
-            half_width: 0.5 * p.strand_width,
-            ndc_scale_x: 2.0 / w as f32,
-            ndc_scale_y: 2.0 / h as f32,
-            photo: 0,
-            photo_half_width: 0.0,
-            hue_deg: 0.0,
-            saturation: 1.0,
-            value: 1.0,
-            _pad: 0,
-        };
+        let cfg = Config::frame(w, h, p.samples, 0.5 * p.strand_width);
         let depth = DepthMap { far, near };
         let guard = 16.0 + 2.0 * p.strand_width;
         let lo = [-guard, -guard];
