@@ -223,6 +223,16 @@ fn real_photos_stay_small_and_the_fill_follows_the_dense_field() {
             err,
             n
         );
+        let fields: Vec<String> = sizes
+            .fields
+            .iter()
+            .map(|(f, b)| format!("{f} {b:.0}"))
+            .collect();
+        println!(
+            "{:<10} range-coded bytes by field: {}",
+            img.name,
+            fields.join(", ")
+        );
         rows.push((img.name, sizes.total, err));
     }
     // Measured short of the bounds and reported, not asserted: the raccoon crop is
@@ -311,6 +321,10 @@ fn the_command_writes_every_file_and_they_agree() {
         assert_eq!(report["curves"].as_u64().unwrap() as usize, a.curves.len());
         let bytes = std::fs::metadata(dir.join("hair.czs")).unwrap().len();
         assert_eq!(report["bytes"]["total"].as_u64().unwrap(), bytes);
+        // The range-coded part by field: every field named, the curves' starts charged.
+        let fields = report["bytes"]["fields"].as_object().unwrap();
+        assert_eq!(fields.len(), 12, "{fields:?}");
+        assert!(fields["start"].as_f64().unwrap() > 0.0, "{fields:?}");
         if extra.is_some() {
             // Every side on the dictionary {0, π/3, π/2, 2π/3}.
             use std::f32::consts::PI;

@@ -3,7 +3,7 @@
 //! the colour map and the region too, and the curves sorted by start with their paint
 //! order; versions 1 and 2 (fixed-width fields) are still read, as are 3 and 4.
 
-use super::czs_rc::{rc_curves, un_rc_curves};
+use super::czs_rc::{curve_ledger, rc_curves, un_rc_curves};
 use super::*;
 
 struct BitWriter {
@@ -119,6 +119,21 @@ pub(super) fn unzigzag(u: u64) -> i64 {
     (u >> 1) as i64 ^ -((u & 1) as i64)
 }
 
+/// The header's two flags: whether any side carries a refinement, whether any free side's
+/// direction is undecided.
+fn flags(c: &Codes) -> (bool, bool) {
+    let refine = c
+        .curves
+        .iter()
+        .flat_map(|cv| &cv.prims)
+        .any(|p| p.side.iter().any(|s| s.1 != 8));
+    let undecided = c
+        .curves
+        .iter()
+        .any(|cv| free_labels(cv.kind).iter().any(|&i| cv.dirs[i] == 0));
+    (refine, undecided)
+}
+
 /// Packs the payload; returns it and the bit counts of (header, curves, shading, colour,
 /// region). `measure`: split the range-coded tail's bits between its parts (two more
 /// encodings of it; without, the tail counts as curves).
@@ -129,15 +144,7 @@ fn pack(c: &Codes, version: u8, measure: bool) -> (Vec<u8>, [usize; 5]) {
     let sb = 64 - c.seed.leading_zeros();
     w.put(sb as u64, 7);
     w.put(c.seed, sb);
-    let refine = c
-        .curves
-        .iter()
-        .flat_map(|cv| &cv.prims)
-        .any(|p| p.side.iter().any(|s| s.1 != 8));
-    let undecided = c
-        .curves
-        .iter()
-        .any(|cv| free_labels(cv.kind).iter().any(|&i| cv.dirs[i] == 0));
+    let (refine, undecided) = flags(c);
     w.put(refine as u64, 1);
     w.put(undecided as u64, 1);
     for &r in &c.rho_off {
@@ -281,7 +288,13 @@ pub fn to_czs(s: &Sketch) -> Vec<u8> {
 
 /// Bytes per part of `s`'s `.czs`.
 pub fn czs_sizes(s: &Sketch) -> CzsSizes {
-    let (bytes, bits) = assemble(&codes(s), CZS_VERSION, true);
+    let c = codes(s);
+    let (bytes, bits) = assemble(&c, CZS_VERSION, true);
+    let (refine, undecided) = flags(&c);
+    let fields = curve_ledger(&c, refine, undecided, CZS_VERSION)
+        .into_iter()
+        .map(|(name, b)| (name, (b / 8.0 * 10.0).round() / 10.0))
+        .collect();
     let part = |b: usize| b.div_ceil(8);
     let (curves, shading, colour, region) =
         (part(bits[1]), part(bits[2]), part(bits[3]), part(bits[4]));
@@ -292,6 +305,7 @@ pub fn czs_sizes(s: &Sketch) -> CzsSizes {
         colour,
         region,
         total: bytes.len(),
+        fields,
     }
 }
 
@@ -881,5 +895,34 @@ mod tests {
         );
         assert_eq!(v6.len(), v5.len() + 1);
         assert_eq!(b6[0], b5[0] + 8);
+
+        // The ledger of the range-coded part: its fields add up to that part less the
+        // coder's flush, and each field is charged with its own symbols (dropping the
+        // last curve takes bytes from the curves' fields, none from the colour map's).
+        let ledger = |s: &crate::sketch::Sketch| {
+            let z = czs_sizes(s);
+            let sum: f64 = z.fields.values().sum();
+            let coded = (z.colour + z.region + z.curves) as f64;
+            assert!(
+                sum <= coded && sum >= coded - 6.0,
+                "{sum} B in the ledger, {coded} B coded: {:?}",
+                z.fields
+            );
+            z.fields
+        };
+        let all = ledger(&s);
+        for f in [
+            "colour", "region", "start", "axis", "turn", "side", "contrast",
+        ] {
+            assert!(all[f] > 0.0, "{f}: {all:?}");
+        }
+        let mut fewer = s.clone();
+        fewer.curves.pop();
+        let less = ledger(&fewer);
+        assert_eq!(less["colour"], all["colour"]);
+        assert_eq!(less["region"], all["region"]);
+        for f in ["start", "axis", "turn", "side", "contrast"] {
+            assert!(less[f] < all[f], "{f}: {less:?} vs {all:?}");
+        }
     }
 }

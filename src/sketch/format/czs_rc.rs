@@ -221,11 +221,11 @@ pub(super) fn rc_curves(
     version: u8,
     measure: bool,
 ) -> (Vec<u8>, [usize; 2]) {
-    let tail = rc_tail(c, refine, undecided, version, [true; 2]);
+    let tail = rc_tail(c, refine, undecided, version, [true; 2], false).0;
     // A part's share: what leaving it out saves (its contexts are its own).
     let share = |keep: [bool; 2]| {
         tail.len()
-            .saturating_sub(rc_tail(c, refine, undecided, version, keep).len())
+            .saturating_sub(rc_tail(c, refine, undecided, version, keep, false).0.len())
     };
     let shares = if measure && version >= 5 {
         [share([false, true]), share([true, false])]
@@ -235,18 +235,93 @@ pub(super) fn rc_curves(
     (tail, shares)
 }
 
+/// What the bits of the range-coded tail code, as [`curve_ledger`] splits them.
+#[derive(Clone, Copy)]
+enum Field {
+    Colour,
+    Region,
+    /// The number of curves.
+    Curves,
+    Kind,
+    /// The directions of a curve's free sides.
+    Labels,
+    /// The number of primitives of a curve.
+    Prims,
+    Start,
+    Axis,
+    Turn,
+    /// The side codes: dictionary angle and refinement.
+    Side,
+    Contrast,
+    /// The paint order of overlapping curves.
+    Order,
+}
+
+impl Field {
+    const ALL: [(Field, &'static str); 12] = [
+        (Field::Colour, "colour"),
+        (Field::Region, "region"),
+        (Field::Curves, "curve_count"),
+        (Field::Kind, "kind"),
+        (Field::Labels, "directions"),
+        (Field::Prims, "primitive_count"),
+        (Field::Start, "start"),
+        (Field::Axis, "axis"),
+        (Field::Turn, "turn"),
+        (Field::Side, "side"),
+        (Field::Contrast, "contrast"),
+        (Field::Order, "order"),
+    ];
+}
+
+/// The range-coded tail's information by what it codes (field name, bits): −log2 of each
+/// coded symbol's probability as the adaptive model stood when it was coded, so the fields
+/// add up to the tail's length less the coder's flush (a few bytes). Empty before version 3,
+/// where nothing is range coded.
+pub(super) fn curve_ledger(
+    c: &Codes,
+    refine: bool,
+    undecided: bool,
+    version: u8,
+) -> Vec<(&'static str, f64)> {
+    if version < 3 {
+        return Vec::new();
+    }
+    let (_, ledger) = rc_tail(c, refine, undecided, version, [true; 2], true);
+    let ledger = ledger.expect("a measuring encoder keeps its ledger");
+    Field::ALL
+        .iter()
+        .map(|&(f, name)| (name, ledger[f as usize]))
+        .collect()
+}
+
 /// `parts`: whether to code the colour map and the region (version 5; left out only to
-/// measure their shares).
-fn rc_tail(c: &Codes, refine: bool, undecided: bool, version: u8, parts: [bool; 2]) -> Vec<u8> {
+/// measure their shares). `measure`: also return the bits of each [`Field`].
+fn rc_tail(
+    c: &Codes,
+    refine: bool,
+    undecided: bool,
+    version: u8,
+    parts: [bool; 2],
+    measure: bool,
+) -> (Vec<u8>, Option<Vec<f64>>) {
     let v5 = version >= 5;
     let mut m = CurveModel::new();
-    let mut e = rc::Encoder::new(version >= 4);
+    let mut e = if measure {
+        rc::Encoder::measuring(version >= 4, Field::ALL.len())
+    } else {
+        rc::Encoder::new(version >= 4)
+    };
+    let tag = |e: &mut rc::Encoder, f: Field| e.tag(f as usize);
     if v5 && parts[0] {
+        tag(&mut e, Field::Colour);
         rc_colour(&mut e, &mut m, &c.colour);
     }
     if v5 && parts[1] {
+        tag(&mut e, Field::Region);
         rc_region(&mut e, &mut m, &c.region, c.width, c.height);
     }
+    tag(&mut e, Field::Curves);
     rc_count(&mut e, &mut m, Count::Curves, c.curves.len() as u64 + 1);
     let (xb, yb) = (bits_for(c.width), bits_for(c.height));
     let starts: Vec<[u32; 2]> = c.curves.iter().map(|cv| cv.start).collect();
@@ -258,7 +333,9 @@ fn rc_tail(c: &Codes, refine: bool, undecided: bool, version: u8, parts: [bool; 
     let mut last = [0u32; 2];
     for cv in stored.iter().map(|&i| &c.curves[i as usize]) {
         let kc = cv.kind.code() as usize;
+        tag(&mut e, Field::Kind);
         e.tree(&mut m.kind, 3, kc as u32);
+        tag(&mut e, Field::Labels);
         for &i in free_labels(cv.kind) {
             let ctx = &mut m.label[kc * 2 + i];
             if undecided {
@@ -267,7 +344,9 @@ fn rc_tail(c: &Codes, refine: bool, undecided: bool, version: u8, parts: [bool; 
                 e.bit(&mut ctx[1], cv.dirs[i] > 0);
             }
         }
+        tag(&mut e, Field::Prims);
         rc_count(&mut e, &mut m, Count::Prims, cv.prims.len() as u64);
+        tag(&mut e, Field::Start);
         if v5 {
             let gap = cv.start[1] - last[1];
             rc_count(&mut e, &mut m, Count::RowGap, gap as u64 + 1);
@@ -292,16 +371,19 @@ fn rc_tail(c: &Codes, refine: bool, undecided: bool, version: u8, parts: [bool; 
                 }
             }
         }
+        tag(&mut e, Field::Axis);
         e.tree(&mut m.axis, 5, cv.axis as u32);
         let hair = cv.kind.hair_sides();
         let mut prev_turn = 3usize;
         for (k, p) in cv.prims.iter().enumerate() {
             if k > 0 {
                 let t = signed_code(p.turn);
+                tag(&mut e, Field::Turn);
                 e.tree(&mut m.turn[prev_turn], 2, t);
                 prev_turn = t as usize;
             }
             let prev = (k > 0).then(|| &cv.prims[k - 1].side);
+            tag(&mut e, Field::Side);
             for s in (0..2).filter(|&s| hair[s]) {
                 let c = side_ctx(cv.kind, s, p.turn, &p.side, prev, hair);
                 rc_side(&mut e, &mut m, &c, p.side[s], refine);
@@ -311,13 +393,16 @@ fn rc_tail(c: &Codes, refine: bool, undecided: bool, version: u8, parts: [bool; 
             } else {
                 16
             };
+            tag(&mut e, Field::Contrast);
             e.tree(&mut m.rho[rc_ctx.min(16)], 4, p.rho as u32);
         }
     }
     if v5 {
+        tag(&mut e, Field::Order);
         rc_paint_order(&mut e, &mut m, c, &stored);
     }
-    e.finish()
+    let ledger = e.ledger().map(<[f64]>::to_vec);
+    (e.finish(), ledger)
 }
 
 /// Version 5's colour map: each bin's (u, v) codes as the step from the bin before, signed

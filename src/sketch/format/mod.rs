@@ -115,7 +115,7 @@ pub const CHROMA_STEP: f32 = 2.0;
 
 /// Bytes per part of a `.czs` file; the header is the rest (magic, version, length, size,
 /// seed, flags, p_nsk, padding and checksum), so the parts add up to `total`.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct CzsSizes {
     pub header: usize,
     pub curves: usize,
@@ -123,6 +123,10 @@ pub struct CzsSizes {
     pub colour: usize,
     pub region: usize,
     pub total: usize,
+    /// The range-coded part (colour map, region, curves) by what its bits code, in bytes
+    /// to 0.1 (the information of each field under the adaptive model: where a sketch's
+    /// bytes go, e.g. starts against side angles).
+    pub fields: std::collections::BTreeMap<&'static str, f64>,
 }
 
 // ---------------------------------------------------------------------------------------

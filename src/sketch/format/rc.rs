@@ -50,6 +50,11 @@ pub struct Encoder {
     out: Vec<u8>,
     first: bool,
     warm: bool,
+    /// When measuring: the information each coded bit carried (−log2 of its probability),
+    /// summed per tag ([`Encoder::tag`]), so that a file's bits can be split by what they
+    /// code. None when just encoding.
+    ledger: Option<Vec<f64>>,
+    tag: usize,
 }
 
 impl Default for Encoder {
@@ -62,6 +67,8 @@ impl Default for Encoder {
             out: Vec::new(),
             first: true,
             warm: false,
+            ledger: None,
+            tag: 0,
         }
     }
 }
@@ -73,6 +80,32 @@ impl Encoder {
         Encoder {
             warm,
             ..Default::default()
+        }
+    }
+
+    /// An encoder that also keeps a ledger of `tags` entries (see [`Encoder::ledger`]).
+    pub fn measuring(warm: bool, tags: usize) -> Self {
+        Encoder {
+            warm,
+            ledger: Some(vec![0.0; tags]),
+            ..Default::default()
+        }
+    }
+
+    /// What the next symbols are charged to in the ledger (when there is one).
+    pub fn tag(&mut self, t: usize) {
+        self.tag = t;
+    }
+
+    /// Bits of information charged to each tag so far; None unless [`Encoder::measuring`].
+    /// Their sum is the coded length less the coder's own overhead (under 4 bytes a stream).
+    pub fn ledger(&self) -> Option<&[f64]> {
+        self.ledger.as_deref()
+    }
+
+    fn charge(&mut self, bits: f64) {
+        if let Some(l) = &mut self.ledger {
+            l[self.tag] += bits;
         }
     }
 
@@ -98,6 +131,10 @@ impl Encoder {
     }
 
     pub fn bit(&mut self, p: &mut Prob, bit: bool) {
+        if self.ledger.is_some() {
+            let zero = p.p as f64 / ONE as f64;
+            self.charge(-(if bit { 1.0 - zero } else { zero }).log2());
+        }
         let bound = (self.range >> PROB_BITS) * p.p as u32;
         if bit {
             self.low += bound as u64;
@@ -131,6 +168,7 @@ impl Encoder {
             self.uniform(v % UNIFORM_MAX, UNIFORM_MAX);
             return self.uniform(v / UNIFORM_MAX, (n - 1) / UNIFORM_MAX + 1);
         }
+        self.charge((n as f64).log2());
         let r = self.range / n;
         self.low += v as u64 * r as u64;
         self.range = r;
