@@ -84,7 +84,7 @@ pub(super) fn run_sketch_edit(j: &SketchEditJob) -> anyhow::Result<Report> {
             q.curves.len(),
             q.curves.iter().map(|c| c.prims.len()).sum::<usize>(),
             q.shading.bases.len(),
-            format::czs_sizes(&q).total
+            format::to_czs(&q).len()
         ),
         details: lines,
         ..Default::default()

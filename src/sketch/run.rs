@@ -216,7 +216,8 @@ fn fit_budget<T>(
     first: (T, swc::Directed, Sketch),
     attempt: impl Fn(f32) -> Result<(T, swc::Directed, Sketch)>,
 ) -> Result<((T, swc::Directed, Sketch), Budget)> {
-    let bytes = |s: &Sketch| format::czs_sizes(s).total;
+    // The file's length only: `czs_sizes` would also encode it three more times to split it.
+    let bytes = |s: &Sketch| format::to_czs(s).len();
     let mut tries = vec![(lambda0, bytes(&first.2))];
     if tries[0].1 <= max {
         let b = Budget {
