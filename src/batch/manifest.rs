@@ -55,6 +55,8 @@ pub struct OrientOpts {
     pub refine: Option<u32>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub smooth: Option<f32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub smooth_fit: Option<crate::analyze::orient::SmoothFit>,
 }
 
 /// Options of `analyze`.
@@ -513,6 +515,7 @@ fn orient_params(o: &OrientOpts) -> crate::analyze::orient::OrientParams {
     set(&mut p.dog_sigma_coarse, o.dog_coarse);
     set(&mut p.refine_iters, o.refine);
     set(&mut p.smooth_sigma, o.smooth);
+    set(&mut p.smooth_fit, o.smooth_fit);
     p
 }
 

@@ -37,6 +37,8 @@ pub mod klt_score;
 pub mod klt_track;
 pub mod mesh_raster;
 pub mod noise_eval;
+pub mod orient_fit;
+pub mod orient_moments;
 pub mod orient_resolve;
 pub mod pm_common;
 pub mod pm_cost;
@@ -58,6 +60,8 @@ pub const ALL: &[&StageDef] = &[
     &sep_blur::STAGE,
     &gabor::STAGE,
     &orient_resolve::STAGE,
+    &orient_moments::STAGE,
+    &orient_fit::STAGE,
     &dir_diffuse::STAGE,
     &depth_raster::STAGE,
     &grow_rk2::STAGE,

@@ -236,7 +236,7 @@ fn large_image_is_tiled_under_a_small_binding_limit() {
         "--backend",
         "cpu",
         "--max-binding-bytes",
-        "200000",
+        "1000000",
         "-v",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));

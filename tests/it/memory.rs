@@ -199,10 +199,12 @@ fn tiled_orient_on_the_cpu_equals_one_piece() {
         )
     };
     let (theta, conf, _) = run("whole", &[]);
-    // 96 kept px + the halo on each side: a 256² image in 3x3 tiles.
+    // 96 kept px + the halo on each side: a 256² image in 3x3 tiles (the largest binding
+    // is the linear fit's moment planes).
     let halo = coif::analyze::orient::OrientParams::default().halo() as u64;
     let side = 96 + 2 * halo;
-    let limit = (side * side * 4).to_string();
+    let planes = coif::stages::orient_moments::PLANES as u64;
+    let limit = (side * side * 4 * planes).to_string();
     let (tt, tc, log) = run("tiled", &["--max-binding-bytes", &limit]);
     assert!(log.contains("in 9 tiles"), "not tiled:\n{log}");
     // The FFT sizes differ between a tile and the whole image, so values agree to rounding

@@ -2,7 +2,8 @@
 //! sizes that straddle the workgroup sizes.
 //!
 //! Tolerances: blurs and resolve 1e-5 absolute + 1e-5 relative (the same sums in another
-//! order); Gabor responses are direct on the GPU and FFT on the CPU, so the confidence is
+//! order); the linear fit's moments likewise, its θ within 0.01° (a 3x3 solve in f32 on
+//! sums of either order); Gabor responses are direct on the GPU and FFT on the CPU, so the confidence is
 //! compared with 1e-3 of its maximum and θ within 0.5°, each on 99.9% of pixels (the issue's
 //! acceptance figures). The rest are pixels where two distant orientations answer almost
 //! equally and rounding picks the other one; the argmax, and the confidence measured around
@@ -12,7 +13,7 @@ use crate::common;
 
 use coif::analyze::orient::{orient, OrientParams, SENTINEL};
 use coif::gpu::engine::{BufProxy, Engine, Recording};
-use coif::stages::{gabor, orient_resolve, sep_blur};
+use coif::stages::{gabor, orient_fit, orient_moments, orient_resolve, sep_blur};
 use coif::testing::{
     assert_no_sentinel, compare_angles_mod_pi, compare_f32, compare_f32_fraction,
     compare_f32_nan_eq, Tolerance, PARITY_SIZES,
@@ -160,6 +161,120 @@ fn orient_resolve_matches_cpu() {
     }
 }
 
+/// Smooth vector fields with a hole of zeros (as the Gabor pass leaves off the mask).
+fn fit_inputs(w: u32, h: u32) -> (Vec<f32>, Vec<f32>) {
+    let (a, b) = (common::texture(w, h, 21), common::texture(w, h, 22));
+    let hole = |i: usize| {
+        let (x, y) = ((i as u32 % w) as f32, (i as u32 / w) as f32);
+        (x - 0.3 * w as f32).hypot(y - 0.6 * h as f32) < 0.15 * w.min(h) as f32
+    };
+    let f = |v: &[f32]| -> Vec<f32> {
+        (0..v.len())
+            .map(|i| if hole(i) { 0.0 } else { v[i] - 0.4 })
+            .collect()
+    };
+    (f(&a.data), f(&b.data))
+}
+
+#[test]
+fn orient_moments_matches_cpu() {
+    for &(w, h) in PARITY_SIZES {
+        for sigma in [1.0f32, 4.0] {
+            let (dx, dy) = fit_inputs(w, h);
+            let (g, c) = run_both(|rec| {
+                let (radius, seg_len, weights) = orient_moments::fit_weights(sigma);
+                let cfg = orient_moments::Config {
+                    width: w,
+                    height: h,
+                    radius,
+                    seg_len,
+                };
+                let u = rec.uniform("cfg", &cfg);
+                let wb = rec.upload("w", &weights);
+                let bx = rec.upload("dx", &dx);
+                let by = rec.upload("dy", &dy);
+                let n = w as u64 * h as u64;
+                let out = rec.alloc("out", n * 4 * orient_moments::PLANES as u64, SENTINEL);
+                rec.dispatch(
+                    &orient_moments::STAGE,
+                    orient_moments::workgroups(&cfg),
+                    &[u, wb, bx, by, out],
+                    &[],
+                );
+                vec![out]
+            });
+            let name = format!("orient_moments {w}x{h} sigma {sigma}");
+            assert_no_sentinel(&name, &g[0]).unwrap();
+            compare_f32(&name, &g[0], &c[0], Tolerance::new(1e-5, 1e-5)).unwrap();
+        }
+    }
+}
+
+#[test]
+fn orient_fit_matches_cpu() {
+    for &(w, h) in PARITY_SIZES {
+        let n = (w * h) as usize;
+        // The moments of real fields (orient_moments on the CPU), so the solve sees windows
+        // as the stage does: full, partial at the hole's and the image's edges, and empty.
+        let (dx, dy) = fit_inputs(w, h);
+        let sigma = 4.0f32;
+        let (radius, seg_len, weights) = orient_moments::fit_weights(sigma);
+        let mut rec = Recording::default();
+        let mcfg = orient_moments::Config {
+            width: w,
+            height: h,
+            radius,
+            seg_len,
+        };
+        let u = rec.uniform("cfg", &mcfg);
+        let wb = rec.upload("w", &weights);
+        let (bx, by) = (rec.upload("dx", &dx), rec.upload("dy", &dy));
+        let out = rec.alloc("m", n as u64 * 4 * orient_moments::PLANES as u64, SENTINEL);
+        rec.dispatch(
+            &orient_moments::STAGE,
+            orient_moments::workgroups(&mcfg),
+            &[u, wb, bx, by, out],
+            &[],
+        );
+        rec.download(out);
+        let planes = Engine::cpu().run(rec).unwrap().get::<f32>(out);
+        let conf: Vec<f32> = (0..n).map(|i| common::hash01(i as u64, 3)).collect();
+        let mask: Vec<u32> = common::mask(w, h).iter().map(|&m| m as u32).collect();
+        let (g, c) = run_both(|rec| {
+            let cfg = orient_fit::Config {
+                width: w,
+                height: h,
+                radius,
+                seg_len,
+                ridge: coif::analyze::orient::FIT_RIDGE,
+                ..Default::default()
+            };
+            let u = rec.uniform("cfg", &cfg);
+            let b = [
+                rec.upload("w", &weights),
+                rec.upload("planes", &planes),
+                rec.upload("conf", &conf),
+                rec.upload("mask", &mask),
+            ];
+            let t = rec.alloc("theta", n as u64 * 4, SENTINEL);
+            let co = rec.alloc("conf_out", n as u64 * 4, SENTINEL);
+            rec.dispatch(
+                &orient_fit::STAGE,
+                orient_fit::workgroups(&cfg),
+                &[u, b[0], b[1], b[2], b[3], t, co],
+                &[],
+            );
+            vec![t, co]
+        });
+        let name = format!("orient_fit {w}x{h}");
+        assert_no_sentinel(&name, &g[1]).unwrap();
+        let written = g[0].iter().filter(|v| v.to_bits() != SENTINEL).count();
+        assert_eq!(written, n, "{name}: theta not written everywhere");
+        compare_angles_mod_pi(&name, &g[0], &c[0], 0.01f32.to_radians(), 1.0).unwrap();
+        compare_f32(&name, &g[1], &c[1], Tolerance::new(0.0, 0.0)).unwrap();
+    }
+}
+
 #[test]
 fn whole_orientation_stage_matches_cpu() {
     let p = OrientParams::default();
@@ -192,7 +307,8 @@ fn whole_orientation_stage_matches_cpu() {
 
 #[test]
 fn tiled_run_matches_one_piece() {
-    // A binding limit far below the image forces several tiles with halos.
+    // A binding limit far below the image forces several tiles with halos (the largest
+    // binding is the linear fit's moment planes).
     let p = OrientParams::default();
     let (w, h) = (300, 220);
     let img = common::texture(w, h, 9);
@@ -200,7 +316,7 @@ fn tiled_run_matches_one_piece() {
     for mut engine in [Engine::cpu(), common::gpu()] {
         let whole = orient(&engine, &img, Some(&mask), &p).unwrap();
         let side = 2 * p.halo() as u64 + 64;
-        engine.set_max_binding_bytes(side * side * 4);
+        engine.set_max_binding_bytes(side * side * 4 * orient_moments::PLANES as u64);
         let tiled = orient(&engine, &img, Some(&mask), &p).unwrap();
         compare_angles_mod_pi(
             "tiled theta",

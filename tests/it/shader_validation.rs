@@ -311,6 +311,32 @@ fn uniform_structs_match_wgsl() {
         4,
     );
     check_layout(
+        "orient_moments",
+        stages::orient_moments::STAGE.wgsl,
+        encase_bytes(&stages::orient_moments::Config {
+            width: 1,
+            height: 2,
+            radius: 3,
+            seg_len: 4,
+        }),
+        4,
+    );
+    check_layout(
+        "orient_fit",
+        stages::orient_fit::STAGE.wgsl,
+        encase_bytes(&stages::orient_fit::Config {
+            width: 1,
+            height: 2,
+            radius: 3,
+            seg_len: 4,
+            ridge: f(5),
+            _pad0: 6,
+            _pad1: 7,
+            _pad2: 8,
+        }),
+        8,
+    );
+    check_layout(
         "strand_shade",
         stages::strand_shade::STAGE.wgsl,
         encase_bytes(&stages::strand_shade::Config {

@@ -287,7 +287,7 @@ fn lavapipe_reports_gpu_time_per_pass() {
     assert_eq!(v["gpu_time"]["status"], "measured", "{v:#}");
     let passes = v["gpu_time"]["passes"].as_array().unwrap();
     let names: Vec<&str> = passes.iter().map(|p| p["name"].as_str().unwrap()).collect();
-    for n in ["gabor", "orient_resolve", "sep_blur"] {
+    for n in ["gabor", "orient_moments", "orient_fit", "sep_blur"] {
         assert!(names.contains(&n), "no pass {n}: {names:?}");
     }
     let sum: f64 = passes.iter().map(|p| f(&p["seconds"])).sum();

@@ -551,6 +551,10 @@ pub struct OrientOpts {
     /// Sigma of the confidence-weighted double-angle smoothing (px); 0 disables it.
     #[arg(long, default_value_t = OrientParams::default().smooth_sigma)]
     smooth: f32,
+    /// What the smoothing fits in each window: linear (intercept and slope, the default) or
+    /// constant (the weighted mean, as before 2026-12-04).
+    #[arg(long, default_value = "linear", value_parser = ["linear", "constant"])]
+    smooth_fit: String,
 }
 
 impl OrientOpts {
@@ -565,6 +569,7 @@ impl OrientOpts {
         p.dog_sigma_coarse = self.dog_coarse;
         p.refine_iters = self.refine;
         p.smooth_sigma = self.smooth;
+        p.smooth_fit = self.smooth_fit.parse().expect("clap checked the value");
         p
     }
 }

@@ -1,0 +1,110 @@
+//! Horizontal half of the local linear fit of the double-angle field: Gaussian moments
+//! along x of the weight |(dx, dy)| and of the weighted vectors (see `orient_fit`).
+
+use crate::gpu::engine::{Bind, CpuBinding, StageDef};
+use rayon::prelude::*;
+
+pub const STAGE: StageDef = StageDef {
+    name: "orient_moments",
+    wgsl: include_str!("../../wgsl/orient_moments.wgsl"),
+    bindings: &[
+        Bind::Uniform,
+        Bind::Read,
+        Bind::Read,
+        Bind::Read,
+        Bind::ReadWrite,
+    ],
+    cpu: orient_moments_cpu,
+};
+
+/// Outputs per invocation along the row; the shader's constant.
+pub const OUT_PER_INV: u32 = 4;
+/// Zeros on each side of a weight segment (at least `OUT_PER_INV` - 1).
+pub const PAD: usize = 4;
+/// Planes written: Σ g w, Σ g u w, Σ g u² w, Σ g dx, Σ g u dx, Σ g dy, Σ g u dy.
+pub const PLANES: usize = 7;
+
+#[derive(Clone, Copy, Debug, Default, encase::ShaderType)]
+pub struct Config {
+    pub width: u32,
+    pub height: u32,
+    pub radius: u32,
+    pub seg_len: u32,
+}
+
+/// The taps g, g·u, g·u² (u = t / sigma, g the normalised Gaussian, radius ceil(3 sigma)),
+/// each padded with [`PAD`] zeros both sides: (radius, segment length, weights).
+pub fn fit_weights(sigma: f32) -> (u32, u32, Vec<f32>) {
+    let radius = (3.0 * sigma).ceil().max(1.0) as u32;
+    let r = radius as i32;
+    let g: Vec<f64> = (-r..=r)
+        .map(|t| (-0.5 * (t as f64 / sigma as f64).powi(2)).exp())
+        .collect();
+    let sum: f64 = g.iter().sum();
+    let seg = g.len() + 2 * PAD;
+    let mut w = vec![0.0f32; 3 * seg];
+    for (k, gk) in g.iter().enumerate() {
+        let u = (k as f64 - r as f64) / sigma as f64;
+        for p in 0..3 {
+            w[p * seg + PAD + k] = (gk / sum * u.powi(p as i32)) as f32;
+        }
+    }
+    (radius, seg as u32, w)
+}
+
+pub fn workgroups(cfg: &Config) -> [u32; 3] {
+    [
+        crate::gpu::engine::groups(cfg.width.div_ceil(OUT_PER_INV), 8),
+        crate::gpu::engine::groups(cfg.height, 8),
+        1,
+    ]
+}
+
+fn orient_moments_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
+    let cfg: Config = b[0].uniform();
+    // Plain slices: the RefCell guards are not Sync, the data is.
+    let (weights, dx, dy) = (b[1].get::<f32>(), b[2].get::<f32>(), b[3].get::<f32>());
+    let (weights, dx, dy): (&[f32], &[f32], &[f32]) = (&weights, &dx, &dy);
+    let mut out = b[4].get_mut::<f32>();
+    let (w, h) = (cfg.width as usize, cfg.height as usize);
+    let n = w * h;
+    let (r, l) = (cfg.radius as i64, cfg.seg_len as usize);
+    let taps = |p: usize| &weights[p * l + PAD..p * l + PAD + 2 * r as usize + 1];
+    let (g0, g1, g2) = (taps(0), taps(1), taps(2));
+    // Row-major planes, computed row by row and scattered: the planes are n apart, so a
+    // row of output touches seven disjoint slices.
+    let rows: Vec<Vec<[f32; PLANES]>> = (0..h)
+        .into_par_iter()
+        .map(|y| {
+            (0..w)
+                .map(|x| {
+                    let mut s = [0.0f32; PLANES];
+                    for k in 0..g0.len() {
+                        let xx = x as i64 + k as i64 - r;
+                        if xx < 0 || xx >= w as i64 {
+                            continue;
+                        }
+                        let i = y * w + xx as usize;
+                        let (vx, vy) = (dx[i], dy[i]);
+                        let m = (vx * vx + vy * vy).sqrt();
+                        s[0] += g0[k] * m;
+                        s[1] += g1[k] * m;
+                        s[2] += g2[k] * m;
+                        s[3] += g0[k] * vx;
+                        s[4] += g1[k] * vx;
+                        s[5] += g0[k] * vy;
+                        s[6] += g1[k] * vy;
+                    }
+                    s
+                })
+                .collect()
+        })
+        .collect();
+    for (y, row) in rows.iter().enumerate() {
+        for (x, s) in row.iter().enumerate() {
+            for (q, v) in s.iter().enumerate() {
+                out[q * n + y * w + x] = *v;
+            }
+        }
+    }
+}
