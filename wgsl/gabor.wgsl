@@ -35,7 +35,8 @@ struct Config {
     // double-angle vector (orientation from the image, weighted by the image confidence)
     // times this pass's refined confidence, zeroed off the hair mask. The refined confidence
     // is what marks reliable strand pixels; the mask keeps the face and background edges out
-    // of the smoothing that follows.
+    // of the smoothing that follows. 2: the same, weighted by the first pass's own
+    // confidence |first| instead (w0² in all), which the local linear fit prefers.
     final_pass: u32,
     _pad2: u32,
 }
@@ -165,10 +166,13 @@ fn finish(acc4: array<vec4<f32>, 16>, i: u32) {
         dx = conf * cos(2.0 * theta);
         dy = conf * sin(2.0 * theta);
     }
-    if cfg.final_pass == 1u {
+    if cfg.final_pass != 0u {
         var keep = 0.0;
         if mask[i] != 0u {
             keep = conf;
+            if cfg.final_pass == 2u {
+                keep = length(vec2<f32>(first_dx[i], first_dy[i]));
+            }
         }
         dx = keep * first_dx[i];
         dy = keep * first_dy[i];

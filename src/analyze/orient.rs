@@ -25,6 +25,11 @@ pub struct OrientParams {
     pub smooth_sigma: f32,
     /// What the smoothing fits to the double-angle field in its window.
     pub smooth_fit: SmoothFit,
+    /// What weights the first pass's orientations in the smoothing.
+    pub smooth_weight: SmoothWeight,
+    /// Scale δ in degrees of the linear fit's robust second round (each orientation's weight
+    /// divided by 1 + (Δ/δ)², Δ its angle to the first round's fit); 0: one round.
+    pub smooth_robust_deg: f32,
     /// Responses at or below this are treated as no texture (confidence 0). Input gray
     /// values are in [0, 1].
     pub min_response: f32,
@@ -45,6 +50,30 @@ pub enum SmoothFit {
     /// unbiased to first order wherever the weight sits in the window.
     #[default]
     Linear,
+}
+
+/// The weight of each pixel's orientation (from the image, the first Gabor pass) in the
+/// smoothing. The output confidence is the refined one either way.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SmoothWeight {
+    /// The image confidence squared (w0²): what the local linear fit prefers.
+    #[default]
+    Image,
+    /// The image confidence times the last refinement pass's confidence (C13's "refined
+    /// reciprocally"): what the weighted mean preferred.
+    Refined,
+}
+
+impl std::str::FromStr for SmoothWeight {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            "image" => Ok(SmoothWeight::Image),
+            "refined" => Ok(SmoothWeight::Refined),
+            _ => Err(format!("unknown smoothing weight {s:?} (image or refined)")),
+        }
+    }
 }
 
 /// Ridge on the linear fit's slope terms, in units of the window's second moment (σ²): keeps
@@ -78,6 +107,8 @@ impl Default for OrientParams {
             refine_iters: 3,
             smooth_sigma: 4.0,
             smooth_fit: SmoothFit::Linear,
+            smooth_weight: SmoothWeight::Image,
+            smooth_robust_deg: 5.0,
             min_response: 1e-5,
             min_contrast: 1e-3,
         }
@@ -121,6 +152,7 @@ impl OrientParams {
             ("--dog-fine", self.dog_sigma_fine),
             ("--dog-coarse", self.dog_sigma_coarse),
             ("--smooth", self.smooth_sigma),
+            ("--smooth-robust", self.smooth_robust_deg),
         ] {
             if !(v.is_finite() && (0.0..=64.0).contains(&v)) {
                 return bad(format!("{name} must be in 0..=64, got {v}"));
@@ -277,7 +309,10 @@ fn record_tile(
     let last_cfg = rec.uniform(
         "coif.gabor.cfg.final",
         &gabor::Config {
-            final_pass: 1,
+            final_pass: match p.smooth_weight {
+                SmoothWeight::Refined => 1,
+                SmoothWeight::Image => 2,
+            },
             ..cfg
         },
     );
@@ -310,7 +345,7 @@ fn record_tile(
     let last_src = if p.refine_iters == 0 { cur } else { conf };
     let [mut dx, mut dy, conf] = pass(rec, last_cfg, last_src, Some((dx0, dy0)));
     if p.smooth_sigma > 0.0 && p.smooth_fit == SmoothFit::Linear {
-        return record_fit(rec, p.smooth_sigma, [dx, dy, conf, mbuf], w, h);
+        return record_fit(rec, p, [dx, dy, conf, mbuf], w, h);
     }
     if p.smooth_sigma > 0.0 {
         dx = blur(rec, dx, None, p.smooth_sigma, w, h);
@@ -336,34 +371,22 @@ fn record_tile(
 }
 
 /// Records the local linear fit of the double-angle field (dx, dy) in Gaussian windows of
-/// `sigma` and returns (theta, confidence) as [`record_tile`].
+/// `p.smooth_sigma`, with its robust second round when `p.smooth_robust_deg` > 0, and
+/// returns (theta, confidence) as [`record_tile`].
 fn record_fit(
     rec: &mut Recording,
-    sigma: f32,
+    p: &OrientParams,
     [dx, dy, conf, mask]: [BufProxy; 4],
     w: u32,
     h: u32,
 ) -> (BufProxy, BufProxy) {
     let bytes = w as u64 * h as u64 * 4;
-    let (radius, seg_len, weights) = orient_moments::fit_weights(sigma);
+    let (radius, seg_len, weights) = orient_moments::fit_weights(p.smooth_sigma);
     let wbuf = rec.upload("coif.fit.weights", &weights);
-    let mcfg = orient_moments::Config {
-        width: w,
-        height: h,
-        radius,
-        seg_len,
-    };
-    let mu = rec.uniform("coif.fit.moments.cfg", &mcfg);
     let planes = rec.alloc(
         "coif.fit.moments",
         bytes * orient_moments::PLANES as u64,
         SENTINEL,
-    );
-    rec.dispatch(
-        &orient_moments::STAGE,
-        orient_moments::workgroups(&mcfg),
-        &[mu, wbuf, dx, dy, planes],
-        &[],
     );
     let fcfg = orient_fit::Config {
         width: w,
@@ -374,17 +397,46 @@ fn record_fit(
         ..Default::default()
     };
     let fu = rec.uniform("coif.fit.cfg", &fcfg);
-    let theta = rec.alloc("coif.orient.theta", bytes, SENTINEL);
-    let conf_out = rec.alloc("coif.orient.conf", bytes, SENTINEL);
-    rec.dispatch(
-        &orient_fit::STAGE,
-        orient_fit::workgroups(&fcfg),
-        &[fu, wbuf, planes, conf, mask, theta, conf_out],
-        &[],
-    );
-    rec.download(theta);
-    rec.download(conf_out);
-    (theta, conf_out)
+    let rounds: &[Option<f32>] = if p.smooth_robust_deg > 0.0 {
+        &[None, Some(p.smooth_robust_deg.to_radians())]
+    } else {
+        &[None]
+    };
+    let mut guide = None;
+    let mut out = (dx, dx);
+    for &delta in rounds {
+        let mcfg = orient_moments::Config {
+            width: w,
+            height: h,
+            radius,
+            seg_len,
+            robust: delta.is_some() as u32,
+            delta: delta.unwrap_or(0.0),
+            ..Default::default()
+        };
+        let mu = rec.uniform("coif.fit.moments.cfg", &mcfg);
+        // Unread when not robust; `dx` is as good a buffer as any.
+        let g = guide.unwrap_or(dx);
+        rec.dispatch(
+            &orient_moments::STAGE,
+            orient_moments::workgroups(&mcfg),
+            &[mu, wbuf, dx, dy, g, planes],
+            &[],
+        );
+        let theta = rec.alloc("coif.orient.theta", bytes, SENTINEL);
+        let conf_out = rec.alloc("coif.orient.conf", bytes, SENTINEL);
+        rec.dispatch(
+            &orient_fit::STAGE,
+            orient_fit::workgroups(&fcfg),
+            &[fu, wbuf, planes, conf, mask, theta, conf_out],
+            &[],
+        );
+        guide = Some(theta);
+        out = (theta, conf_out);
+    }
+    rec.download(out.0);
+    rec.download(out.1);
+    out
 }
 
 /// Largest tile side (kept pixels) whose padded tile has at most `max_px` pixels.
@@ -408,7 +460,9 @@ pub const CPU_TILE_BYTES: u64 = 1 << 30;
 /// transposes (4 complex).
 pub fn cpu_bytes_per_px(p: &OrientParams, w: u32, h: u32) -> f64 {
     let passes = p.refine_iters as u64 + 1;
-    let buffers = 4 * (1 + 4 + 1 + 3 * passes + p.smooth_planes() + 2) + 2 * 8 + 8;
+    // The robust round's first theta and confidence.
+    let robust = 2 * (p.smooth_fit == SmoothFit::Linear && p.smooth_robust_deg > 0.0) as u64;
+    let buffers = 4 * (1 + 4 + 1 + 3 * passes + p.smooth_planes() + robust + 2) + 2 * 8 + 8;
     let half = p.kernel.half() as usize;
     let (fw, fh) = (
         gabor::fft_size(w as usize + 2 * half),

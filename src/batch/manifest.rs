@@ -57,6 +57,10 @@ pub struct OrientOpts {
     pub smooth: Option<f32>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub smooth_fit: Option<crate::analyze::orient::SmoothFit>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub smooth_weight: Option<crate::analyze::orient::SmoothWeight>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub smooth_robust: Option<f32>,
 }
 
 /// Options of `analyze`.
@@ -516,6 +520,8 @@ fn orient_params(o: &OrientOpts) -> crate::analyze::orient::OrientParams {
     set(&mut p.refine_iters, o.refine);
     set(&mut p.smooth_sigma, o.smooth);
     set(&mut p.smooth_fit, o.smooth_fit);
+    set(&mut p.smooth_weight, o.smooth_weight);
+    set(&mut p.smooth_robust_deg, o.smooth_robust);
     p
 }
 

@@ -376,8 +376,12 @@ fn gabor_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
                     *a = responses[o][i];
                 }
                 let (x, y, z) = orient_from_responses(acc, cfg.min_response, cfg.min_contrast);
-                if cfg.final_pass == 1 {
-                    let keep = if mask[i] != 0 { z } else { 0.0 };
+                if cfg.final_pass != 0 {
+                    let keep = match (mask[i] != 0, cfg.final_pass) {
+                        (false, _) => 0.0,
+                        (true, 2) => (first_dx[i] * first_dx[i] + first_dy[i] * first_dy[i]).sqrt(),
+                        (true, _) => z,
+                    };
                     *dx = keep * first_dx[i];
                     *dy = keep * first_dy[i];
                 } else {

@@ -1,5 +1,6 @@
 //! Horizontal half of the local linear fit of the double-angle field: Gaussian moments
-//! along x of the weight |(dx, dy)| and of the weighted vectors (see `orient_fit`).
+//! along x of the weight |(dx, dy)| and of the weighted vectors (see `orient_fit`),
+//! optionally reweighted by their agreement with a previous fit (the shader says how).
 
 use crate::gpu::engine::{Bind, CpuBinding, StageDef};
 use rayon::prelude::*;
@@ -9,6 +10,7 @@ pub const STAGE: StageDef = StageDef {
     wgsl: include_str!("../../wgsl/orient_moments.wgsl"),
     bindings: &[
         Bind::Uniform,
+        Bind::Read,
         Bind::Read,
         Bind::Read,
         Bind::Read,
@@ -30,6 +32,24 @@ pub struct Config {
     pub height: u32,
     pub radius: u32,
     pub seg_len: u32,
+    /// 1: divide each weight by 1 + (Δ/delta)², Δ its angle to the guide θ.
+    pub robust: u32,
+    /// Radians of θ.
+    pub delta: f32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+}
+
+/// A sample's double-angle vector after the robust reweighting (unchanged when off).
+fn reweight(cfg: &Config, vx: f32, vy: f32, guide: f32) -> (f32, f32) {
+    let w = (vx * vx + vy * vy).sqrt();
+    if cfg.robust != 1 || w <= 0.0 {
+        return (vx, vy);
+    }
+    let c = ((vx * (2.0 * guide).cos() + vy * (2.0 * guide).sin()) / w).clamp(-1.0, 1.0);
+    let d = 0.5 * c.acos() / cfg.delta;
+    let k = 1.0 / (1.0 + d * d);
+    (vx * k, vy * k)
 }
 
 /// The taps g, g·u, g·u² (u = t / sigma, g the normalised Gaussian, radius ceil(3 sigma)),
@@ -63,9 +83,14 @@ pub fn workgroups(cfg: &Config) -> [u32; 3] {
 fn orient_moments_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
     let cfg: Config = b[0].uniform();
     // Plain slices: the RefCell guards are not Sync, the data is.
-    let (weights, dx, dy) = (b[1].get::<f32>(), b[2].get::<f32>(), b[3].get::<f32>());
-    let (weights, dx, dy): (&[f32], &[f32], &[f32]) = (&weights, &dx, &dy);
-    let mut out = b[4].get_mut::<f32>();
+    let (weights, dx, dy, guide) = (
+        b[1].get::<f32>(),
+        b[2].get::<f32>(),
+        b[3].get::<f32>(),
+        b[4].get::<f32>(),
+    );
+    let (weights, dx, dy, guide): (&[f32], &[f32], &[f32], &[f32]) = (&weights, &dx, &dy, &guide);
+    let mut out = b[5].get_mut::<f32>();
     let (w, h) = (cfg.width as usize, cfg.height as usize);
     let n = w * h;
     let (r, l) = (cfg.radius as i64, cfg.seg_len as usize);
@@ -85,7 +110,8 @@ fn orient_moments_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
                             continue;
                         }
                         let i = y * w + xx as usize;
-                        let (vx, vy) = (dx[i], dy[i]);
+                        let g = if cfg.robust == 1 { guide[i] } else { 0.0 };
+                        let (vx, vy) = reweight(&cfg, dx[i], dy[i], g);
                         let m = (vx * vx + vy * vy).sqrt();
                         s[0] += g0[k] * m;
                         s[1] += g1[k] * m;

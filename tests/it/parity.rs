@@ -71,7 +71,7 @@ fn sep_blur_matches_cpu() {
 #[test]
 fn gabor_matches_cpu() {
     let k = OrientParams::default().kernel;
-    for (&(w, h), final_pass) in PARITY_SIZES.iter().zip([0u32, 1, 0, 1]) {
+    for (&(w, h), final_pass) in PARITY_SIZES.iter().zip([0u32, 1, 2, 1]) {
         let img = common::texture(w, h, 5);
         let mask: Vec<u32> = common::mask(w, h).iter().map(|&m| m as u32).collect();
         let (g, c) = run_both(|rec| {
@@ -179,8 +179,15 @@ fn fit_inputs(w: u32, h: u32) -> (Vec<f32>, Vec<f32>) {
 #[test]
 fn orient_moments_matches_cpu() {
     for &(w, h) in PARITY_SIZES {
-        for sigma in [1.0f32, 4.0] {
+        // Plain, and robust against a guide θ (acos and the trigonometry in another
+        // library: 1e-4).
+        for (sigma, robust, tol) in [(1.0f32, 0u32, 1e-5f32), (4.0, 0, 1e-5), (4.0, 1, 1e-4)] {
             let (dx, dy) = fit_inputs(w, h);
+            let guide: Vec<f32> = common::texture(w, h, 23)
+                .data
+                .iter()
+                .map(|v| v * std::f32::consts::PI)
+                .collect();
             let (g, c) = run_both(|rec| {
                 let (radius, seg_len, weights) = orient_moments::fit_weights(sigma);
                 let cfg = orient_moments::Config {
@@ -188,24 +195,28 @@ fn orient_moments_matches_cpu() {
                     height: h,
                     radius,
                     seg_len,
+                    robust,
+                    delta: 5f32.to_radians(),
+                    ..Default::default()
                 };
                 let u = rec.uniform("cfg", &cfg);
                 let wb = rec.upload("w", &weights);
                 let bx = rec.upload("dx", &dx);
                 let by = rec.upload("dy", &dy);
+                let gb = rec.upload("guide", &guide);
                 let n = w as u64 * h as u64;
                 let out = rec.alloc("out", n * 4 * orient_moments::PLANES as u64, SENTINEL);
                 rec.dispatch(
                     &orient_moments::STAGE,
                     orient_moments::workgroups(&cfg),
-                    &[u, wb, bx, by, out],
+                    &[u, wb, bx, by, gb, out],
                     &[],
                 );
                 vec![out]
             });
-            let name = format!("orient_moments {w}x{h} sigma {sigma}");
+            let name = format!("orient_moments {w}x{h} sigma {sigma} robust {robust}");
             assert_no_sentinel(&name, &g[0]).unwrap();
-            compare_f32(&name, &g[0], &c[0], Tolerance::new(1e-5, 1e-5)).unwrap();
+            compare_f32(&name, &g[0], &c[0], Tolerance::new(tol, tol)).unwrap();
         }
     }
 }
@@ -225,6 +236,7 @@ fn orient_fit_matches_cpu() {
             height: h,
             radius,
             seg_len,
+            ..Default::default()
         };
         let u = rec.uniform("cfg", &mcfg);
         let wb = rec.upload("w", &weights);
@@ -233,7 +245,7 @@ fn orient_fit_matches_cpu() {
         rec.dispatch(
             &orient_moments::STAGE,
             orient_moments::workgroups(&mcfg),
-            &[u, wb, bx, by, out],
+            &[u, wb, bx, by, bx, out],
             &[],
         );
         rec.download(out);

@@ -318,8 +318,12 @@ fn uniform_structs_match_wgsl() {
             height: 2,
             radius: 3,
             seg_len: 4,
+            robust: 5,
+            delta: f(6),
+            _pad0: 7,
+            _pad1: 8,
         }),
-        4,
+        8,
     );
     check_layout(
         "orient_fit",

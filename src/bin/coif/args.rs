@@ -555,6 +555,14 @@ pub struct OrientOpts {
     /// constant (the weighted mean, as before 2026-12-04).
     #[arg(long, default_value = "linear", value_parser = ["linear", "constant"])]
     smooth_fit: String,
+    /// What weights each orientation in the smoothing: image (its Gabor confidence squared,
+    /// the default) or refined (times the refined confidence, as before 2026-12-04).
+    #[arg(long, default_value = "image", value_parser = ["image", "refined"])]
+    smooth_weight: String,
+    /// Scale in degrees of the linear fit's robust second round (an orientation that far
+    /// from the first round's fit keeps half its weight); 0: one round.
+    #[arg(long, default_value_t = OrientParams::default().smooth_robust_deg)]
+    smooth_robust: f32,
 }
 
 impl OrientOpts {
@@ -570,6 +578,8 @@ impl OrientOpts {
         p.refine_iters = self.refine;
         p.smooth_sigma = self.smooth;
         p.smooth_fit = self.smooth_fit.parse().expect("clap checked the value");
+        p.smooth_weight = self.smooth_weight.parse().expect("clap checked the value");
+        p.smooth_robust_deg = self.smooth_robust;
         p
     }
 }
