@@ -1,7 +1,7 @@
 //! Vertical half of the local linear fit of the double-angle field and the per-pixel solve:
 //! θ = ½ atan2 of the fit's intercept, NaN off the mask (the shader explains why a fit).
 
-use super::orient_moments::{PAD, PLANES};
+use super::orient_moments::PLANES;
 use super::orient_resolve::resolve_theta;
 use crate::gpu::engine::{Bind, CpuBinding, StageDef};
 use rayon::prelude::*;
@@ -77,9 +77,8 @@ fn orient_fit_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
     let mut conf_out = b[6].get_mut::<f32>();
     let (w, h) = (cfg.width as usize, cfg.height as usize);
     let n = w * h;
-    let (r, l) = (cfg.radius as i64, cfg.seg_len as usize);
-    let taps = |p: usize| &weights[p * l + PAD..p * l + PAD + 2 * r as usize + 1];
-    let (g0, g1, g2) = (taps(0), taps(1), taps(2));
+    let r = cfg.radius as i64;
+    let [g0, g1, g2] = super::orient_moments::taps(weights, cfg.radius, cfg.seg_len);
     theta[..n]
         .par_chunks_mut(w)
         .zip(conf_out[..n].par_chunks_mut(w))

@@ -72,6 +72,12 @@ pub fn fit_weights(sigma: f32) -> (u32, u32, Vec<f32>) {
     (radius, seg as u32, w)
 }
 
+/// The three unpadded tap segments (g, g·u, g·u²) of [`fit_weights`]' buffer.
+pub fn taps(weights: &[f32], radius: u32, seg_len: u32) -> [&[f32]; 3] {
+    let (taps, l) = (2 * radius as usize + 1, seg_len as usize);
+    std::array::from_fn(|p| &weights[p * l + PAD..p * l + PAD + taps])
+}
+
 pub fn workgroups(cfg: &Config) -> [u32; 3] {
     [
         crate::gpu::engine::groups(cfg.width.div_ceil(OUT_PER_INV), 8),
@@ -93,9 +99,8 @@ fn orient_moments_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
     let mut out = b[5].get_mut::<f32>();
     let (w, h) = (cfg.width as usize, cfg.height as usize);
     let n = w * h;
-    let (r, l) = (cfg.radius as i64, cfg.seg_len as usize);
-    let taps = |p: usize| &weights[p * l + PAD..p * l + PAD + 2 * r as usize + 1];
-    let (g0, g1, g2) = (taps(0), taps(1), taps(2));
+    let r = cfg.radius as i64;
+    let [g0, g1, g2] = taps(weights, cfg.radius, cfg.seg_len);
     // Row-major planes, computed row by row and scattered: the planes are n apart, so a
     // row of output touches seven disjoint slices.
     let rows: Vec<Vec<[f32; PLANES]>> = (0..h)
