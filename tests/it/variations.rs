@@ -14,7 +14,8 @@
 //! curl leaves no apex to cut at): cuts at a line of strand ends, and no votes across that
 //! line in the resolution (99.6-99.9% on seed 1; 95.0-97.1% with the cuts alone, 93.6-95.6%
 //! with neither). Not met (see the README, "Accuracy and speed"): orientation ≤ 1.0°
-//! (0.33-2.26° here with the local linear fit; 0.9-2.7° with the weighted mean before it). The re-render holds: every hair pixel shows the photo under it (infinite
+//! (0.75-2.24° here with the robust local linear fit; 0.9-2.7° with the weighted mean before
+//! it). The re-render holds: every hair pixel shows the photo under it (infinite
 //! PSNR over the hair region on every case here).
 
 use crate::common;
