@@ -20,7 +20,7 @@ struct Config {
 
 const OUT_PER_INV: u32 = 4u;
 const PAD: u32 = 4u;
-const PI: f32 = 3.14159265358979;
+#include "shared/orient_theta.wgsl"
 
 @group(0) @binding(0) var<uniform> cfg: Config;
 @group(0) @binding(1) var<storage, read> weights: array<f32>;
@@ -108,15 +108,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             let c2 = a * d - c * b;
             let ax = c0 * m[6] + c1 * m[7] + c2 * m[8];
             let ay = c0 * m[9] + c1 * m[10] + c2 * m[11];
-            if ax != 0.0 || ay != 0.0 {
-                theta = 0.5 * atan2(ay, ax);
-                if theta < 0.0 {
-                    theta = theta + PI;
-                }
-                if theta >= PI {
-                    theta = theta - PI;
-                }
-            }
+            theta = resolve_theta(ax, ay);
         }
         out_theta[i] = theta;
         out_conf[i] = conf[i];

@@ -8,7 +8,7 @@ struct Config {
     _pad1: u32,
 }
 
-const PI: f32 = 3.14159265358979;
+#include "shared/orient_theta.wgsl"
 
 @group(0) @binding(0) var<uniform> cfg: Config;
 @group(0) @binding(1) var<storage, read> dx: array<f32>;
@@ -30,16 +30,6 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         out_conf[i] = 0.0;
         return;
     }
-    var theta = 0.0;
-    if dx[i] != 0.0 || dy[i] != 0.0 {
-        theta = 0.5 * atan2(dy[i], dx[i]);
-        if theta < 0.0 {
-            theta = theta + PI;
-        }
-        if theta >= PI {
-            theta = theta - PI;
-        }
-    }
-    out_theta[i] = theta;
+    out_theta[i] = resolve_theta(dx[i], dy[i]);
     out_conf[i] = conf[i];
 }

@@ -40,7 +40,17 @@ pub struct OrientParams {
 
 /// The model the smoothing fits to the confidence-weighted double-angle field in each
 /// Gaussian window.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    Default,
+    PartialEq,
+    Eq,
+    clap::ValueEnum,
+    serde::Serialize,
+    serde::Deserialize,
+)]
 #[serde(rename_all = "lowercase")]
 pub enum SmoothFit {
     /// The weighted mean (a blur of w·(cos 2θ, sin 2θ)): leans toward the strongest strands
@@ -54,7 +64,17 @@ pub enum SmoothFit {
 
 /// The weight of each pixel's orientation (from the image, the first Gabor pass) in the
 /// smoothing. The output confidence is the refined one either way.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    Default,
+    PartialEq,
+    Eq,
+    clap::ValueEnum,
+    serde::Serialize,
+    serde::Deserialize,
+)]
 #[serde(rename_all = "lowercase")]
 pub enum SmoothWeight {
     /// The image confidence squared (w0²): what the local linear fit prefers.
@@ -65,32 +85,10 @@ pub enum SmoothWeight {
     Refined,
 }
 
-impl std::str::FromStr for SmoothWeight {
-    type Err = String;
-    fn from_str(s: &str) -> std::result::Result<Self, String> {
-        match s {
-            "image" => Ok(SmoothWeight::Image),
-            "refined" => Ok(SmoothWeight::Refined),
-            _ => Err(format!("unknown smoothing weight {s:?} (image or refined)")),
-        }
-    }
-}
-
 /// Ridge on the linear fit's slope terms, in units of the window's second moment (σ²): keeps
 /// a window whose weight lies along one strand from extrapolating (≤ 0.01° on the synthetic
 /// cases against no ridge).
 pub const FIT_RIDGE: f32 = 0.02;
-
-impl std::str::FromStr for SmoothFit {
-    type Err = String;
-    fn from_str(s: &str) -> std::result::Result<Self, String> {
-        match s {
-            "constant" => Ok(SmoothFit::Constant),
-            "linear" => Ok(SmoothFit::Linear),
-            _ => Err(format!("unknown smoothing fit {s:?} (constant or linear)")),
-        }
-    }
-}
 
 impl Default for OrientParams {
     fn default() -> Self {

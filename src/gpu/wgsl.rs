@@ -52,6 +52,10 @@ pub const SHARED: &[(&str, &str)] = &[
         include_str!("../../wgsl/shared/field_uv_nb.wgsl"),
     ),
     (
+        "shared/orient_theta.wgsl",
+        include_str!("../../wgsl/shared/orient_theta.wgsl"),
+    ),
+    (
         "shared/pm_common.wgsl",
         include_str!("../../wgsl/shared/pm_common.wgsl"),
     ),

@@ -102,10 +102,19 @@ fn orient_moments_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
     let r = cfg.radius as i64;
     let [g0, g1, g2] = taps(weights, cfg.radius, cfg.seg_len);
     // Row-major planes, computed row by row and scattered: the planes are n apart, so a
-    // row of output touches seven disjoint slices.
+    // row of output touches seven disjoint slices. Each sample is reweighted once per row
+    // (the shader does it once per load), not once per tap.
     let rows: Vec<Vec<[f32; PLANES]>> = (0..h)
         .into_par_iter()
         .map(|y| {
+            let row = y * w..(y + 1) * w;
+            let v: Vec<(f32, f32, f32)> = row
+                .map(|i| {
+                    let g = if cfg.robust == 1 { guide[i] } else { 0.0 };
+                    let (vx, vy) = reweight(&cfg, dx[i], dy[i], g);
+                    (vx, vy, (vx * vx + vy * vy).sqrt())
+                })
+                .collect();
             (0..w)
                 .map(|x| {
                     let mut s = [0.0f32; PLANES];
@@ -114,10 +123,7 @@ fn orient_moments_cpu(_wg: [u32; 3], b: &[CpuBinding]) {
                         if xx < 0 || xx >= w as i64 {
                             continue;
                         }
-                        let i = y * w + xx as usize;
-                        let g = if cfg.robust == 1 { guide[i] } else { 0.0 };
-                        let (vx, vy) = reweight(&cfg, dx[i], dy[i], g);
-                        let m = (vx * vx + vy * vy).sqrt();
+                        let (vx, vy, m) = v[xx as usize];
                         s[0] += g0[k] * m;
                         s[1] += g1[k] * m;
                         s[2] += g2[k] * m;

@@ -2,7 +2,7 @@
 //! parameter types, so the help text and a job built in code agree.
 
 use clap::{Args, Parser, Subcommand};
-use coif::analyze::orient::OrientParams;
+use coif::analyze::orient::{OrientParams, SmoothFit, SmoothWeight};
 use coif::analyze::AnalyzeParams;
 use coif::gpu::engine::BackendChoice;
 use coif::jobs::{
@@ -553,12 +553,12 @@ pub struct OrientOpts {
     smooth: f32,
     /// What the smoothing fits in each window: linear (intercept and slope, the default) or
     /// constant (the weighted mean, as before 2026-12-04).
-    #[arg(long, default_value = "linear", value_parser = ["linear", "constant"])]
-    smooth_fit: String,
+    #[arg(long, value_enum, default_value_t = OrientParams::default().smooth_fit)]
+    smooth_fit: SmoothFit,
     /// What weights each orientation in the smoothing: image (its Gabor confidence squared,
     /// the default) or refined (times the refined confidence, as before 2026-12-04).
-    #[arg(long, default_value = "image", value_parser = ["image", "refined"])]
-    smooth_weight: String,
+    #[arg(long, value_enum, default_value_t = OrientParams::default().smooth_weight)]
+    smooth_weight: SmoothWeight,
     /// Scale in degrees of the linear fit's robust second round (an orientation that far
     /// from the first round's fit keeps half its weight); 0: one round.
     #[arg(long, default_value_t = OrientParams::default().smooth_robust_deg)]
@@ -577,8 +577,8 @@ impl OrientOpts {
         p.dog_sigma_coarse = self.dog_coarse;
         p.refine_iters = self.refine;
         p.smooth_sigma = self.smooth;
-        p.smooth_fit = self.smooth_fit.parse().expect("clap checked the value");
-        p.smooth_weight = self.smooth_weight.parse().expect("clap checked the value");
+        p.smooth_fit = self.smooth_fit;
+        p.smooth_weight = self.smooth_weight;
         p.smooth_robust_deg = self.smooth_robust;
         p
     }
