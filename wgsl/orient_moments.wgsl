@@ -4,6 +4,8 @@
 // planes [Σ g w, Σ g u w, Σ g u² w, Σ g dx, Σ g u dx, Σ g dy, Σ g u dy], u = t / σ the
 // offset in sigmas. Zero outside the image: a missing sample is no data, not an edge copy.
 //
+// With `power` below 1 the weights are flattened first (the robust fit's guide round uses it so
+// one high-contrast line across the flow, a parting's scalp line, cannot dominate the guide).
 // With `robust` set, each sample's weight is first divided by 1 + (Δ/δ)², Δ the angle
 // between its orientation and a previous fit's θ at the same pixel (`guide`): one step of
 // iteratively reweighted least squares with a Cauchy loss, so lines that are not hair flow
@@ -21,7 +23,9 @@ struct Config {
     // 1: reweight by the guide (δ = delta, radians of θ); 0: `guide` is not read.
     robust: u32,
     delta: f32,
-    _pad0: u32,
+    // Each sample's weight w is first raised to this power (its vector scaled by
+    // w^(power - 1)); 1 leaves it.
+    power: f32,
     _pad1: u32,
 }
 
@@ -62,7 +66,13 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let i = y * cfg.width + u32(x);
         var vx = dx[i];
         var vy = dy[i];
-        let w = sqrt(vx * vx + vy * vy);
+        var w = sqrt(vx * vx + vy * vy);
+        if cfg.power != 1.0 && w > 0.0 {
+            let s = pow(w, cfg.power - 1.0);
+            vx = vx * s;
+            vy = vy * s;
+            w = sqrt(vx * vx + vy * vy);
+        }
         if cfg.robust == 1u && w > 0.0 {
             let t = guide[i];
             let c = clamp((vx * cos(2.0 * t) + vy * sin(2.0 * t)) / w, -1.0, 1.0);

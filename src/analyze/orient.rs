@@ -30,6 +30,11 @@ pub struct OrientParams {
     /// Scale δ in degrees of the linear fit's robust second round (each orientation's weight
     /// divided by 1 + (Δ/δ)², Δ its angle to the first round's fit); 0: one round.
     pub smooth_robust_deg: f32,
+    /// The robust fit's first round (its guide) weighs each orientation by its weight to
+    /// this power: below 1, one high-contrast line across the flow (a parting's scalp line)
+    /// cannot carry the guide, so the second round can tell it from the hair. Unused with
+    /// one round.
+    pub smooth_guide_power: f32,
     /// Responses at or below this are treated as no texture (confidence 0). Input gray
     /// values are in [0, 1].
     pub min_response: f32,
@@ -107,6 +112,7 @@ impl Default for OrientParams {
             smooth_fit: SmoothFit::Linear,
             smooth_weight: SmoothWeight::Image,
             smooth_robust_deg: 5.0,
+            smooth_guide_power: 0.25,
             min_response: 1e-5,
             min_contrast: 1e-3,
         }
@@ -155,6 +161,10 @@ impl OrientParams {
             if !(v.is_finite() && (0.0..=64.0).contains(&v)) {
                 return bad(format!("{name} must be in 0..=64, got {v}"));
             }
+        }
+        let gp = self.smooth_guide_power;
+        if !(gp.is_finite() && (0.0..=2.0).contains(&gp)) {
+            return bad(format!("--smooth-guide-power must be in 0..=2, got {gp}"));
         }
         if self.dog_sigma_coarse > 0.0 && self.dog_sigma_fine <= 0.0 {
             return bad("--dog-fine must be positive when --dog-coarse is".into());
@@ -369,7 +379,8 @@ fn record_tile(
 }
 
 /// Records the local linear fit of the double-angle field (dx, dy) in Gaussian windows of
-/// `p.smooth_sigma`, with its robust second round when `p.smooth_robust_deg` > 0, and
+/// `p.smooth_sigma`, with its robust second round when `p.smooth_robust_deg` > 0 (the first
+/// round, its guide, then weighs by the weights to `p.smooth_guide_power`), and
 /// returns (theta, confidence) as [`record_tile`].
 fn record_fit(
     rec: &mut Recording,
@@ -395,14 +406,18 @@ fn record_fit(
         ..Default::default()
     };
     let fu = rec.uniform("coif.fit.cfg", &fcfg);
-    let rounds: &[Option<f32>] = if p.smooth_robust_deg > 0.0 {
-        &[None, Some(p.smooth_robust_deg.to_radians())]
+    // (robust δ, weight power) per round.
+    let rounds: &[(Option<f32>, f32)] = if p.smooth_robust_deg > 0.0 {
+        &[
+            (None, p.smooth_guide_power),
+            (Some(p.smooth_robust_deg.to_radians()), 1.0),
+        ]
     } else {
-        &[None]
+        &[(None, 1.0)]
     };
     let mut guide = None;
     let mut out = (dx, dx);
-    for &delta in rounds {
+    for &(delta, power) in rounds {
         let mcfg = orient_moments::Config {
             width: w,
             height: h,
@@ -410,6 +425,7 @@ fn record_fit(
             seg_len,
             robust: delta.is_some() as u32,
             delta: delta.unwrap_or(0.0),
+            power,
             ..Default::default()
         };
         let mu = rec.uniform("coif.fit.moments.cfg", &mcfg);

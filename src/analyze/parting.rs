@@ -30,6 +30,11 @@
 //! hysteresis; mean over the 36 cases 99.02 → 99.65 → 99.85%, whorl and short within 0.03
 //! points of the step off. A single threshold of 0.4 or 0.5 instead of the hysteresis gives
 //! the side parts the same but costs whorls up to 0.35 points, 0.3 costs one 1.2.
+//! A curve that crosses a line where it fades (past its outermost cuts, within
+//! [`LINE_END_MARGIN`], with no cut near the crossing) is cut at the crossing as well
+//! ([`crossing_cuts`]): since the orientation runs on through partings (its robust guide,
+//! 2026-12-04) the bench's side part photo seed 1 went 99.36 → 97.66% without it and is
+//! 99.19% with it; the 36 cases' mean 99.73 → 99.80%, worst 97.66 → 98.84%.
 //! Tried and not kept: turning the pieces at a cluster of cuts to point away from it (it
 //! turned whole patches of short and whorl hair at chance cuts, and ten curves in the
 //! middle of the astronaut's curls); the lines turn nothing, they only withhold votes. On the real portraits of the tests (the astronaut, Grace Hopper, three
@@ -268,13 +273,16 @@ pub fn cut_at_partings(curves: &[Curve], img: &PartingImage, p: &PartingParams) 
     let mut k = 0;
     for (c, cs) in curves.iter().zip(&candidates) {
         let pts = &c.points;
-        let mut start = 0usize;
+        let mut at: Vec<usize> = Vec::new();
         for &(i, r) in cs {
-            let cut = r >= p.threshold || on_line[k];
-            k += 1;
-            if !cut {
-                continue;
+            if r >= p.threshold || on_line[k] {
+                at.push(i);
             }
+            k += 1;
+        }
+        crossing_cuts(pts, &parted.lines, &mut at);
+        let mut start = 0usize;
+        for i in at {
             parted.pieces.push(Curve {
                 points: pts[start..=i].to_vec(),
             });
@@ -287,6 +295,51 @@ pub fn cut_at_partings(curves: &[Curve], img: &PartingImage, p: &PartingParams) 
     }
     parted.pieces.retain(|c| c.points.len() >= 2);
     parted
+}
+
+/// Adds to `at` (sorted vertex indices of `pts` already cut) a cut where the polyline crosses
+/// one of `lines` beside it (within its cuts' extent plus [`LINE_END_MARGIN`]) with no cut
+/// within [`PEAK_GAP`] of the crossing: a line's own cuts are peaks of the ratio, and where
+/// the line fades (near the hairline, in a soft texture) a curve can cross it with no peak
+/// above the line threshold, then carry one direction to both sides. Cut at the vertex
+/// nearer the line; never at the two end vertices on each side, as for the peaks.
+fn crossing_cuts(pts: &[[f32; 2]], lines: &[PartingLine], at: &mut Vec<usize>) {
+    let m = pts.len();
+    if m < 5 || lines.is_empty() {
+        return;
+    }
+    let mut arc = vec![0.0f32; m];
+    for i in 1..m {
+        arc[i] = arc[i - 1] + (pts[i][0] - pts[i - 1][0]).hypot(pts[i][1] - pts[i - 1][1]);
+    }
+    for l in lines {
+        let n = [-l.along[1], l.along[0]];
+        let uv = |q: [f32; 2]| {
+            let d = [q[0] - l.centre[0], q[1] - l.centre[1]];
+            (
+                d[0] * l.along[0] + d[1] * l.along[1],
+                d[0] * n[0] + d[1] * n[1],
+            )
+        };
+        for j in 0..m - 1 {
+            let ((ua, va), (ub, vb)) = (uv(pts[j]), uv(pts[j + 1]));
+            if (va > 0.0) == (vb > 0.0) {
+                continue;
+            }
+            // Where the segment meets the line, along it.
+            let t = va / (va - vb);
+            let u = ua + t * (ub - ua);
+            if u < l.extent[0] - LINE_END_MARGIN || u > l.extent[1] + LINE_END_MARGIN {
+                continue;
+            }
+            let i = if va.abs() <= vb.abs() { j } else { j + 1 };
+            if i < 2 || i >= m - 2 || at.iter().any(|&c| (arc[c] - arc[i]).abs() <= PEAK_GAP) {
+                continue;
+            }
+            let pos = at.partition_point(|&c| c < i);
+            at.insert(pos, i);
+        }
+    }
 }
 
 /// Cuts closer than this to one another join one line, px.
@@ -565,6 +618,38 @@ mod tests {
         assert_eq!(l.side(&h(10.0, 90.0, 30.0), 70.0), 0);
         assert_eq!(l.side(&h(10.0, 48.0, 75.0), 70.0), 0);
         assert_eq!(l.side(&h(0.0, 10.0, 30.0), 30.0), 0);
+    }
+
+    #[test]
+    fn a_curve_crossing_a_line_where_it_fades_is_cut_there() {
+        // A vertical part at x = 50 whose cuts run from y = 10 to 50.
+        let lines = parting_lines(&[[50.0, 10.0], [50.0, 30.0], [50.0, 50.0], [50.0, 20.0]]);
+        let h =
+            |y: f32| -> Vec<[f32; 2]> { (0..=40).map(|k| [10.0 + 2.0 * k as f32, y]).collect() };
+        // Within the margin past the last cut: cut at the vertex on the line (x = 50).
+        let mut at = Vec::new();
+        crossing_cuts(&h(55.0), &lines, &mut at);
+        assert_eq!(at, vec![20]);
+        // Already cut near the crossing (a peak 4 px off): no second cut.
+        let mut at = vec![18];
+        crossing_cuts(&h(30.0), &lines, &mut at);
+        assert_eq!(at, vec![18]);
+        // A cut elsewhere on the curve stays, and the crossing joins it in order.
+        let mut at = vec![35];
+        crossing_cuts(&h(30.0), &lines, &mut at);
+        assert_eq!(at, vec![20, 35]);
+        // Beyond the margin, or a curve that stays on one side: no cut.
+        for (pts, what) in [
+            (h(50.0 + LINE_END_MARGIN + 1.0), "beyond the margin"),
+            (
+                (0..=15).map(|k| [10.0 + 2.0 * k as f32, 30.0]).collect(),
+                "one side",
+            ),
+        ] {
+            let mut at = Vec::new();
+            crossing_cuts(&pts, &lines, &mut at);
+            assert!(at.is_empty(), "{what}: {at:?}");
+        }
     }
 
     #[test]

@@ -26,7 +26,7 @@ pub const PAD: usize = 4;
 /// Planes written: Σ g w, Σ g u w, Σ g u² w, Σ g dx, Σ g u dx, Σ g dy, Σ g u dy.
 pub const PLANES: usize = 7;
 
-#[derive(Clone, Copy, Debug, Default, encase::ShaderType)]
+#[derive(Clone, Copy, Debug, encase::ShaderType)]
 pub struct Config {
     pub width: u32,
     pub height: u32,
@@ -36,13 +36,38 @@ pub struct Config {
     pub robust: u32,
     /// Radians of θ.
     pub delta: f32,
-    pub _pad0: u32,
+    /// Each sample's weight w is first raised to this power (its vector scaled by w^(power-1)):
+    /// 1 leaves it, below 1 flattens the weights so a few very strong lines lose their say.
+    pub power: f32,
     pub _pad1: u32,
 }
 
-/// A sample's double-angle vector after the robust reweighting (unchanged when off).
+impl Default for Config {
+    /// Zero sizes, not robust, weights as given (power 1).
+    fn default() -> Self {
+        Config {
+            width: 0,
+            height: 0,
+            radius: 0,
+            seg_len: 0,
+            robust: 0,
+            delta: 0.0,
+            power: 1.0,
+            _pad1: 0,
+        }
+    }
+}
+
+/// A sample's double-angle vector after the weight's power and the robust reweighting
+/// (unchanged when both are off).
 fn reweight(cfg: &Config, vx: f32, vy: f32, guide: f32) -> (f32, f32) {
-    let w = (vx * vx + vy * vy).sqrt();
+    let mut w = (vx * vx + vy * vy).sqrt();
+    let (mut vx, mut vy) = (vx, vy);
+    if cfg.power != 1.0 && w > 0.0 {
+        let k = w.powf(cfg.power - 1.0);
+        (vx, vy) = (vx * k, vy * k);
+        w = (vx * vx + vy * vy).sqrt();
+    }
     if cfg.robust != 1 || w <= 0.0 {
         return (vx, vy);
     }

@@ -277,6 +277,18 @@ fn bad_parameter_is_a_usage_error() {
         "30",
     ]);
     fails(&o, 64, &["--orientations 30"]);
+    let o = coif(&[
+        "orient",
+        "--image",
+        &c.s("img.png"),
+        "--out",
+        &c.s("out"),
+        "--backend",
+        "cpu",
+        "--smooth-guide-power",
+        "NaN",
+    ]);
+    fails(&o, 64, &["--smooth-guide-power must be in 0..=2, got NaN"]);
 }
 
 #[test]

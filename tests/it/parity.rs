@@ -179,9 +179,15 @@ fn fit_inputs(w: u32, h: u32) -> (Vec<f32>, Vec<f32>) {
 #[test]
 fn orient_moments_matches_cpu() {
     for &(w, h) in PARITY_SIZES {
-        // Plain, and robust against a guide θ (acos and the trigonometry in another
-        // library: 1e-4).
-        for (sigma, robust, tol) in [(1.0f32, 0u32, 1e-5f32), (4.0, 0, 1e-5), (4.0, 1, 1e-4)] {
+        // Plain, robust against a guide θ (acos and the trigonometry in another library:
+        // 1e-4), and with the weights flattened by a power (pow in another library: 1e-4).
+        for (sigma, robust, power, tol) in [
+            (1.0f32, 0u32, 1.0f32, 1e-5f32),
+            (4.0, 0, 1.0, 1e-5),
+            (4.0, 1, 1.0, 1e-4),
+            (4.0, 0, 0.25, 1e-4),
+            (4.0, 1, 0.25, 1e-4),
+        ] {
             let (dx, dy) = fit_inputs(w, h);
             let guide: Vec<f32> = common::texture(w, h, 23)
                 .data
@@ -197,6 +203,7 @@ fn orient_moments_matches_cpu() {
                     seg_len,
                     robust,
                     delta: 5f32.to_radians(),
+                    power,
                     ..Default::default()
                 };
                 let u = rec.uniform("cfg", &cfg);
@@ -214,7 +221,8 @@ fn orient_moments_matches_cpu() {
                 );
                 vec![out]
             });
-            let name = format!("orient_moments {w}x{h} sigma {sigma} robust {robust}");
+            let name =
+                format!("orient_moments {w}x{h} sigma {sigma} robust {robust} power {power}");
             assert_no_sentinel(&name, &g[0]).unwrap();
             compare_f32(&name, &g[0], &c[0], Tolerance::new(tol, tol)).unwrap();
         }

@@ -320,7 +320,7 @@ fn uniform_structs_match_wgsl() {
             seg_len: 4,
             robust: 5,
             delta: f(6),
-            _pad0: 7,
+            power: f(7),
             _pad1: 8,
         }),
         8,

@@ -563,6 +563,11 @@ pub struct OrientOpts {
     /// from the first round's fit keeps half its weight); 0: one round.
     #[arg(long, default_value_t = OrientParams::default().smooth_robust_deg)]
     smooth_robust: f32,
+    /// Power of each orientation's weight in the robust fit's first round, its guide (below
+    /// 1 a lone high-contrast line such as a parting cannot carry the guide); 1: the same
+    /// weight as the second round.
+    #[arg(long, default_value_t = OrientParams::default().smooth_guide_power)]
+    smooth_guide_power: f32,
 }
 
 impl OrientOpts {
@@ -580,6 +585,7 @@ impl OrientOpts {
         p.smooth_fit = self.smooth_fit;
         p.smooth_weight = self.smooth_weight;
         p.smooth_robust_deg = self.smooth_robust;
+        p.smooth_guide_power = self.smooth_guide_power;
         p
     }
 }
