@@ -265,30 +265,27 @@ fn gpu_backend_without_adapter_exits_69() {
 #[test]
 fn bad_parameter_is_a_usage_error() {
     let c = Case::new();
-    let o = coif(&[
-        "orient",
-        "--image",
-        &c.s("img.png"),
-        "--out",
-        &c.s("out"),
-        "--backend",
-        "cpu",
-        "--orientations",
-        "30",
-    ]);
-    fails(&o, 64, &["--orientations 30"]);
-    let o = coif(&[
-        "orient",
-        "--image",
-        &c.s("img.png"),
-        "--out",
-        &c.s("out"),
-        "--backend",
-        "cpu",
-        "--smooth-guide-power",
-        "NaN",
-    ]);
-    fails(&o, 64, &["--smooth-guide-power must be in 0..=2, got NaN"]);
+    for (flag, value, msg) in [
+        ("--orientations", "30", "--orientations 30"),
+        (
+            "--smooth-guide-power",
+            "NaN",
+            "--smooth-guide-power must be in 0..=2, got NaN",
+        ),
+    ] {
+        let o = coif(&[
+            "orient",
+            "--image",
+            &c.s("img.png"),
+            "--out",
+            &c.s("out"),
+            "--backend",
+            "cpu",
+            flag,
+            value,
+        ]);
+        fails(&o, 64, &[msg]);
+    }
 }
 
 #[test]
