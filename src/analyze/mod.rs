@@ -8,6 +8,7 @@ pub mod parting;
 pub mod recut;
 pub mod resolve;
 pub mod segment;
+pub mod singular;
 pub mod trace;
 mod write;
 

@@ -35,6 +35,10 @@ pub struct OrientParams {
     /// cannot carry the guide, so the second round can tell it from the hair. Unused with
     /// one round.
     pub smooth_guide_power: f32,
+    /// Radius (px) within which a whorl's spiral model replaces the smoothed field (blended
+    /// out to twice it; see [`crate::analyze::singular`]); 0: no model. Used only with
+    /// smoothing.
+    pub singular_radius: f32,
     /// Responses at or below this are treated as no texture (confidence 0). Input gray
     /// values are in [0, 1].
     pub min_response: f32,
@@ -113,6 +117,7 @@ impl Default for OrientParams {
             smooth_weight: SmoothWeight::Image,
             smooth_robust_deg: 5.0,
             smooth_guide_power: 0.25,
+            singular_radius: 8.0,
             min_response: 1e-5,
             min_contrast: 1e-3,
         }
@@ -157,6 +162,7 @@ impl OrientParams {
             ("--dog-coarse", self.dog_sigma_coarse),
             ("--smooth", self.smooth_sigma),
             ("--smooth-robust", self.smooth_robust_deg),
+            ("--singular-radius", self.singular_radius),
         ] {
             if !(v.is_finite() && (0.0..=64.0).contains(&v)) {
                 return bad(format!("{name} must be in 0..=64, got {v}"));
@@ -616,6 +622,20 @@ pub fn orient(
                 out.confidence[d] = conf[s];
             }
         }
+    }
+    // On the whole image, after the tiles: a whorl may straddle two.
+    if p.smooth_sigma > 0.0 && p.singular_radius > 0.0 {
+        let whorls = crate::analyze::singular::find(&out, p.singular_radius);
+        for wh in &whorls {
+            log::debug!(
+                "orientation: whorl at ({:.1}, {:.1}), twist {:.1}°, ring residual {:.1}°",
+                wh.centre[0],
+                wh.centre[1],
+                wh.twist.to_degrees(),
+                wh.residual_deg
+            );
+        }
+        crate::analyze::singular::apply(&mut out, &whorls, p.singular_radius);
     }
     Ok(out)
 }

@@ -63,6 +63,8 @@ pub struct OrientOpts {
     pub smooth_robust: Option<f32>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub smooth_guide_power: Option<f32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub singular_radius: Option<f32>,
 }
 
 /// Options of `analyze`.
@@ -525,6 +527,7 @@ fn orient_params(o: &OrientOpts) -> crate::analyze::orient::OrientParams {
     set(&mut p.smooth_weight, o.smooth_weight);
     set(&mut p.smooth_robust_deg, o.smooth_robust);
     set(&mut p.smooth_guide_power, o.smooth_guide_power);
+    set(&mut p.singular_radius, o.singular_radius);
     p
 }
 

@@ -1,5 +1,6 @@
 //! Orientation accuracy against the exact ground truth of `coif synth`: every style, seeds
-//! 1-3, both backends. Acceptance: mean error <= 2° over hair pixels >= 5 px inside the mask.
+//! 1-3, both backends. Acceptance: mean error <= 1° over hair pixels >= 5 px inside the mask
+//! (issue 19's goal; the whorl's seed 3 was 1.11° until its centre got a model of its own).
 
 use crate::common;
 
@@ -10,6 +11,7 @@ use coif::synth::{synth, Style, SynthParams};
 
 #[test]
 fn orientation_error_on_synthetic_portraits() {
+    const LIMIT: f64 = 1.0;
     let engines = [("cpu", Engine::cpu()), ("gpu", common::gpu())];
     let p = OrientParams::default();
     let mut worst = 0.0f64;
@@ -40,11 +42,11 @@ fn orientation_error_on_synthetic_portraits() {
             }
         }
     }
-    println!("worst mean orientation error: {worst:.3} deg (limit 2)");
+    println!("worst mean orientation error: {worst:.3} deg (limit {LIMIT})");
     let bad: Vec<_> = report
         .iter()
-        .filter(|(_, e)| *e > 2.0)
+        .filter(|(_, e)| *e > LIMIT)
         .map(|(l, _)| l.clone())
         .collect();
-    assert!(bad.is_empty(), "over 2 degrees:\n{}", bad.join("\n"));
+    assert!(bad.is_empty(), "over {LIMIT} degrees:\n{}", bad.join("\n"));
 }

@@ -272,6 +272,11 @@ fn bad_parameter_is_a_usage_error() {
             "NaN",
             "--smooth-guide-power must be in 0..=2, got NaN",
         ),
+        (
+            "--singular-radius",
+            "100",
+            "--singular-radius must be in 0..=64, got 100",
+        ),
     ] {
         let o = coif(&[
             "orient",

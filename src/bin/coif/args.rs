@@ -568,6 +568,10 @@ pub struct OrientOpts {
     /// weight as the second round.
     #[arg(long, default_value_t = OrientParams::default().smooth_guide_power)]
     smooth_guide_power: f32,
+    /// Radius (px) within which a whorl (a point the hair turns once around) takes a fitted
+    /// spiral instead of the smoothed field, blended out to twice it; 0: no model.
+    #[arg(long, default_value_t = OrientParams::default().singular_radius)]
+    singular_radius: f32,
 }
 
 impl OrientOpts {
@@ -586,6 +590,7 @@ impl OrientOpts {
         p.smooth_weight = self.smooth_weight;
         p.smooth_robust_deg = self.smooth_robust;
         p.smooth_guide_power = self.smooth_guide_power;
+        p.singular_radius = self.singular_radius;
         p
     }
 }
