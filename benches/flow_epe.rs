@@ -52,6 +52,7 @@ fn orientation(e: &Engine, png: &Path, cache: Option<&Path>, op: &OrientParams) 
                 height: (shape[0] / 2) as u32,
                 theta: v[..n / 2].to_vec(),
                 confidence: v[n / 2..].to_vec(),
+                whorls: Vec::new(),
             };
         }
     }

@@ -261,6 +261,8 @@ pub struct OrientMap {
     pub height: u32,
     pub theta: Vec<f32>,
     pub confidence: Vec<f32>,
+    /// The whorls whose spiral model the field carries ([`crate::analyze::singular`]).
+    pub whorls: Vec<crate::analyze::singular::Whorl>,
 }
 
 fn blur(
@@ -573,6 +575,7 @@ pub fn orient(
         height: h,
         theta: vec![f32::NAN; (w * h) as usize],
         confidence: vec![0.0; (w * h) as usize],
+        whorls: Vec::new(),
     };
     let tiles: Vec<(u32, u32)> = (0..h.div_ceil(th))
         .flat_map(|ty| (0..w.div_ceil(tw)).map(move |tx| (tx * tw, ty * th)))
@@ -636,6 +639,7 @@ pub fn orient(
             );
         }
         crate::analyze::singular::apply(&mut out, &whorls, p.singular_radius);
+        out.whorls = whorls;
     }
     Ok(out)
 }

@@ -263,6 +263,7 @@ mod tests {
             height: n,
             theta,
             confidence: vec![1.0; (n * n) as usize],
+            whorls: Vec::new(),
         }
     }
 

@@ -95,6 +95,13 @@ pub fn write_orient(out: &Path, image: &Path, r: &OrientRun) -> Result<()> {
         "params": r.params,
         "seconds": r.seconds,
         "orientation": "radians in [0, pi), x right, y down; NaN off the mask",
+        // Where the field carries a whorl's spiral (`singular`): θ = φ + twist about the
+        // centre (px, pixel centres at +0.5).
+        "whorls": r.map.whorls.iter().map(|w| json!({
+            "centre": w.centre,
+            "twist_deg": w.twist.to_degrees(),
+            "ring_residual_deg": w.residual_deg,
+        })).collect::<Vec<_>>(),
     });
     write_json(&out.join("orient.json"), &meta)
 }

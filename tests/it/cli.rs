@@ -897,3 +897,45 @@ fn analyze_takes_strokes_drawn_in_svg() {
     // The hair cap is about 4-8% of the photo; the face and backdrop must not be in it.
     assert!((8_000..25_000).contains(&hair), "{hair} hair px");
 }
+
+#[test]
+fn orient_reports_the_whorl_it_modelled() {
+    let c = Case::new();
+    let case = c.s("whorl");
+    let o = coif(&["synth", "--out", &case, "--style", "whorl", "--seed", "3"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j = |f: &str| c.p("whorl").join(f).display().to_string();
+    for (radius, expect) in [("8", 1), ("0", 0)] {
+        let out = c.s(&format!("o{radius}"));
+        let o = coif(&[
+            "orient",
+            "--image",
+            &j("image.png"),
+            "--mask",
+            &j("mask.png"),
+            "--backend",
+            "cpu",
+            "--singular-radius",
+            radius,
+            "--out",
+            &out,
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let meta: serde_json::Value = serde_json::from_slice(
+            &std::fs::read(c.p(&format!("o{radius}")).join("orient.json")).unwrap(),
+        )
+        .unwrap();
+        let whorls = meta["whorls"].as_array().expect("orient.json lists whorls");
+        assert_eq!(whorls.len(), expect, "radius {radius}: {whorls:?}");
+        for w in whorls {
+            let centre = w["centre"].as_array().unwrap();
+            let x = centre[0].as_f64().unwrap();
+            let y = centre[1].as_f64().unwrap();
+            assert!(
+                (0.0..512.0).contains(&x) && (0.0..512.0).contains(&y),
+                "{w}"
+            );
+            assert!(w["ring_residual_deg"].as_f64().unwrap() < 8.0, "{w}");
+        }
+    }
+}
