@@ -7,7 +7,20 @@ use crate::common;
 use coif::analyze::orient::{orient, GrayImage, OrientParams};
 use coif::eval::metrics::orientation_error;
 use coif::gpu::engine::Engine;
-use coif::synth::{synth, Style, SynthParams};
+use coif::synth::{synth, Style, SynthCase, SynthParams};
+
+/// A `coif synth` case at 512², its gray image and its mask as `orient` takes it.
+fn case_512(style: Style, seed: u64) -> (SynthCase, GrayImage, Vec<u8>) {
+    let case = synth(&SynthParams {
+        style,
+        seed,
+        width: 512,
+        height: 512,
+    });
+    let gray = GrayImage::from_rgb(&case.image);
+    let mask = case.mask.pixels().map(|m| (m[0] > 127) as u8).collect();
+    (case, gray, mask)
+}
 
 #[test]
 fn orientation_error_on_synthetic_portraits() {
@@ -18,14 +31,7 @@ fn orientation_error_on_synthetic_portraits() {
     let mut report = Vec::new();
     for style in Style::ALL {
         for seed in 1..=3 {
-            let case = synth(&SynthParams {
-                style,
-                seed,
-                width: 512,
-                height: 512,
-            });
-            let gray = GrayImage::from_rgb(&case.image);
-            let mask: Vec<u8> = case.mask.pixels().map(|m| (m[0] > 127) as u8).collect();
+            let (case, gray, mask) = case_512(style, seed);
             for (name, e) in &engines {
                 let map = orient(e, &gray, Some(&mask), &p).unwrap();
                 let err = orientation_error(&map, &case.gt_theta, &case.mask, 5);
@@ -62,14 +68,7 @@ fn whorl_model_mends_the_centre_and_nothing_else() {
         ..with
     };
     for (style, seed) in [(Style::Whorl, 3), (Style::Long, 1)] {
-        let case = synth(&SynthParams {
-            style,
-            seed,
-            width: 512,
-            height: 512,
-        });
-        let gray = GrayImage::from_rgb(&case.image);
-        let mask: Vec<u8> = case.mask.pixels().map(|m| (m[0] > 127) as u8).collect();
+        let (case, gray, mask) = case_512(style, seed);
         let a = orient(&e, &gray, Some(&mask), &without).unwrap();
         let b = orient(&e, &gray, Some(&mask), &with).unwrap();
         let ea = orientation_error(&a, &case.gt_theta, &case.mask, 5).mean_deg;
