@@ -17,6 +17,8 @@
 //! and branchy (clustering, iterations that may stop early), a few ms at 512².
 
 use crate::analyze::orient::OrientMap;
+use crate::eval::metrics::orient_diff;
+use crate::stages::orient_resolve::resolve_theta;
 use rayon::prelude::*;
 use std::f32::consts::PI;
 
@@ -138,9 +140,14 @@ fn fit(m: &OrientMap, c0: [f32; 2], r: f32) -> Option<Whorl> {
         if total == 0 || (px.len() as f32) < MIN_RING_COVER * total as f32 {
             return None;
         }
+        // Each ring pixel's polar angle about this round's centre.
+        let phi: Vec<f32> = px
+            .iter()
+            .map(|&[x, y, ..]| (y - c[1]).atan2(x - c[0]))
+            .collect();
         let (mut sx, mut sy, mut sw) = (0.0f64, 0.0f64, 0.0f64);
-        for &[x, y, t, w] in &px {
-            let a2 = 2.0 * (t - (y - c[1]).atan2(x - c[0]));
+        for (&[_, _, t, w], &phi) in px.iter().zip(&phi) {
+            let a2 = 2.0 * (t - phi);
             sx += (w * a2.cos()) as f64;
             sy += (w * a2.sin()) as f64;
             sw += w as f64;
@@ -152,7 +159,7 @@ fn fit(m: &OrientMap, c0: [f32; 2], r: f32) -> Option<Whorl> {
         // Normal n of each radial line: n·c = n·p.
         let (mut a11, mut a12, mut a22, mut b1, mut b2, mut res) =
             (0.0f64, 0.0, 0.0, 0.0, 0.0, 0.0);
-        for &[x, y, t, w] in &px {
+        for (&[x, y, t, w], &phi) in px.iter().zip(&phi) {
             let (s, co) = (t - twist).sin_cos();
             let (nx, ny, w) = (s as f64, -co as f64, w as f64);
             let np = nx * x as f64 + ny * y as f64;
@@ -161,8 +168,7 @@ fn fit(m: &OrientMap, c0: [f32; 2], r: f32) -> Option<Whorl> {
             a22 += w * ny * ny;
             b1 += w * nx * np;
             b2 += w * ny * np;
-            let phi = (y - c[1]).atan2(x - c[0]);
-            res += w * (0.5 * wrap(2.0 * (t - phi - twist)).abs()) as f64;
+            res += w * orient_diff(t, phi + twist) as f64;
         }
         whorl = Some(Whorl {
             centre: c,
@@ -240,7 +246,7 @@ pub fn apply(m: &mut OrientMap, whorls: &[Whorl], r: f32) {
                 let model = (py - cy).atan2(px - cx) + wh.twist;
                 let vx = s * (2.0 * model).cos() + (1.0 - s) * (2.0 * t).cos();
                 let vy = s * (2.0 * model).sin() + (1.0 - s) * (2.0 * t).sin();
-                m.theta[i] = (0.5 * vy.atan2(vx)).rem_euclid(PI);
+                m.theta[i] = resolve_theta(vx, vy);
             }
         }
     }
