@@ -7,7 +7,8 @@
 //! git-ignored tests/data/real/fetched/. Each `<name>_mask.json` holds the crop and the
 //! hand-drawn hair polygons; `<name>_strokes.json` the user strokes in crop coordinates.
 //! Set COIF_SEGMENT_OUT=DIR to write an overlay per portrait (green: both, red: missed hair,
-//! blue: taken background).
+//! blue: taken background) and, for other tools, the crop, the reference and the result
+//! (`real_<name>_photo.png`, `_reference.png`, `_got.png`; masks 255 = hair).
 //!
 //! The goal (IoU >= 0.92 on at least three portraits) is not reached yet: each
 //! portrait's figure is printed against it. What is asserted is what the strand-texture,
@@ -204,7 +205,19 @@ fn masks_from_strokes_match_hand_drawn_masks_on_real_portraits() {
         sum_no_flow += iou_f;
         first.get_or_insert((name, iou, iou_c));
         if let Some(d) = std::env::var_os("COIF_SEGMENT_OUT") {
-            overlay(&r, &got, &Path::new(&d).join(format!("real_{name}.png")));
+            let d = Path::new(&d);
+            overlay(&r, &got, &d.join(format!("real_{name}.png")));
+            // The crop, the reference and the result as files, for looking at in other tools.
+            r.image
+                .save(d.join(format!("real_{name}_photo.png")))
+                .unwrap();
+            got.save(d.join(format!("real_{name}_got.png"))).unwrap();
+            let reference = GrayImage::from_fn(w, h, |x, y| {
+                image::Luma([255 * r.mask[(y * w + x) as usize] as u8])
+            });
+            reference
+                .save(d.join(format!("real_{name}_reference.png")))
+                .unwrap();
         }
     }
     let n = PORTRAITS.len() as f64;
