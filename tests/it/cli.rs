@@ -60,6 +60,12 @@ impl Case {
     fn s(&self, name: &str) -> String {
         self.p(name).display().to_string()
     }
+    /// `coif synth --out <dir> <args>`, which must succeed.
+    fn synth(&self, dir: &str, args: &[&str]) {
+        let out = self.s(dir);
+        let o = coif(&[&["synth", "--out", &out], args].concat());
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
 }
 
 #[test]
@@ -403,9 +409,7 @@ fn demo_runs_on_the_cpu_backend() {
 #[test]
 fn model_export_import_round_trip_and_bad_landmarks() {
     let c = Case::new();
-    let case = c.s("case");
-    let o = coif(&["synth", "--out", &case, "--style", "short", "--size", "256"]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    c.synth("case", &["--style", "short", "--size", "256"]);
     let j = |f: &str| c.p("case").join(f).display().to_string();
     let model = c.s("model");
     let base = [
@@ -684,18 +688,10 @@ fn convert_round_trips_a_strand_file() {
 }
 
 fn synth_case(c: &Case) {
-    let o = coif(&[
-        "synth",
-        "--out",
-        &c.s("case"),
-        "--style",
-        "sidepart",
-        "--seed",
-        "1",
-        "--size",
-        "160",
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    c.synth(
+        "case",
+        &["--style", "sidepart", "--seed", "1", "--size", "160"],
+    );
 }
 
 #[test]
@@ -901,9 +897,7 @@ fn analyze_takes_strokes_drawn_in_svg() {
 #[test]
 fn orient_reports_the_whorl_it_modelled() {
     let c = Case::new();
-    let case = c.s("whorl");
-    let o = coif(&["synth", "--out", &case, "--style", "whorl", "--seed", "3"]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    c.synth("whorl", &["--style", "whorl", "--seed", "3"]);
     let j = |f: &str| c.p("whorl").join(f).display().to_string();
     for (radius, expect) in [("8", 1), ("0", 0)] {
         let out = c.s(&format!("o{radius}"));
