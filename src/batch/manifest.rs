@@ -143,6 +143,8 @@ pub struct SketchOpts {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub directions: Option<String>,
     #[serde(skip_serializing_if = "Option::is_none")]
+    pub crown: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub sweeps: Option<usize>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub bases: Option<usize>,
@@ -344,6 +346,10 @@ fn check(e: &Entry) -> Result<(), String> {
         d.parse::<crate::sketch::swc::Method>()
             .map_err(|err| format!("key `sketch.directions`: {err}"))?;
     }
+    if let Some(c) = e.sketch.as_ref().and_then(|o| o.crown.as_ref()) {
+        c.parse::<crate::sketch::swc::Crown>()
+            .map_err(|err| format!("key `sketch.crown`: {err}"))?;
+    }
     Ok(())
 }
 
@@ -471,6 +477,9 @@ impl BatchJob {
                     params.max_bytes = o.max_bytes;
                     if let Some(d) = &o.directions {
                         params.method = d.parse().expect("checked");
+                    }
+                    if let Some(c) = &o.crown {
+                        params.swc.prior.crown = c.parse().expect("checked");
                     }
                     set(&mut params.swc.sweeps, o.sweeps);
                     set(&mut params.bases, o.bases);
@@ -623,6 +632,10 @@ mod tests {
             (
                 r#"{"id": "a", "image": "a.png", "out": "o", "steps": ["sketch"], "sketch": {"whole": true, "directions": "best"}}"#.into(),
                 "line 1: key `sketch.directions`",
+            ),
+            (
+                r#"{"id": "a", "image": "a.png", "out": "o", "steps": ["sketch"], "sketch": {"whole": true, "crown": "top"}}"#.into(),
+                "line 1: key `sketch.crown`",
             ),
             (
                 r#"{"id": "", "image": "a.png", "out": "o", "steps": ["orient"]}"#.into(),

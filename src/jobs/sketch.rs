@@ -115,6 +115,7 @@ pub(super) fn run_sketch(engine: &Engine, j: &SketchJob) -> anyhow::Result<Repor
         "backend": engine.describe(),
         "hair_pixels": hair.iter().filter(|&&m| m).count(),
         "method": j.params.method.name(),
+        "crown": j.params.swc.prior.crown.name(),
         "seed": j.params.seed,
     });
     record_all(&r.seconds);

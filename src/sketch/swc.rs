@@ -97,10 +97,46 @@ impl FromStr for Method {
     }
 }
 
+/// Where across the hair [`DirPrior`]'s crown sits.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Crown {
+    /// Over the parting Step 1's Θ shows at the top of the hair, or the mask's centroid
+    /// where it shows none ([`DirPrior::parting_x`]).
+    Parting,
+    /// Over the mask's centroid: CZ06's generic prior, which leaves a side parting to the
+    /// sketch (a dividing line) and to the curves' compatibility.
+    Centroid,
+}
+
+impl Crown {
+    pub const ALL: [Crown; 2] = [Crown::Parting, Crown::Centroid];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Crown::Parting => "parting",
+            Crown::Centroid => "centroid",
+        }
+    }
+}
+
+impl FromStr for Crown {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Crown> {
+        Crown::ALL
+            .into_iter()
+            .find(|c| c.name() == s)
+            .ok_or_else(|| {
+                Error::Invalid(format!(
+                    "unknown crown \"{s}\" (expected one of parting, centroid)"
+                ))
+            })
+    }
+}
+
 /// p_dir of Eq. 5-6 without hand sketches to learn it from: a von Mises density of the
 /// growth direction around μ(p) = norm((p − c)/|p − c| + gravity·ŷ), outward from a crown c
-/// = (the parting's x, or the mask centroid's, mask top + crown_depth · mask height) and
-/// bent down.
+/// = (the parting's x, or the mask centroid's: [`Crown`]; mask top + crown_depth · mask
+/// height) and bent down.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DirPrior {
     /// Concentration κ; −log p_dir = κ(1 − cos(τ − μ)) per sketch pixel, up to a constant.
@@ -109,6 +145,8 @@ pub struct DirPrior {
     pub gravity: f32,
     /// The crown's depth below the top of the mask, as a fraction of the mask's height.
     pub crown_depth: f32,
+    /// Where across the hair the crown sits.
+    pub crown: Crown,
 }
 
 impl Default for DirPrior {
@@ -117,14 +155,16 @@ impl Default for DirPrior {
             kappa: 1.0,
             gravity: 0.5,
             crown_depth: 0.15,
+            crown: Crown::Parting,
         }
     }
 }
 
 impl DirPrior {
     /// The crown c of the mask, None when the mask is empty: at `crown_depth` of the mask's
-    /// height below its top, and across at the parting that Θ shows there (see
-    /// [`parting_x`](Self::parting_x)), or at the mask's centroid where Θ shows none.
+    /// height below its top, and across (with [`Crown::Parting`]) at the parting that Θ
+    /// shows there (see [`parting_x`](Self::parting_x)), or at the mask's centroid where Θ
+    /// shows none or with [`Crown::Centroid`].
     pub fn crown(&self, hair: &[bool], theta: &[f32], w: u32, h: u32) -> Option<[f32; 2]> {
         let (mut sx, mut n) = (0f64, 0usize);
         let (mut top, mut bottom) = (u32::MAX, 0u32);
@@ -142,7 +182,11 @@ impl DirPrior {
             let height = (bottom - top + 1) as f32;
             let depth = self.crown_depth * height;
             let band = top..(top + depth.ceil().max(1.0) as u32).min(h);
-            let x = Self::parting_x(hair, theta, w, band).unwrap_or((sx / n as f64) as f32);
+            let centroid = (sx / n as f64) as f32;
+            let x = match self.crown {
+                Crown::Parting => Self::parting_x(hair, theta, w, band).unwrap_or(centroid),
+                Crown::Centroid => centroid,
+            };
             [x, top as f32 + depth]
         })
     }

@@ -131,6 +131,22 @@ fn synthetic_cases_sketch_fill_and_directions() {
         );
         let agree_prior =
             dir_agreement(&filled_dirs(&r, dp.curves.clone(), &hair), &c.gt_dir, &hair);
+        // The ablation again under CZ06's generic prior (crown over the mask's centroid),
+        // where the parting is left to the sketch: printed, see `sketch_swc::generic_prior_…`
+        // for what a dividing line down the parting gives.
+        let generic = swc::SwcParams {
+            prior: swc::DirPrior {
+                crown: swc::Crown::Centroid,
+                ..swc::DirPrior::default()
+            },
+            ..SketchParams::default().swc
+        };
+        let g = |m| {
+            let d = swc::directions(&r.undirected, &r.theta, &hair, 512, 512, &[], &generic, m)
+                .unwrap();
+            dir_agreement(&filled_dirs(&r, d.curves, &hair), &c.gt_dir, &hair)
+        };
+        let (gen_sw, gen_prior) = (g(swc::Method::Swc), g(swc::Method::Prior));
         println!(
             "{:<9} {:>6} {:>6} {:>6} {:>7.2}° {:>6.1}% {:>6.1}% {:>6.1}% {:>9.1} {:>9.1} {:>9.1}",
             style.name(),
@@ -144,6 +160,13 @@ fn synthetic_cases_sketch_fill_and_directions() {
             ds.energy,
             di.energy,
             dp.energy
+        );
+        println!(
+            "{:<9} crown over the centroid: dir SW {:.1}%, prior-only {:.1}% ({:+.1} points)",
+            style.name(),
+            100.0 * gen_sw,
+            100.0 * gen_prior,
+            100.0 * (gen_sw - gen_prior)
         );
         rows.push((
             style,
@@ -475,6 +498,22 @@ fn bad_inputs_are_refused_with_the_file_named() {
             &os(&out),
         ],
         "uniform",
+    );
+    // A crown the prior does not know.
+    fails_with(
+        &[
+            "sketch".as_ref(),
+            "--backend".as_ref(),
+            "cpu".as_ref(),
+            "--image".as_ref(),
+            &os(&img),
+            "--whole".as_ref(),
+            "--crown".as_ref(),
+            "top".as_ref(),
+            "--out".as_ref(),
+            &os(&out),
+        ],
+        "unknown crown \"top\"",
     );
     // No hair region at all.
     fails_with(

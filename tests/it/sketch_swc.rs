@@ -12,7 +12,7 @@ use coif::base::rng::Rng;
 use coif::sketch::prim::paint;
 use coif::sketch::swc::{
     build_graph, directions, enumerate_marginals, ground_state, stroke_clamps, Bond, Bonds, Clamp,
-    Coupling, Method, PairModel, Sampler, SideVar, SwcParams,
+    Coupling, Crown, DirPrior, Method, PairModel, Sampler, SideVar, SwcParams,
 };
 use coif::sketch::{Curve, Kind, Primitive, AXIS_QUANTUM, AXIS_STEPS, STEP};
 use coif::synth::{mask_interior, synth, Style, SynthCase, SynthParams};
@@ -1021,4 +1021,74 @@ fn directions_on_synthetic_cases() {
             share(name, "swc") - share(name, "prior")
         );
     }
+}
+
+/// Issue 16's ablation under CZ06's generic prior (the crown over the mask's centroid, not
+/// over the parting): on the side part the prior alone sends the hair between the parting
+/// and the centroid the wrong way; a dividing line down the parting (fixed outward) and the
+/// curves' compatibility bring it back, so Swendsen-Wang beats prior-only by the issue's
+/// 5 points there, and without the dividing line it cannot (nothing tells it the parting).
+/// Curve pixels over seeds 1-3, the oracle sketches of `directions_on_synthetic_cases`.
+#[test]
+fn generic_prior_leaves_the_parting_to_the_dividing_line() {
+    let p = SwcParams {
+        prior: DirPrior {
+            crown: Crown::Centroid,
+            ..DirPrior::default()
+        },
+        ..SwcParams::default()
+    };
+    // (sketch, method) -> Σ agreeing curve px, Σ curve px.
+    let mut sums: std::collections::BTreeMap<(&str, &str), [f64; 2]> = Default::default();
+    for seed in 1..=3u64 {
+        let case = synth(&SynthParams {
+            width: 256,
+            height: 256,
+            ..SynthParams::new(Style::SidePart, seed)
+        });
+        let (w, h) = (case.width, case.height);
+        let hair: Vec<bool> = case.mask.as_raw().iter().map(|&v| v > 127).collect();
+        let n = (w * h) as usize;
+        let (div, walls) = part_line(&case).expect("the side part has a parting");
+        let mut with_part = vec![div];
+        with_part.extend(trace_streams(&case, 12, 8, &walls, seed));
+        let sketches = [
+            (
+                "streams<=8",
+                trace_streams(&case, 12, 8, &vec![false; n], seed),
+            ),
+            ("streams<=8+part", with_part),
+        ];
+        for (name, curves) in &sketches {
+            for m in [Method::Swc, Method::Prior] {
+                let d = directions(curves, &case.gt_theta, &hair, w, h, &[], &p, m).unwrap();
+                let (a, cn) = curve_agreement(&d.curves, &case, &hair);
+                let e = sums.entry((name, m.name())).or_default();
+                e[0] += a * cn as f64;
+                e[1] += cn as f64;
+            }
+        }
+    }
+    let share = |name: &str, m: &str| {
+        let v = sums[&(name, m)];
+        100.0 * v[0] / v[1]
+    };
+    for name in ["streams<=8", "streams<=8+part"] {
+        println!(
+            "sidepart, crown over the centroid, {name}: SW {:.1}%, prior-only {:.1}%: {:+.1} points",
+            share(name, "swc"),
+            share(name, "prior"),
+            share(name, "swc") - share(name, "prior")
+        );
+    }
+    let gain = share("streams<=8+part", "swc") - share("streams<=8+part", "prior");
+    assert!(
+        gain >= 5.0,
+        "SW over prior-only with the dividing line: {gain:+.1} points"
+    );
+    assert!(
+        share("streams<=8+part", "swc") >= 95.0,
+        "SW with the dividing line: {:.1}%",
+        share("streams<=8+part", "swc")
+    );
 }

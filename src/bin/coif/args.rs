@@ -201,6 +201,11 @@ pub struct SketchArgs {
     /// curve by the direction prior alone; the ablation baselines).
     #[arg(long, default_value = "swc")]
     directions: String,
+    /// Where the direction prior's crown sits across the hair: parting (over the parting
+    /// the orientation field shows, else the mask's centroid) or centroid (CZ06's generic
+    /// prior: a side parting is left to the sketch and the curves' compatibility).
+    #[arg(long, default_value = "parting")]
+    crown: String,
     /// Swendsen-Wang proposals.
     #[arg(long, default_value_t = coif::sketch::swc::SwcParams::default().sweeps)]
     sweeps: usize,
@@ -720,6 +725,7 @@ impl Command {
                 params.pursuit.rate_contrast = a.rate_contrast;
                 params.max_bytes = a.max_bytes.map(|b| b as usize);
                 params.method = a.directions.parse()?;
+                params.swc.prior.crown = a.crown.parse()?;
                 params.swc.sweeps = a.sweeps;
                 params.bases = a.bases;
                 params.sigma_l = a.sigma_low;
