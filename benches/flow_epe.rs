@@ -14,7 +14,7 @@
 use coif::analyze::orient::{orient, GrayImage, OrientMap, OrientParams};
 use coif::gpu::engine::Engine;
 use coif::io::npy::{read_f32, write_f32};
-use coif::video::flow::{feature_orient_params, flow, orient_features, FlowParams};
+use coif::video::flow::{feature_orient_params, flow, orient_features, FlowFeatures, FlowParams};
 use std::path::{Path, PathBuf};
 
 fn env<T: std::str::FromStr>(name: &str) -> Option<T> {
@@ -38,6 +38,7 @@ fn params() -> FlowParams {
     over!(eps_data, "EPS_DATA");
     over!(eps_smooth, "EPS_SMOOTH");
     over!(omega, "OMEGA");
+    over!(fine_warps, "FINE_WARPS");
     p
 }
 
@@ -120,8 +121,8 @@ fn main() {
     let pow: Option<f32> = env("COIF_EPE_POW");
     let sat: Option<f32> = env("COIF_EPE_SAT");
     let feats = |o: &OrientMap| match (pow, sat) {
-        (Some(k), _) => pow_features(o, k, false),
-        (_, Some(k)) => pow_features(o, k, true),
+        (Some(k), _) => FlowFeatures::same(pow_features(o, k, false)),
+        (_, Some(k)) => FlowFeatures::same(pow_features(o, k, true)),
         _ => orient_features(o),
     };
     println!("{p:?}");

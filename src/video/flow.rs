@@ -1,7 +1,7 @@
 //! Dense flow V_i between consecutive frames, matched on their orientation fields (C13 §3:
 //! "computed by matching the orientation fields", not the colours).
 //!
-//! **Features.** Each frame's [`OrientMap`] becomes a 2-channel image
+//! **FlowFeatures.** Each frame's [`OrientMap`] becomes a 2-channel image
 //! `w · (cos 2θ, sin 2θ)` ([`orient_features`]): the double angle makes θ and θ + π the same
 //! point, and the weight `w` (the confidence, normalised) makes pixels without a reliable
 //! orientation contribute nothing to the data term.
@@ -15,7 +15,9 @@
 //! * per warp, [`FlowParams::iters`] red-black SOR sweeps (`flow_solve`, two dispatches
 //!   each) of a robust energy: Charbonnier data term on the 2-channel residual plus α times
 //!   a Charbonnier (TV-like, per link) smoothness, non-linearity lagged per sweep (IRLS);
-//! * the flow doubled onto the next finer level (`flow_up`).
+//! * the flow doubled onto the next finer level (`flow_up`);
+//! * at the finest level, the last warping step matched on the strand texture alone
+//!   ([`FlowFeatures`] says why).
 //!
 //! Measured on those pairs and on the synthetic clips of `coif synth-video`
 //! (`benches/flow_epe.rs`, 256², EPE on hair): the features are described and measured at
@@ -63,6 +65,9 @@ pub struct FlowParams {
     pub eps_smooth: f32,
     /// SOR over-relaxation factor in (0, 2).
     pub omega: f32,
+    /// Warping steps of the finest level, its last ones, that match the texture features
+    /// ([`FlowFeatures::fine`]) rather than the mixed ones; at most `warps`.
+    pub fine_warps: u32,
 }
 
 impl Default for FlowParams {
@@ -76,6 +81,7 @@ impl Default for FlowParams {
             eps_data: 0.05,
             eps_smooth: 0.1,
             omega: 1.8,
+            fine_warps: 1,
         }
     }
 }
@@ -91,6 +97,12 @@ impl FlowParams {
         }
         if self.warps == 0 || self.warps > 64 {
             return bad(format!("flow warps {} must be in 1..=64", self.warps));
+        }
+        if self.fine_warps > self.warps {
+            return bad(format!(
+                "flow fine_warps {} is more than its warps {}",
+                self.fine_warps, self.warps
+            ));
         }
         if self.iters > 10_000 {
             return bad(format!("flow iters {} is over 10000", self.iters));
@@ -156,12 +168,13 @@ pub fn feature_orient_params() -> OrientParams {
     }
 }
 
-/// The matched feature image of one frame: `w · (cos 2θ, sin 2θ)` per pixel, `[0, 0]` where
-/// θ is NaN or the confidence c is not positive, with
+/// The matched features of one frame ([`FlowFeatures`]), each image `w · (cos 2θ, sin 2θ)` per
+/// pixel, `[0, 0]` where θ is NaN or the confidence c is not positive, with
 /// `w = (1 − m) · min(c / c_med, 1) + m · r / (r + K)`, `r = c / mean_R(c)`:
 /// c_med the [`FEATURE_QUANTILE`] quantile of the positive confidences, mean_R the box mean
 /// of radius R = [`FEATURE_TEXTURE_RADIUS`] (c counted 0 where θ is NaN),
-/// K = [`FEATURE_TEXTURE_KNEE`], m = [`FEATURE_TEXTURE_MIX`].
+/// K = [`FEATURE_TEXTURE_KNEE`], m = [`FEATURE_TEXTURE_MIX`] for the coarse levels and
+/// [`FEATURE_FINE_MIX`] for the finest.
 ///
 /// Why two terms. θ is smooth across the hair, so the clamped term alone (the earlier
 /// feature) is nearly flat over half the pixels and matches sub-pixel motion poorly; the
@@ -175,7 +188,51 @@ pub fn feature_orient_params() -> OrientParams {
 /// default orientation parameters) 0.27/0.15/0.18 px at its best α (1 to 3); texture only
 /// (m = 1, α = 0.3) 0.23/0.10/0.13 but 1.5 px on the 3° turn; the mix at α = 0.5
 /// 0.25/0.13/0.16 and 0.38 px on the 3° turn.
-pub fn orient_features(o: &OrientMap) -> Vec<[f32; 2]> {
+pub fn orient_features(o: &OrientMap) -> FlowFeatures {
+    FlowFeatures {
+        coarse: orient_features_mix(o, FEATURE_TEXTURE_MIX),
+        fine: orient_features_mix(o, FEATURE_FINE_MIX),
+    }
+}
+
+/// The matched features of one frame, both `w · (cos 2θ, sin 2θ)` as [`orient_features`]
+/// describes: the pyramid is built from `coarse` (texture share [`FEATURE_TEXTURE_MIX`]),
+/// and the finest level's last [`FlowParams::fine_warps`] warping steps match `fine`
+/// (share [`FEATURE_FINE_MIX`]).
+///
+/// Why two. The smooth θ term guides the coarse levels to large motions, which the
+/// strand texture alone loses; but once the motion left is a fraction of a pixel, the θ
+/// term is what holds the flow back: a field of parallel strands barely changes its θ when
+/// it moves, so it pulls the estimate toward zero (on the 21-frame whorl clips the mixed
+/// features carried 0.44-0.47 of the true motion, along and across the strands alike).
+/// Measured with `benches/flow_epe.rs` (`coif synth-video --frames 21`, 256², seeds 1 and
+/// 2, EPE on hair, α 0.5), the mix at every step → the texture in the last of the finest
+/// level's 3 steps: whorl 0.116 / 0.110 → 0.099 / 0.085 px, long 0.241 / 0.229 → 0.227 /
+/// 0.218, side part 0.170 / 0.190 → 0.148 / 0.172. In all 3 steps the clips gain more
+/// (0.093 / 0.080, 0.219 / 0.213, 0.127 / 0.164) but the 3° turn of
+/// `tests/it/video_flow.rs` (5 px a frame) loses: 0.38 → 0.72 px (2 of 3 steps: 0.59; the
+/// last step only: 0.47).
+#[derive(Clone, Debug, PartialEq)]
+pub struct FlowFeatures {
+    pub coarse: Vec<[f32; 2]>,
+    pub fine: Vec<[f32; 2]>,
+}
+
+impl FlowFeatures {
+    /// The same image at every level (tests and synthetic features).
+    pub fn same(v: Vec<[f32; 2]>) -> FlowFeatures {
+        FlowFeatures {
+            coarse: v.clone(),
+            fine: v,
+        }
+    }
+}
+
+/// Texture share of the finest level's features ([`FlowFeatures::fine`]): the texture alone.
+pub const FEATURE_FINE_MIX: f32 = 1.0;
+
+/// [`orient_features`]' image with texture share `mix` (m in its formula).
+pub fn orient_features_mix(o: &OrientMap, mix: f32) -> Vec<[f32; 2]> {
     let valid = |t: f32, c: f32| t.is_finite() && c.is_finite() && c > 0.0;
     let mut conf: Vec<f32> = o
         .theta
@@ -208,8 +265,7 @@ pub fn orient_features(o: &OrientMap) -> Vec<[f32; 2]> {
         .map(|((&t, &c), &m)| {
             if c > 0.0 && m > 0.0 {
                 let r = c / m;
-                let w = (1.0 - FEATURE_TEXTURE_MIX) * (c / scale).min(1.0)
-                    + FEATURE_TEXTURE_MIX * r / (r + FEATURE_TEXTURE_KNEE);
+                let w = (1.0 - mix) * (c / scale).min(1.0) + mix * r / (r + FEATURE_TEXTURE_KNEE);
                 [w * (2.0 * t).cos(), w * (2.0 * t).sin()]
             } else {
                 [0.0; 2]
@@ -243,16 +299,21 @@ fn box_mean(v: &[f32], width: usize, height: usize, r: usize) -> Vec<f32> {
 /// Records the whole coarse-to-fine flow and returns the full-size flow buffer.
 pub fn record_flow(
     rec: &mut Recording,
-    a: &[[f32; 2]],
-    b: &[[f32; 2]],
+    a: &FlowFeatures,
+    b: &FlowFeatures,
     width: u32,
     height: u32,
     p: &FlowParams,
 ) -> BufProxy {
     let sizes = p.pyramid(width, height);
     let px = |(w, h): (u32, u32)| w as u64 * h as u64;
-    let mut pa = vec![rec.upload("coif.flow.a", a)];
-    let mut pb = vec![rec.upload("coif.flow.b", b)];
+    let mut pa = vec![rec.upload("coif.flow.a", &a.coarse)];
+    let mut pb = vec![rec.upload("coif.flow.b", &b.coarse)];
+    // The finest level matches the texture features instead (see `FlowFeatures`).
+    let fine = (
+        rec.upload("coif.flow.a_fine", &a.fine),
+        rec.upload("coif.flow.b_fine", &b.fine),
+    );
     for l in 1..sizes.len() {
         let (w, h) = sizes[l - 1];
         let cfg = flow_down::Config::halving(w, h);
@@ -313,11 +374,17 @@ pub fn record_flow(
             ..Default::default()
         };
         let su = [0, 1].map(|c| rec.uniform("coif.flow.solve.cfg", &scfg(c)));
-        for _ in 0..p.warps {
+        for k in 0..p.warps {
+            // The finest level's last `fine_warps` steps match the texture features.
+            let (la, lb) = if l == 0 && k + p.fine_warps >= p.warps {
+                fine
+            } else {
+                (pa[l], pb[l])
+            };
             rec.dispatch(
                 &flow_warp::STAGE,
                 flow_warp::workgroups(&wcfg),
-                &[wu, pa[l], pb[l], flow, deriv],
+                &[wu, la, lb, flow, deriv],
                 &[],
             );
             for _ in 0..p.iters {
@@ -336,12 +403,12 @@ pub fn record_flow(
 }
 
 /// Flow from frame a to frame b on a's pixels, `a(q) ≈ b(q + V(q))`, in pixels (x right,
-/// y down), from their feature images ([`orient_features`]). Defined at every pixel: where
+/// y down), from their features ([`orient_features`]). Defined at every pixel: where
 /// neither frame has an orientation the smoothness term fills it in from around.
 pub fn flow(
     engine: &Engine,
-    a: &[[f32; 2]],
-    b: &[[f32; 2]],
+    a: &FlowFeatures,
+    b: &FlowFeatures,
     width: u32,
     height: u32,
     p: &FlowParams,
@@ -353,7 +420,13 @@ pub fn flow(
         ));
     }
     let n = width as usize * height as usize;
-    for (name, img) in [("a", a), ("b", b)] {
+    let images = [
+        ("a", &a.coarse),
+        ("a (fine)", &a.fine),
+        ("b", &b.coarse),
+        ("b (fine)", &b.fine),
+    ];
+    for (name, img) in images {
         if img.len() != n {
             return Err(Error::Invalid(format!(
                 "flow: frame {name} has {} feature pixels, {width}x{height} needs {n}",
@@ -370,4 +443,47 @@ pub fn flow(
     let out = record_flow(&mut rec, a, b, width, height, p);
     rec.download(out);
     Ok(engine.run(rec)?.get::<[f32; 2]>(out))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Parameters out of range are refused with the field named; the defaults pass.
+    #[test]
+    fn bad_parameters_are_refused() {
+        assert!(FlowParams::default().validate().is_ok());
+        let bad = [
+            FlowParams {
+                fine_warps: 4,
+                ..FlowParams::default()
+            },
+            FlowParams {
+                warps: 0,
+                ..FlowParams::default()
+            },
+            FlowParams {
+                alpha: f32::NAN,
+                ..FlowParams::default()
+            },
+        ];
+        for (p, field) in bad.iter().zip(["fine_warps", "warps", "alpha"]) {
+            let e = p.validate().unwrap_err().to_string();
+            assert!(e.contains(field), "{p:?}: {e}");
+        }
+    }
+
+    /// A flow whose features are not the frame's size is refused before anything runs.
+    #[test]
+    fn features_of_the_wrong_size_are_refused() {
+        let ok = FlowFeatures::same(vec![[0.0; 2]; 12]);
+        let short = FlowFeatures {
+            coarse: vec![[0.0; 2]; 12],
+            fine: vec![[0.0; 2]; 11],
+        };
+        let e = flow(&Engine::cpu(), &ok, &short, 4, 3, &FlowParams::default())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("b (fine)"), "{e}");
+    }
 }

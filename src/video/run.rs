@@ -362,7 +362,7 @@ pub fn run(
     // State carried along the recursion: W*, the orientation features and the pose of the
     // frame it comes from.
     let mut carry: BTreeMap<usize, (Vec<[f32; 2]>, FramePose)> = BTreeMap::new();
-    let mut feat_cache: BTreeMap<usize, Vec<[f32; 2]>> = BTreeMap::new();
+    let mut feat_cache: BTreeMap<usize, crate::video::flow::FlowFeatures> = BTreeMap::new();
     for (i, from) in order(n, inp.ann.reference) {
         let t = Instant::now();
         if done.contains(&i) {
@@ -384,7 +384,7 @@ pub fn run(
             bar.inc(1);
             continue;
         }
-        let mut feat = |k: usize| -> Result<Vec<[f32; 2]>> {
+        let mut feat = |k: usize| -> Result<crate::video::flow::FlowFeatures> {
             if let Some(f) = feat_cache.get(&k) {
                 return Ok(f.clone());
             }

@@ -15,7 +15,7 @@ use crate::hair::strands::StrandSet;
 use crate::io::annot::Landmarks;
 use crate::video::diffuse::{spread, DiffuseParams, Guide};
 use crate::video::features::{detect, track, KltParams, Tracks, UserPoints};
-use crate::video::flow::{orient_features, FlowParams};
+use crate::video::flow::{orient_features, FlowFeatures, FlowParams};
 use crate::video::head::{back_project, fit_features, FramePose, HeadFitParams, PoseSource};
 use crate::video::warp::{compose, warp_strands, PAPER_ALPHA};
 use glam::{Vec2, Vec3};
@@ -82,13 +82,13 @@ pub fn order(frames: usize, r: usize) -> Vec<(usize, Option<usize>)> {
     o
 }
 
-/// The matched feature image of every frame: orientation on the whole frame (hair moves out
-/// of the reference mask), w·(cos 2θ, sin 2θ).
+/// The matched features of every frame: orientation on the whole frame (hair moves out of
+/// the reference mask), w·(cos 2θ, sin 2θ) ([`orient_features`]).
 pub fn orientation_features(
     engine: &Engine,
     gray: &GrayImage,
     p: &OrientParams,
-) -> Result<Vec<[f32; 2]>> {
+) -> Result<FlowFeatures> {
     Ok(orient_features(&orient(engine, gray, None, p)?))
 }
 

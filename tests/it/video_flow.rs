@@ -13,7 +13,7 @@ use crate::common;
 use coif::analyze::orient::{orient, GrayImage};
 use coif::gpu::engine::Engine;
 use coif::synth::{mask_interior, synth, Style, SynthParams};
-use coif::video::flow::{feature_orient_params, flow, orient_features, FlowParams};
+use coif::video::flow::{feature_orient_params, flow, orient_features, FlowFeatures, FlowParams};
 
 type Field = dyn Fn(f32, f32) -> [f32; 2];
 
@@ -67,8 +67,8 @@ fn warp_frame(a: &GrayImage, v: &Field) -> GrayImage {
 }
 
 struct Pair {
-    fa: Vec<[f32; 2]>,
-    fb: Vec<[f32; 2]>,
+    fa: FlowFeatures,
+    fb: FlowFeatures,
     /// True flow at a's pixels.
     truth: Vec<[f32; 2]>,
     /// Pixels where the error is measured.
@@ -421,14 +421,22 @@ fn flow_solve_matches_cpu() {
 #[test]
 fn flow_matches_cpu() {
     let (w, h) = (96, 80);
-    let a = features(w, h, 6);
-    // b(q + (2, 1)) = a(q): a shifted by whole pixels, edges clamped.
-    let b: Vec<[f32; 2]> = (0..w * h)
-        .map(|i| {
-            let (x, y) = ((i % w).saturating_sub(2), (i / w).saturating_sub(1));
-            a[(y * w + x) as usize]
-        })
-        .collect();
+    // b(q + (2, 1)) = a(q): a shifted by whole pixels, edges clamped; the finest level's
+    // features another image moved the same way.
+    let shift = |a: &[[f32; 2]]| -> Vec<[f32; 2]> {
+        (0..w * h)
+            .map(|i: u32| {
+                let (x, y) = ((i % w).saturating_sub(2), (i / w).saturating_sub(1));
+                a[(y * w + x) as usize]
+            })
+            .collect()
+    };
+    let (coarse, fine) = (features(w, h, 6), features(w, h, 7));
+    let b = FlowFeatures {
+        coarse: shift(&coarse),
+        fine: shift(&fine),
+    };
+    let a = FlowFeatures { coarse, fine };
     let p = FlowParams::default();
     let g = flow(&common::gpu(), &a, &b, w, h, &p).unwrap();
     let c = flow(&Engine::cpu(), &a, &b, w, h, &p).unwrap();
