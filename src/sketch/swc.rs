@@ -86,15 +86,19 @@ impl std::fmt::Display for Method {
 impl FromStr for Method {
     type Err = Error;
     fn from_str(s: &str) -> Result<Method> {
-        Method::ALL
-            .into_iter()
-            .find(|m| m.name() == s)
-            .ok_or_else(|| {
-                Error::Invalid(format!(
-                    "unknown direction method \"{s}\" (expected one of swc, icm, prior)"
-                ))
-            })
+        by_name(&Method::ALL, Method::name, "direction method", s)
     }
+}
+
+/// The one of `all` that `name` calls `s`, or an error naming `what` and the choices.
+fn by_name<T: Copy>(all: &[T], name: fn(T) -> &'static str, what: &str, s: &str) -> Result<T> {
+    all.iter().copied().find(|&v| name(v) == s).ok_or_else(|| {
+        let names: Vec<&str> = all.iter().map(|&v| name(v)).collect();
+        Error::Invalid(format!(
+            "unknown {what} \"{s}\" (expected one of {})",
+            names.join(", ")
+        ))
+    })
 }
 
 /// Where across the hair [`DirPrior`]'s crown sits.
@@ -122,14 +126,7 @@ impl Crown {
 impl FromStr for Crown {
     type Err = Error;
     fn from_str(s: &str) -> Result<Crown> {
-        Crown::ALL
-            .into_iter()
-            .find(|c| c.name() == s)
-            .ok_or_else(|| {
-                Error::Invalid(format!(
-                    "unknown crown \"{s}\" (expected one of parting, centroid)"
-                ))
-            })
+        by_name(&Crown::ALL, Crown::name, "crown", s)
     }
 }
 

@@ -499,22 +499,6 @@ fn bad_inputs_are_refused_with_the_file_named() {
         ],
         "uniform",
     );
-    // A crown the prior does not know.
-    fails_with(
-        &[
-            "sketch".as_ref(),
-            "--backend".as_ref(),
-            "cpu".as_ref(),
-            "--image".as_ref(),
-            &os(&img),
-            "--whole".as_ref(),
-            "--crown".as_ref(),
-            "top".as_ref(),
-            "--out".as_ref(),
-            &os(&out),
-        ],
-        "unknown crown \"top\"",
-    );
     // No hair region at all.
     fails_with(
         &[
@@ -526,11 +510,15 @@ fn bad_inputs_are_refused_with_the_file_named() {
         ],
         "--mask, --strokes or --whole",
     );
-    // Penalties that are no costs.
+    // Penalties that are no costs, a crown the prior does not know.
     for (flag, needle) in [
         ("--curve-penalty=-1", "curve penalty"),
         ("--primitive-penalty=-0.5", "primitive penalty"),
         ("--primitive-penalty=NaN", "primitive penalty"),
+        (
+            "--crown=top",
+            "unknown crown \"top\" (expected one of parting, centroid)",
+        ),
     ] {
         fails_with(
             &[
