@@ -1,7 +1,7 @@
 //! Dense flow V_i between consecutive frames, matched on their orientation fields (C13 §3:
 //! "computed by matching the orientation fields", not the colours).
 //!
-//! **FlowFeatures.** Each frame's [`OrientMap`] becomes a 2-channel image
+//! **Features.** Each frame's [`OrientMap`] becomes a 2-channel image
 //! `w · (cos 2θ, sin 2θ)` ([`orient_features`]): the double angle makes θ and θ + π the same
 //! point, and the weight `w` (the confidence, normalised) makes pixels without a reliable
 //! orientation contribute nothing to the data term.
@@ -189,10 +189,8 @@ pub fn feature_orient_params() -> OrientParams {
 /// (m = 1, α = 0.3) 0.23/0.10/0.13 but 1.5 px on the 3° turn; the mix at α = 0.5
 /// 0.25/0.13/0.16 and 0.38 px on the 3° turn.
 pub fn orient_features(o: &OrientMap) -> FlowFeatures {
-    FlowFeatures {
-        coarse: orient_features_mix(o, FEATURE_TEXTURE_MIX),
-        fine: orient_features_mix(o, FEATURE_FINE_MIX),
-    }
+    let [coarse, fine] = feature_images(o, [FEATURE_TEXTURE_MIX, FEATURE_FINE_MIX]);
+    FlowFeatures { coarse, fine }
 }
 
 /// The matched features of one frame, both `w · (cos 2θ, sin 2θ)` as [`orient_features`]
@@ -231,8 +229,10 @@ impl FlowFeatures {
 /// Texture share of the finest level's features ([`FlowFeatures::fine`]): the texture alone.
 pub const FEATURE_FINE_MIX: f32 = 1.0;
 
-/// [`orient_features`]' image with texture share `mix` (m in its formula).
-pub fn orient_features_mix(o: &OrientMap, mix: f32) -> Vec<[f32; 2]> {
+/// [`orient_features`]' images, one per texture share in `mixes` (m in its formula): the
+/// confidence quantile, the box mean and the double angle are worked out once for all.
+fn feature_images<const K: usize>(o: &OrientMap, mixes: [f32; K]) -> [Vec<[f32; 2]>; K] {
+    let n = o.theta.len();
     let valid = |t: f32, c: f32| t.is_finite() && c.is_finite() && c > 0.0;
     let mut conf: Vec<f32> = o
         .theta
@@ -242,7 +242,7 @@ pub fn orient_features_mix(o: &OrientMap, mix: f32) -> Vec<[f32; 2]> {
         .map(|(_, &c)| c)
         .collect();
     if conf.is_empty() {
-        return vec![[0.0; 2]; o.theta.len()];
+        return std::array::from_fn(|_| vec![[0.0; 2]; n]);
     }
     let k = ((conf.len() - 1) as f64 * FEATURE_QUANTILE).round() as usize;
     let (_, &mut scale, _) = conf.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
@@ -258,20 +258,22 @@ pub fn orient_features_mix(o: &OrientMap, mix: f32) -> Vec<[f32; 2]> {
         o.height as usize,
         FEATURE_TEXTURE_RADIUS,
     );
-    o.theta
-        .iter()
-        .zip(&c0)
-        .zip(&local)
-        .map(|((&t, &c), &m)| {
-            if c > 0.0 && m > 0.0 {
-                let r = c / m;
+    let mut out: [Vec<[f32; 2]>; K] = std::array::from_fn(|_| Vec::with_capacity(n));
+    for ((&t, &c), &m) in o.theta.iter().zip(&c0).zip(&local) {
+        if c > 0.0 && m > 0.0 {
+            let r = c / m;
+            let (cos, sin) = ((2.0 * t).cos(), (2.0 * t).sin());
+            for (img, &mix) in out.iter_mut().zip(&mixes) {
                 let w = (1.0 - mix) * (c / scale).min(1.0) + mix * r / (r + FEATURE_TEXTURE_KNEE);
-                [w * (2.0 * t).cos(), w * (2.0 * t).sin()]
-            } else {
-                [0.0; 2]
+                img.push([w * cos, w * sin]);
             }
-        })
-        .collect()
+        } else {
+            for img in &mut out {
+                img.push([0.0; 2]);
+            }
+        }
+    }
+    out
 }
 
 /// Mean of `v` (width × height, row-major) over the (2r+1)² box around each pixel, clipped

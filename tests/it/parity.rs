@@ -115,6 +115,21 @@ fn gabor_matches_cpu() {
     }
 }
 
+/// `wgsl/shared/orient_theta.wgsl` (θ from a double-angle vector) is an include, not a pass:
+/// its lavapipe parity is that of the two passes built on it, `orient_resolve` and
+/// `orient_fit` below, against their mirrors (which share `orient_resolve::resolve_theta`).
+/// This holds only while both passes still include it.
+#[test]
+fn orient_theta_is_compared_through_the_passes_that_include_it() {
+    for st in [&orient_resolve::STAGE, &orient_fit::STAGE] {
+        assert!(
+            st.wgsl.contains("#include \"shared/orient_theta.wgsl\""),
+            "{} no longer includes shared/orient_theta.wgsl: compare that file another way",
+            st.name
+        );
+    }
+}
+
 #[test]
 fn orient_resolve_matches_cpu() {
     for &(w, h) in PARITY_SIZES {
