@@ -339,6 +339,29 @@ fn scan_quad_best<const N: usize>(
     scan_quad(buf, quad, rows, cols, spans, shade)
 }
 
+/// Per 4-bit mask of a window's pixels with coverage, the lanes of those pixels in order
+/// then the rest (`_mm_permutevar_ps` indices): a compressing store of the fragment list.
+const COMPRESS4: [[i32; 4]; 16] = {
+    let mut t = [[0i32; 4]; 16];
+    let mut m = 0;
+    while m < 16 {
+        let (mut k, mut j) = (0, 0);
+        while j < 4 {
+            if m & (1 << j) != 0 {
+                t[m][k] = j as i32;
+                k += 1;
+            }
+            j += 1;
+        }
+        while k < 4 {
+            t[m][k] = 3;
+            k += 1;
+        }
+        m += 1;
+    }
+    t
+};
+
 /// Most fragments a narrow quad can list at 4x MSAA: 4 per 4-pixel window, at most
 /// ⌈65 / 4⌉ windows a row (a narrow quad spans at most 65 columns and 65 rows).
 const MAX_FRAGS: usize = 4 * 17 * 65;
@@ -396,6 +419,8 @@ unsafe fn scan_quad_avx2<const N: usize>(
     let z_far = _mm256_set1_ps(shade.z_near - DEPTH_ROUNDING);
     let mut frags = [MaybeUninit::<u32>::uninit(); MAX_FRAGS];
     let mut n = 0usize;
+    let (j4, nibble) = (_mm_set_epi32(3, 2, 1, 0), _mm_set_epi32(12, 8, 4, 0));
+    let low4 = _mm_set1_epi32(0xf);
     let mut row = quad.edges32(buf.x0 + cols.0, buf.y0 + rows.0);
     for ly in rows.0..=rows.1 {
         let (lx0, lx1) = spans.row(ly, cols);
@@ -438,12 +463,24 @@ unsafe fn scan_quad_avx2<const N: usize>(
             // Pixels past the span's end are not this row's (they may lie past the tile).
             let left = (lx1 - lx + 1).min(4) as u32;
             bits &= ((1u64 << (4 * left)) - 1) as u32;
-            for j in 0..4 {
-                let cov = (bits >> (4 * j)) & 0xf;
-                let f = (lx as u32 + j) | ((ly as u32) << 12) | (cov << 24);
-                frags[n] = MaybeUninit::new(f);
-                n += (cov != 0) as usize;
-            }
+            // The window's four fragments (pixel, row, coverage) side by side, those with
+            // coverage moved to the front by a permutation from a table and stored as one
+            // vector; the count advances by how many there were. (Four scalar appends cost
+            // about 50 instructions a window, a tenth of the render's.)
+            let at = _mm_add_epi32(_mm_set1_epi32((lx as u32 | ((ly as u32) << 12)) as i32), j4);
+            let cov = _mm_and_si128(_mm_srlv_epi32(_mm_set1_epi32(bits as i32), nibble), low4);
+            let f = _mm_or_si128(at, _mm_slli_epi32::<24>(cov));
+            // Which pixels have coverage, from `bits` in scalar code: the count feeds the
+            // next store's address, so it should not wait for the vector work.
+            let t = bits | (bits >> 1);
+            let t = (t | (t >> 2)) & 0x1111;
+            let some = _pext_u32(t, 0x1111) as usize;
+            let order = _mm_loadu_si128(COMPRESS4[some].as_ptr().cast());
+            let packed = _mm_permutevar_ps(_mm_castsi128_ps(f), order);
+            // SAFETY: n <= 4 x the windows before this one, so n + 4 <= MAX_FRAGS; the
+            // entries past the new count are written but not counted (overwritten later).
+            unsafe { _mm_storeu_ps(frags.as_mut_ptr().add(n).cast(), packed) };
+            n += t.count_ones() as usize;
             lx += 4;
         }
     }
