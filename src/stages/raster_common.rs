@@ -630,9 +630,6 @@ mod tests {
         );
     }
 
-    /// The depth bounds only skip what the per-sample test would reject: a primitive
-    /// nearer than one sample of a block is never hidden, and a block stays conservative
-    /// (never below its farthest sample) between refreshes.
     /// The SSE test of up to eight blocks a row agrees with the plain loops on random
     /// bounds and boxes of every width (wider ones take the plain loops themselves), NaN
     /// bounds and depths included; and the comparison can fail (a test with `<` instead of
@@ -693,6 +690,9 @@ mod tests {
         assert!(ties > 0, "no tie: the comparison could not tell < from <=");
     }
 
+    /// The depth bounds only skip what the per-sample test would reject: a primitive
+    /// nearer than one sample of a block is never hidden, and a block stays conservative
+    /// (never below its farthest sample) between refreshes.
     #[test]
     fn hidden_only_when_every_sample_is_nearer() {
         let mut b = TileBuf::<4>::default();
