@@ -262,9 +262,12 @@ fn feature_images<const K: usize>(o: &OrientMap, mixes: [f32; K]) -> [Vec<[f32; 
     for ((&t, &c), &m) in o.theta.iter().zip(&c0).zip(&local) {
         if c > 0.0 && m > 0.0 {
             let r = c / m;
+            // What every share has in common, once (the same values: only the shares'
+            // own products are left in the loop).
+            let (clamped, knee) = ((c / scale).min(1.0), r + FEATURE_TEXTURE_KNEE);
             let (cos, sin) = ((2.0 * t).cos(), (2.0 * t).sin());
             for (img, &mix) in out.iter_mut().zip(&mixes) {
-                let w = (1.0 - mix) * (c / scale).min(1.0) + mix * r / (r + FEATURE_TEXTURE_KNEE);
+                let w = (1.0 - mix) * clamped + mix * r / knee;
                 img.push([w * cos, w * sin]);
             }
         } else {
@@ -311,11 +314,14 @@ pub fn record_flow(
     let px = |(w, h): (u32, u32)| w as u64 * h as u64;
     let mut pa = vec![rec.upload("coif.flow.a", &a.coarse)];
     let mut pb = vec![rec.upload("coif.flow.b", &b.coarse)];
-    // The finest level matches the texture features instead (see `FlowFeatures`).
-    let fine = (
-        rec.upload("coif.flow.a_fine", &a.fine),
-        rec.upload("coif.flow.b_fine", &b.fine),
-    );
+    // The finest level's last steps match the texture features instead (see
+    // `FlowFeatures`); uploaded only when some step uses them.
+    let fine = (p.fine_warps > 0).then(|| {
+        (
+            rec.upload("coif.flow.a_fine", &a.fine),
+            rec.upload("coif.flow.b_fine", &b.fine),
+        )
+    });
     for l in 1..sizes.len() {
         let (w, h) = sizes[l - 1];
         let cfg = flow_down::Config::halving(w, h);
@@ -378,10 +384,9 @@ pub fn record_flow(
         let su = [0, 1].map(|c| rec.uniform("coif.flow.solve.cfg", &scfg(c)));
         for k in 0..p.warps {
             // The finest level's last `fine_warps` steps match the texture features.
-            let (la, lb) = if l == 0 && k + p.fine_warps >= p.warps {
-                fine
-            } else {
-                (pa[l], pb[l])
+            let (la, lb) = match fine {
+                Some(f) if l == 0 && k + p.fine_warps >= p.warps => f,
+                _ => (pa[l], pb[l]),
             };
             rec.dispatch(
                 &flow_warp::STAGE,

@@ -22,6 +22,7 @@ use crate::io::{ensure_dir, write_json, write_png};
 use crate::model::ModelParams;
 use crate::video::diffuse::Guide;
 use crate::video::features::{load_points, UserPoints};
+use crate::video::flow::FlowFeatures;
 use crate::video::frames::Clip;
 use crate::video::head::{pose_of, pose_rigid, world_camera, FramePose};
 use crate::video::track::{
@@ -362,7 +363,7 @@ pub fn run(
     // State carried along the recursion: W*, the orientation features and the pose of the
     // frame it comes from.
     let mut carry: BTreeMap<usize, (Vec<[f32; 2]>, FramePose)> = BTreeMap::new();
-    let mut feat_cache: BTreeMap<usize, crate::video::flow::FlowFeatures> = BTreeMap::new();
+    let mut feat_cache: BTreeMap<usize, FlowFeatures> = BTreeMap::new();
     for (i, from) in order(n, inp.ann.reference) {
         let t = Instant::now();
         if done.contains(&i) {
@@ -384,7 +385,7 @@ pub fn run(
             bar.inc(1);
             continue;
         }
-        let mut feat = |k: usize| -> Result<crate::video::flow::FlowFeatures> {
+        let mut feat = |k: usize| -> Result<FlowFeatures> {
             if let Some(f) = feat_cache.get(&k) {
                 return Ok(f.clone());
             }
