@@ -79,9 +79,29 @@ fn bin_tris(s: &Scene, tiles_x: u32, tiles_y: u32) -> Vec<Vec<u32>> {
     bins
 }
 
+/// One binning task's segments of one tile, and the range of their depths.
+#[derive(Clone)]
+struct Bin {
+    segs: Vec<SegCull>,
+    /// Least and greatest [`SegCull::z`] in `segs`, NaN left out (+inf and -inf when
+    /// there is none): worked out here, where each record is at hand, rather than in a
+    /// pass of its own before the tile orders its segments (a serial chain of `min`s that
+    /// was 2% of the render).
+    z: [f32; 2],
+}
+
+impl Default for Bin {
+    fn default() -> Bin {
+        Bin {
+            segs: Vec::new(),
+            z: [f32::INFINITY, f32::NEG_INFINITY],
+        }
+    }
+}
+
 /// Per binning task, per tile: the cull record of every segment whose quad may touch the
 /// tile, in input order, by [`seg_bounds`] of the raw end points.
-fn bin_segs(s: &Scene, tiles_x: u32, tiles_y: u32) -> Vec<Vec<Vec<SegCull>>> {
+fn bin_segs(s: &Scene, tiles_x: u32, tiles_y: u32) -> Vec<Vec<Bin>> {
     let Some(src) = &s.src else {
         return Vec::new();
     };
@@ -91,7 +111,7 @@ fn bin_segs(s: &Scene, tiles_x: u32, tiles_y: u32) -> Vec<Vec<Vec<SegCull>>> {
     (0..n_strands.div_ceil(BIN_STRANDS))
         .into_par_iter()
         .map(|task| {
-            let mut bins = vec![Vec::new(); (tiles_x * tiles_y) as usize];
+            let mut bins = vec![Bin::default(); (tiles_x * tiles_y) as usize];
             let pts = &src.s.points;
             for k in task * BIN_STRANDS..((task + 1) * BIN_STRANDS).min(n_strands) {
                 let (a, n) = (src.starts[k], src.s.counts[k] as usize);
@@ -107,7 +127,15 @@ fn bin_segs(s: &Scene, tiles_x: u32, tiles_y: u32) -> Vec<Vec<Vec<SegCull>>> {
                     let rec = src.cull(i as u32, k as u32, p, q, b);
                     for ty in r[1]..=r[3] {
                         for tx in r[0]..=r[2] {
-                            bins[(ty * tiles_x + tx) as usize].push(rec);
+                            let bin = &mut bins[(ty * tiles_x + tx) as usize];
+                            bin.segs.push(rec);
+                            // (Plain compares: a NaN depth changes neither.)
+                            if rec.z < bin.z[0] {
+                                bin.z[0] = rec.z;
+                            }
+                            if rec.z > bin.z[1] {
+                                bin.z[1] = rec.z;
+                            }
                         }
                     }
                 }
@@ -132,40 +160,59 @@ fn raster_n<const N: usize>(s: &Scene) -> Vec<[f32; 4]> {
         || bin_segs(s, tiles_x, tiles_y),
         || bin_tris(s, tiles_x, tiles_y),
     );
-    let tiles: Vec<Vec<[f32; 4]>> = (0..tiles_x * tiles_y)
-        .into_par_iter()
-        .map_init(
-            // Sample storage and the draw order reused across a worker's tiles (no page
-            // faults per tile).
-            || (TileBuf::<N>::default(), DrawOrder::default()),
-            |(buf, order), t| {
-                let i = t as usize;
-                let segs = seg_bins.iter().map(|b| b[i].as_slice());
-                let (tx, ty, tris) = (t % tiles_x, t / tiles_x, &tri_bins[i]);
-                #[cfg(target_arch = "x86_64")]
-                if avx2() {
-                    // SAFETY: the CPU has the features `tile_avx2` is compiled for.
-                    return unsafe { tile_avx2::<N>(s, buf, order, tx, ty, tris, segs) };
-                }
-                tile::<N>(s, buf, order, tx, ty, tris, segs)
-            },
-        )
-        .collect();
-    // Copied band by band of tile rows in parallel (serial, this copy was 5% of the bench).
     let mut img = vec![[0.0f32; 4]; w as usize * h as usize];
-    img.par_chunks_mut((w * TILE) as usize)
-        .zip(tiles.par_chunks(tiles_x as usize))
-        .for_each(|(band, row_tiles)| {
-            for (tx, px) in row_tiles.iter().enumerate() {
-                let x0 = tx * TILE as usize;
-                let tw = (TILE as usize).min(w as usize - x0);
-                for (ly, row) in px.chunks(tw).enumerate() {
-                    let o = ly * w as usize + x0;
-                    band[o..o + tw].copy_from_slice(row);
+    let out = ImageRows(img.as_mut_ptr());
+    (0..tiles_x * tiles_y).into_par_iter().for_each_init(
+        // Sample storage and the draw order reused across a worker's tiles (no page
+        // faults per tile).
+        || (TileBuf::<N>::default(), DrawOrder::default()),
+        |(buf, order), t| {
+            let i = t as usize;
+            let segs = seg_bins.iter().map(|b| &b[i]);
+            let (tx, ty, tris) = (t % tiles_x, t / tiles_x, &tri_bins[i]);
+            #[cfg(target_arch = "x86_64")]
+            let fast = avx2();
+            #[cfg(not(target_arch = "x86_64"))]
+            let fast = false;
+            if fast {
+                #[cfg(target_arch = "x86_64")]
+                // SAFETY: the CPU has the features `tile_avx2` is compiled for.
+                unsafe {
+                    tile_avx2::<N>(s, buf, order, tx, ty, tris, segs)
                 }
+            } else {
+                tile::<N>(s, buf, order, tx, ty, tris, segs);
             }
-        });
+            // Resolved straight into the image, row by row (resolving into a vector per
+            // tile and copying the tiles into the image was 2% of the render).
+            let (tw, th) = (buf.w as usize, buf.h as usize);
+            for ly in 0..th {
+                let at = (buf.y0 as usize + ly) * w as usize + buf.x0 as usize;
+                // SAFETY: the tiles partition the image, so this row of this tile is
+                // written by this worker alone, and it lies in `img` (the tile lies in
+                // the frame), which outlives the loop.
+                let row = unsafe { out.row(at, tw) };
+                resolve(&buf.color[ly * tw..(ly + 1) * tw], row);
+            }
+        },
+    );
     img
+}
+
+/// The image's pixels, written by the tile loop's workers each in its own tiles.
+struct ImageRows(*mut [f32; 4]);
+
+// SAFETY: the workers write disjoint pixels (see `raster_n`).
+unsafe impl Sync for ImageRows {}
+
+impl ImageRows {
+    /// Pixels `at..at + len` of the image.
+    /// SAFETY: they lie in the image, which is alive, and no one else touches them meanwhile.
+    #[allow(clippy::mut_from_ref)]
+    unsafe fn row(&self, at: usize, len: usize) -> &mut [[f32; 4]] {
+        // SAFETY: as the caller promises.
+        unsafe { std::slice::from_raw_parts_mut(self.0.add(at), len) }
+    }
 }
 
 /// How many segments ahead of the one drawn the tile loop prefetches.
@@ -189,17 +236,14 @@ impl DrawOrder {
     /// The segments of `segs` nearest first, by [`SegCull::z`] (depth-buffer units, smaller
     /// = nearer: the nearer end's depth less a margin, which orders the prepared segments
     /// well enough); any order gives the same image.
-    fn front_to_back<'b>(
-        &mut self,
-        segs: impl Iterator<Item = &'b [SegCull]> + Clone,
-    ) -> &[SegCull] {
+    fn front_to_back<'b>(&mut self, bins: impl Iterator<Item = &'b Bin> + Clone) -> &[SegCull] {
         let (mut lo, mut hi, mut n) = (f32::INFINITY, f32::NEG_INFINITY, 0);
-        for c in segs.clone().flatten() {
-            // (`min`/`max` pass over NaN.)
-            lo = lo.min(c.z);
-            hi = hi.max(c.z);
-            n += 1;
+        for b in bins.clone() {
+            lo = lo.min(b.z[0]);
+            hi = hi.max(b.z[1]);
+            n += b.segs.len();
         }
+        let segs = bins.map(|b| b.segs.as_slice());
         // Nearest (smallest z) in bucket 0; NaN depths (never skipped, rarely drawn) in the
         // last one (the truncation gives i32::MIN for NaN).
         let scale = if hi > lo {
@@ -249,8 +293,8 @@ unsafe fn tile_avx2<'b, const N: usize>(
     tx: u32,
     ty: u32,
     tris: &[u32],
-    segs: impl Iterator<Item = &'b [SegCull]> + Clone,
-) -> Vec<[f32; 4]> {
+    segs: impl Iterator<Item = &'b Bin> + Clone,
+) {
     tile::<N>(s, buf, order, tx, ty, tris, segs)
 }
 
@@ -262,8 +306,8 @@ fn tile<'b, const N: usize>(
     tx: u32,
     ty: u32,
     tris: &[u32],
-    segs: impl Iterator<Item = &'b [SegCull]> + Clone,
-) -> Vec<[f32; 4]> {
+    segs: impl Iterator<Item = &'b Bin> + Clone,
+) {
     let cfg = &s.cfg;
     let (x0, y0) = ((tx * TILE) as i32, (ty * TILE) as i32);
     let tw = (TILE as i32).min(cfg.width as i32 - x0);
@@ -309,32 +353,30 @@ fn tile<'b, const N: usize>(
             }
         }
     }
-    resolve(&buf.color)
 }
 
 /// The MSAA resolve: f16 samples (the target format), their f32 mean, an f16 result, as
 /// lavapipe does. On x86-64 with F16C the conversions are the hardware's, four channels at
 /// a time (the same values: see [`resolve_f16c`]).
-fn resolve<const N: usize>(color: &[[[f32; 4]; N]]) -> Vec<[f32; 4]> {
+fn resolve<const N: usize>(color: &[[[f32; 4]; N]], out: &mut [[f32; 4]]) {
     #[cfg(target_arch = "x86_64")]
     if f16c() {
         // SAFETY: the CPU has the features `resolve_f16c` is compiled for.
-        return unsafe { resolve_f16c(color) };
+        return unsafe { resolve_f16c(color, out) };
     }
-    resolve_plain(color)
+    resolve_plain(color, out)
 }
 
 /// [`resolve`] in plain Rust, through `f16_store`.
-fn resolve_plain<const N: usize>(color: &[[[f32; 4]; N]]) -> Vec<[f32; 4]> {
+fn resolve_plain<const N: usize>(color: &[[[f32; 4]; N]], out: &mut [[f32; 4]]) {
     let inv = 1.0 / N as f32;
-    let mut out = Vec::with_capacity(color.len());
-    for px in color {
+    for (px, o) in color.iter().zip(out) {
         // Every sample alike (no edge crosses the pixel; most pixels): the mean of N equal
         // f16 values is that value, exactly (N·v needs at most 2 more bits than v has, and
         // times 1/N is exact), so the sum is skipped. Bitwise equal, so -0 and +0 differ.
         let first = px[0].map(f32::to_bits);
         if px.iter().all(|c| c.map(f32::to_bits) == first) {
-            out.push(px[0].map(f16_store));
+            *o = px[0].map(f16_store);
             continue;
         }
         // From -0, the one zero that adding leaves alone: a sum of samples that are all -0
@@ -348,9 +390,8 @@ fn resolve_plain<const N: usize>(color: &[[[f32; 4]; N]]) -> Vec<[f32; 4]> {
         for v in &mut acc {
             *v = f16_store(*v * inv);
         }
-        out.push(acc);
+        *o = acc;
     }
-    out
 }
 
 /// Whether the F16C resolve can run here (checked once; `COIF_NO_AVX2=1` turns it off
@@ -369,7 +410,7 @@ fn f16c() -> bool {
 /// shortcut), the samples summed in the same order from the same -0.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,f16c")]
-unsafe fn resolve_f16c<const N: usize>(color: &[[[f32; 4]; N]]) -> Vec<[f32; 4]> {
+unsafe fn resolve_f16c<const N: usize>(color: &[[[f32; 4]; N]], out: &mut [[f32; 4]]) {
     use std::arch::x86_64::*;
     let (lo, hi) = (_mm_set1_ps(-65504.0), _mm_set1_ps(65504.0));
     let store = |v: __m128| {
@@ -379,24 +420,35 @@ unsafe fn resolve_f16c<const N: usize>(color: &[[[f32; 4]; N]]) -> Vec<[f32; 4]>
         _mm_blendv_ps(r, _mm_add_ps(v, v), _mm_cmpunord_ps(v, v))
     };
     let inv = _mm_set1_ps(1.0 / N as f32);
-    let mut out = Vec::with_capacity(color.len());
-    for px in color {
+    // (Both slices are a row of the tile; `zip` keeps to the shorter anyway.)
+    for (px, o) in color.iter().zip(out) {
         let mut acc = _mm_set1_ps(-0.0);
         for c in px {
             // SAFETY: `c` is 4 f32s; unaligned load.
             acc = _mm_add_ps(acc, store(unsafe { _mm_loadu_ps(c.as_ptr()) }));
         }
-        let mut r = [0.0f32; 4];
-        // SAFETY: `r` is 4 f32s; unaligned store.
-        unsafe { _mm_storeu_ps(r.as_mut_ptr(), store(_mm_mul_ps(acc, inv))) };
-        out.push(r);
+        // SAFETY: `o` is 4 f32s; unaligned store.
+        unsafe { _mm_storeu_ps(o.as_mut_ptr(), store(_mm_mul_ps(acc, inv))) };
     }
-    out
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn plain_vec<const N: usize>(px: &[[[f32; 4]; N]]) -> Vec<[f32; 4]> {
+        let mut out = vec![[0.0; 4]; px.len()];
+        resolve_plain(px, &mut out);
+        out
+    }
+
+    /// (Unsafe: needs F16C.)
+    unsafe fn f16c_vec<const N: usize>(px: &[[[f32; 4]; N]]) -> Vec<[f32; 4]> {
+        let mut out = vec![[0.0; 4]; px.len()];
+        // SAFETY: the caller checked the CPU.
+        unsafe { resolve_f16c(px, &mut out) };
+        out
+    }
 
     /// The F16C resolve gives the plain one's values to the bit, the awkward ones included:
     /// ±0, subnormal f16 and f32, values that truncate, overflow, infinities and NaN.
@@ -450,23 +502,20 @@ mod tests {
             v.into_iter().map(|p| p.map(f32::to_bits)).collect()
         };
         // SAFETY: `f16c()` said the CPU has the features.
-        let (fast4, fast1) = unsafe { (resolve_f16c(&px4), resolve_f16c(&px1)) };
+        let (fast4, fast1) = unsafe { (f16c_vec(&px4), f16c_vec(&px1)) };
         let first_diff = |a: Vec<[u32; 4]>, b: Vec<[u32; 4]>, px: &[[[f32; 4]; 4]]| {
             let i = a.iter().zip(&b).position(|(x, y)| x != y);
             i.map(|i| format!("pixel {i}: {:x?} vs {:x?} from {:?}", a[i], b[i], px[i]))
         };
         let px1_as4: Vec<[[f32; 4]; 4]> = px1.iter().map(|p| [p[0]; 4]).collect();
+        assert_eq!(first_diff(bits(fast4), bits(plain_vec(&px4)), &px4), None);
         assert_eq!(
-            first_diff(bits(fast4), bits(resolve_plain(&px4)), &px4),
-            None
-        );
-        assert_eq!(
-            first_diff(bits(fast1), bits(resolve_plain(&px1)), &px1_as4),
+            first_diff(bits(fast1), bits(plain_vec(&px1)), &px1_as4),
             None
         );
         // And the comparison can fail: a one-ulp change shows.
-        let mut off = resolve_plain(&px4);
+        let mut off = plain_vec(&px4);
         off[7][1] = f32::from_bits(off[7][1].to_bits() ^ 1);
-        assert_ne!(bits(off), bits(resolve_plain(&px4)));
+        assert_ne!(bits(off), bits(plain_vec(&px4)));
     }
 }

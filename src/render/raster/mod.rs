@@ -279,7 +279,7 @@ impl SegSource<'_> {
     #[inline(always)]
     fn cull(&self, i: u32, k: u32, a: [f32; 3], b: [f32; 3], bb: [f32; 4]) -> SegCull {
         let (za, zb) = (self.prep.depth.z(a[2]), self.prep.depth.z(b[2]));
-        let margin = (za - zb).abs() * 0.01 / (2.0 * self.prep.half).max(MIN_SEGMENT_PX);
+        let margin = (za - zb).abs() * self.prep.snap_slope;
         // 1e-6 more: a clipped end's lerped depth may round an ulp below min(za, zb).
         let z = za.min(zb) - margin - 1e-6;
         // The box widened by a pixel, floored, clamped to a range every frame fits in
@@ -599,6 +599,7 @@ impl<'a> Scene<'a> {
                 prep: SegPrep {
                     depth,
                     half: cfg.half_width,
+                    snap_slope: 0.01 / (2.0 * cfg.half_width).max(MIN_SEGMENT_PX),
                     w: w as f32,
                     h: h as f32,
                     lo,
@@ -637,6 +638,10 @@ impl DepthMap {
 struct SegPrep {
     depth: DepthMap,
     half: f32,
+    /// 0.01 px / (2 half), at least [`MIN_SEGMENT_PX`]: times a segment's |Δz|, how far
+    /// snapping its corners can move its depth ([`SegSource::cull`]; a multiply there,
+    /// not a divide per segment).
+    snap_slope: f32,
     w: f32,
     h: f32,
     lo: [f32; 2],
