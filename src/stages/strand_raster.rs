@@ -125,6 +125,11 @@ pub fn strand_quad<const N: usize>(
     let Some((lx_min, ly0, lx_max, ly1)) = buf.clip(bbox) else {
         return;
     };
+    let samples_kept = a2c_samples_everywhere::<N>(s.c0[3], s.c1[3]);
+    if samples_kept == Some(0) {
+        // Alpha-to-coverage keeps no sample anywhere on the quad: it draws nothing.
+        return;
+    }
     // Depth: one plane over the quad, z0 along the start cap's edge to z1 along the end
     // cap's edge (what the GPU interpolates from the corners), in screen px.
     let (gz, zl) = ((s.z1 - s.z0) as f64, (len + 2.0 * h) as f64);
@@ -170,6 +175,7 @@ pub fn strand_quad<const N: usize>(
         zp,
         z_off,
         z_near,
+        samples_kept,
         photo: photo.map(|tex| {
             let o0 = [s.o[0], s.o[1]];
             let od = [s.o[2] - s.o[0], s.o[3] - s.o[1]];
@@ -219,6 +225,24 @@ pub fn strand_quad<const N: usize>(
             .collect();
         scan(buf, &tris, bbox, rows, cols, &mut spans, &shade);
     }
+}
+
+/// Alpha-to-coverage's sample count `floor(clamp(alpha)·N + 0.5)` (see `Shade::pixel`)
+/// when it is the same at every pixel of a segment whose ends have alphas `a0`, `a1`:
+/// a pixel's alpha is their lerp, which lies between them give or take a few ulps (under
+/// 1e-6 for alphas in [-1, 2]), and the count never decreases with alpha, so it is that
+/// of both ends widened by 4e-6 when those agree. None otherwise (then each pixel works
+/// its own out). Most segments have one count: alpha changes little along one.
+#[inline(always)]
+fn a2c_samples_everywhere<const N: usize>(a0: f32, a1: f32) -> Option<u32> {
+    let (lo, hi) = if a0 < a1 { (a0, a1) } else { (a1, a0) };
+    // (Also false for NaN.)
+    if !(lo >= -1.0 && hi <= 2.0) {
+        return None;
+    }
+    let count = |a: f32| trunc_i32(a.clamp(0.0, 1.0) * N as f32 + 0.5).max(0) as u32;
+    let k = count(lo - 4e-6);
+    (k == count(hi + 4e-6)).then_some(k)
 }
 
 /// Row spans of a quad from its two long sides A->C and B->D (see `strand_quad`), in tile
@@ -336,10 +360,19 @@ fn scan_quad_best<const N: usize>(
         // SAFETY: the CPU has the features `scan_quad_avx2` is compiled for.
         // (Two builds: with all of a quad's columns in one window, or not.)
         return unsafe {
-            if cols.1 - cols.0 < 4 {
-                scan_quad_avx2::<N, true>(buf, quad, rows, cols, spans, shade)
-            } else {
-                scan_quad_avx2::<N, false>(buf, quad, rows, cols, spans, shade)
+            match (cols.1 - cols.0 < 4, shade.samples_kept.is_some()) {
+                (true, true) => {
+                    scan_quad_avx2::<N, true, true>(buf, quad, rows, cols, spans, shade)
+                }
+                (true, false) => {
+                    scan_quad_avx2::<N, true, false>(buf, quad, rows, cols, spans, shade)
+                }
+                (false, true) => {
+                    scan_quad_avx2::<N, false, true>(buf, quad, rows, cols, spans, shade)
+                }
+                (false, false) => {
+                    scan_quad_avx2::<N, false, false>(buf, quad, rows, cols, spans, shade)
+                }
             }
         };
     }
@@ -401,7 +434,7 @@ fn forced_plain() -> bool {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,bmi1,bmi2,popcnt,lzcnt")]
 #[inline(never)]
-unsafe fn scan_quad_avx2<const N: usize, const ONE: bool>(
+unsafe fn scan_quad_avx2<const N: usize, const ONE: bool, const KEPT: bool>(
     buf: &mut TileBuf<N>,
     quad: &Poly<4, N>,
     rows: (i32, i32),
@@ -430,6 +463,28 @@ unsafe fn scan_quad_avx2<const N: usize, const ONE: bool>(
     let mut n = 0usize;
     let (j4, nibble) = (_mm_set_epi32(3, 2, 1, 0), _mm_set_epi32(12, 8, 4, 0));
     let low4 = _mm_set1_epi32(0xf);
+    // `KEPT`: alpha-to-coverage keeps the same number of samples at every pixel, so the
+    // samples it keeps at a window's four pixels depend only on the first one's rotation
+    // r (see `Shade::pixel`): dropped here per window, before the pixels are listed, and
+    // not per listed pixel (a third of them kept nothing).
+    let kept: [u32; 4] = std::array::from_fn(|r0| {
+        let k = shade.samples_kept.unwrap_or(N as u32);
+        (0..4).fold(0, |m, j| {
+            m | (a2c_mask(4, (r0 as u32 + j) & 3, k) << (4 * j))
+        })
+    });
+    // The rotation of tile pixel (lx, ly) is (r_tile + lx + 2 ly) mod 4.
+    let r_tile = (buf.x0 as u32)
+        .wrapping_add(2u32.wrapping_mul(buf.y0 as u32))
+        .wrapping_add(shade.strand);
+    let kept_at = |lx: i32, ly: i32| {
+        if KEPT {
+            let r = r_tile.wrapping_add(lx as u32).wrapping_add(2 * ly as u32);
+            kept[(r & 3) as usize]
+        } else {
+            u32::MAX
+        }
+    };
     // One window: the samples of the four pixels from (lx, ly), whose edge values at the
     // first of them are `base`, inside the quad and not yet nearer, for the pixels `wanted`
     // (a nibble each), appended to the list. (A macro, so that each loop below has it
@@ -496,7 +551,13 @@ unsafe fn scan_quad_avx2<const N: usize, const ONE: bool>(
             let a = (lx0 - cols.0).clamp(0, 4) as u32;
             let b = (lx1 - cols.0 + 1).clamp(0, 4) as u32;
             let wanted = ((1u32 << (4 * b)) - 1) & !((1u32 << (4 * a)) - 1);
-            window!(&e, (ly * buf.w) as usize, cols.0, ly, wanted);
+            window!(
+                &e,
+                (ly * buf.w) as usize,
+                cols.0,
+                ly,
+                wanted & kept_at(cols.0, ly)
+            );
         }
     } else {
         for ly in rows.0..=rows.1 {
@@ -513,7 +574,8 @@ unsafe fn scan_quad_avx2<const N: usize, const ONE: bool>(
             while lx <= lx1 {
                 // Pixels past the span's end are not this row's (they may lie past the tile).
                 let left = (lx1 - lx + 1).min(4) as u32;
-                window!(&base, row_start, lx, ly, ((1u64 << (4 * left)) - 1) as u32);
+                let wanted = ((1u64 << (4 * left)) - 1) as u32 & kept_at(lx, ly);
+                window!(&base, row_start, lx, ly, wanted);
                 for k in 0..4 {
                     base[k] = base[k].wrapping_add(window[k]);
                 }
@@ -524,7 +586,8 @@ unsafe fn scan_quad_avx2<const N: usize, const ONE: bool>(
     for f in &frags[..n] {
         // SAFETY: the first n entries were written above.
         let f = unsafe { f.assume_init() };
-        shade.pixel(buf, (f & 0xfff) as i32, ((f >> 12) & 0xfff) as i32, f >> 24);
+        let (lx, ly) = ((f & 0xfff) as i32, ((f >> 12) & 0xfff) as i32);
+        shade.pixel::<KEPT>(buf, lx, ly, f >> 24);
     }
 }
 
@@ -599,7 +662,7 @@ fn scan_quad<const N: usize>(
                 let j = bits.trailing_zeros() as usize / N;
                 let cov = (bits >> (j * N)) & ((1u32 << N) - 1);
                 bits &= !(((1u32 << N) - 1) << (j * N));
-                shade.pixel(buf, lx + j as i32, ly, cov);
+                shade.pixel::<false>(buf, lx + j as i32, ly, cov);
             }
             lx += px_per as i32;
         }
@@ -620,6 +683,9 @@ struct Shade<'a, const N: usize> {
     z_off: [f64; N],
     /// The nearest depth any sample of the quad gets (see `strand_quad`).
     z_near: f32,
+    /// How many samples alpha-to-coverage keeps at every pixel of the quad, when that is
+    /// one number ([`a2c_samples_everywhere`]).
+    samples_kept: Option<u32>,
     /// Photo colour: the photo, o0, o1 - o0, n_o, the screen normal n / h² (so that
     /// (c - p0)·it is the signed width fraction), the mode and the HSV settings.
     photo: Option<PhotoShade<'a>>,
@@ -636,7 +702,7 @@ struct PhotoShade<'a> {
 
 impl<const N: usize> Shade<'_, N> {
     #[inline(always)]
-    fn pixel(&self, buf: &mut TileBuf<N>, lx: i32, ly: i32, cov: u32) {
+    fn pixel<const KEPT: bool>(&self, buf: &mut TileBuf<N>, lx: i32, ly: i32, cov: u32) {
         let i = (ly * buf.w + lx) as usize;
         let n = N as u32;
         let (px, py) = (buf.x0 + lx, buf.y0 + ly);
@@ -647,16 +713,21 @@ impl<const N: usize> Shade<'_, N> {
         let t = t_raw.clamp(0.0, 1.0);
         // Alpha-to-coverage (see the WGSL): keep floor(alpha·N + 0.5) samples. Alpha, the
         // coverage and the depth test come before the colour, which most fragments (hidden
-        // under nearer strands) never need.
-        let alpha = self.c0[3] * (1.0 - t) + self.c1[3] * t;
-        // Truncated without the saturating fix-ups; a NaN alpha (i32::MIN) keeps no sample,
-        // as `as` gives.
-        let k = trunc_i32(alpha.clamp(0.0, 1.0) * n as f32 + 0.5).max(0) as u32;
-        let r = (px as u32)
-            .wrapping_add(2u32.wrapping_mul(py as u32))
-            .wrapping_add(self.strand)
-            & (n - 1);
-        let mask = cov & a2c_mask(n, r, k);
+        // under nearer strands) never need. `KEPT`: the scan has applied it already (the
+        // same count everywhere: `Shade::samples_kept`).
+        let mask = if KEPT {
+            cov
+        } else {
+            let alpha = self.c0[3] * (1.0 - t) + self.c1[3] * t;
+            // Truncated without the saturating fix-ups; a NaN alpha (i32::MIN) keeps no
+            // sample, as `as` gives.
+            let k = trunc_i32(alpha.clamp(0.0, 1.0) * n as f32 + 0.5).max(0) as u32;
+            let r = (px as u32)
+                .wrapping_add(2u32.wrapping_mul(py as u32))
+                .wrapping_add(self.strand)
+                & (n - 1);
+            cov & a2c_mask(n, r, k)
+        };
         if mask == 0 {
             return;
         }
@@ -729,7 +800,7 @@ fn scan<const E: usize, const N: usize>(
                     }
                 }
                 if cov != 0 && !buf.pixel_hidden((ly * buf.w + lx) as usize, shade.z_near) {
-                    shade.pixel(buf, lx, ly, cov);
+                    shade.pixel::<false>(buf, lx, ly, cov);
                 }
             }
         } else {
@@ -745,7 +816,7 @@ fn scan<const E: usize, const N: usize>(
                     }
                 }
                 if cov != 0 && !buf.pixel_hidden((ly * buf.w + lx) as usize, shade.z_near) {
-                    shade.pixel(buf, lx, ly, cov);
+                    shade.pixel::<false>(buf, lx, ly, cov);
                 }
             }
         }
@@ -774,6 +845,13 @@ mod tests {
             let p0 = [rng.range_f32(8.0, 88.0), rng.range_f32(0.0, 80.0)];
             let (a, l) = (rng.range_f32(0.0, 6.3), rng.range_f32(0.3, 40.0));
             let c = |rng: &mut Rng| std::array::from_fn(|_| rng.range_f32(0.0, 1.0));
+            let (c0, mut c1): ([f32; 4], [f32; 4]) = (c(&mut rng), c(&mut rng));
+            // Half the segments with alphas close at both ends (alpha-to-coverage keeps one
+            // count of samples over the quad, the scan's `KEPT` builds), some of those
+            // straddling a count's threshold.
+            if n % 2 == 0 {
+                c1[3] = c0[3] + rng.range_f32(-0.02, 0.02);
+            }
             let s = SegRec {
                 p0,
                 p1: [p0[0] + l * a.cos(), p0[1] + l * a.sin()],
@@ -781,8 +859,8 @@ mod tests {
                 z1: rng.range_f32(-0.1, 1.1),
                 strand: rng.below(1000),
                 local: 0,
-                c0: c(&mut rng),
-                c1: c(&mut rng),
+                c0,
+                c1,
                 o: [0.0; 4],
             };
             strand_quad(&mut buf, &s, &cfg, None, &fb, &offs, n + 1);
@@ -828,5 +906,47 @@ mod tests {
             );
         }
         assert_ne!(draw(false, 0.5, 7), draw(true, 0.5, 8));
+    }
+
+    /// Where `a2c_samples_everywhere` gives a count, every pixel's own count (the lerp of
+    /// the ends' alphas at any t, as `Shade::pixel` works it out) is that count, near the
+    /// thresholds too; it gives one for most segments; and a pair whose counts differ
+    /// along the segment gets none.
+    #[test]
+    fn one_sample_count_holds_at_every_pixel() {
+        let pixel = |a0: f32, a1: f32, t: f32| {
+            let alpha = a0 * (1.0 - t) + a1 * t;
+            trunc_i32(alpha.clamp(0.0, 1.0) * 4.0 + 0.5).max(0) as u32
+        };
+        let mut rng = Rng::new(3);
+        let (mut some, mut all) = (0, 0);
+        for m in 0..20000 {
+            // Ends near a threshold (0.125, 0.375, ...) at every other pair.
+            let a0 = if m % 2 == 0 {
+                0.125 + 0.25 * rng.below(4) as f32 + rng.range_f32(-1e-5, 1e-5)
+            } else {
+                rng.range_f32(-0.2, 1.3)
+            };
+            let a1 = a0 + rng.range_f32(-0.03, 0.03);
+            all += 1;
+            let Some(k) = a2c_samples_everywhere::<4>(a0, a1) else {
+                continue;
+            };
+            some += 1;
+            for j in 0..=64 {
+                let t = if j < 64 {
+                    j as f32 / 64.0
+                } else {
+                    rng.range_f32(0.0, 1.0)
+                };
+                assert_eq!(pixel(a0, a1, t), k, "alphas {a0} {a1} at t = {t}");
+            }
+        }
+        assert!(some * 2 > all, "a count for only {some} of {all} segments");
+        // 0.37 -> 0.38 crosses 0.375: one sample at one end, two at the other.
+        assert_eq!(a2c_samples_everywhere::<4>(0.37, 0.38), None);
+        assert_ne!(pixel(0.37, 0.38, 0.0), pixel(0.37, 0.38, 1.0));
+        assert_eq!(a2c_samples_everywhere::<4>(f32::NAN, 0.5), None);
+        assert_eq!(a2c_samples_everywhere::<4>(0.05, 0.1), Some(0));
     }
 }
