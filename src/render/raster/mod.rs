@@ -280,7 +280,8 @@ impl SegSource<'_> {
     fn cull(&self, i: u32, k: u32, a: [f32; 3], b: [f32; 3], bb: [f32; 4]) -> SegCull {
         let (za, zb) = (self.prep.depth.z(a[2]), self.prep.depth.z(b[2]));
         let margin = (za - zb).abs() * self.prep.snap_slope;
-        // 1e-6 more: a clipped end's lerped depth may round an ulp below min(za, zb).
+        // 1e-6 more: a clipped end's lerped depth may round an ulp below min(za, zb) (it
+        // also covers the ulp by which the margin's multiply may round short of a divide).
         let z = za.min(zb) - margin - 1e-6;
         // The box widened by a pixel, floored, clamped to a range every frame fits in
         // (a clamped side lies off the frame, so only its clamped value is ever used).
