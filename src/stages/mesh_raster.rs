@@ -8,7 +8,7 @@
 use crate::gpu::engine::RenderStageDef;
 use crate::render::raster::Texture;
 use crate::stages::raster_common::{
-    a2c_mask, bilinear_at, snap, Fb, Offsets, Plane, Poly, TileBuf,
+    a2c_count, a2c_mask, bilinear_at, snap, Fb, Offsets, Plane, Poly, TileBuf,
 };
 
 /// Entry points (vertex, fragment) of the mesh and the background pipelines.
@@ -98,7 +98,7 @@ pub fn mesh_tri<const N: usize>(
 /// alpha-to-coverage rule without the strand term (k = floor(a·N + 0.5) samples from
 /// r = (px + 2·py) mod N on).
 pub fn coverage_mask(a: f32, px: i32, py: i32, n: u32) -> u32 {
-    let k = (a.clamp(0.0, 1.0) * n as f32 + 0.5) as u32;
+    let k = a2c_count(n, a);
     let r = (px as u32).wrapping_add(2u32.wrapping_mul(py as u32)) & (n - 1);
     a2c_mask(n, r, k)
 }

@@ -57,6 +57,14 @@ pub const SAMPLE_POSITIONS_4: [[f32; 2]; 4] = [
     [0.625, 0.875],
 ];
 
+/// Alpha-to-coverage's sample count for alpha `a` at n samples: floor(clamp(a)·n + 0.5),
+/// truncated without the saturating fix-ups (the value is in [0.5, n + 0.5]); a NaN alpha
+/// (i32::MIN) keeps no sample, as `as` gives.
+#[inline(always)]
+pub fn a2c_count(n: u32, a: f32) -> u32 {
+    trunc_i32(a.clamp(0.0, 1.0) * n as f32 + 0.5).max(0) as u32
+}
+
 /// The alpha-to-coverage mask: k <= n samples starting at r, in order (mod n), for
 /// n = 1 or 4 (powers of two).
 #[inline]

@@ -9,8 +9,8 @@ use crate::render::raster::Texture;
 #[cfg(target_arch = "x86_64")]
 use crate::stages::raster_common::has_avx2;
 use crate::stages::raster_common::{
-    a2c_mask, bilinear_at, mask32, snap, trunc_i32, Config, Fb, Narrow, Offsets, Plane, Poly,
-    TileBuf, DEPTH_ROUNDING, SUBPIXEL,
+    a2c_count, a2c_mask, bilinear_at, mask32, snap, trunc_i32, Config, Fb, Narrow, Offsets, Plane,
+    Poly, TileBuf, DEPTH_ROUNDING, SUBPIXEL,
 };
 
 /// Entry points (vertex, fragment) of the strand pipeline.
@@ -240,9 +240,8 @@ fn a2c_samples_everywhere<const N: usize>(a0: f32, a1: f32) -> Option<u32> {
     if !(lo >= -1.0 && hi <= 2.0) {
         return None;
     }
-    let count = |a: f32| trunc_i32(a.clamp(0.0, 1.0) * N as f32 + 0.5).max(0) as u32;
-    let k = count(lo - 4e-6);
-    (k == count(hi + 4e-6)).then_some(k)
+    let k = a2c_count(N as u32, lo - 4e-6);
+    (k == a2c_count(N as u32, hi + 4e-6)).then_some(k)
 }
 
 /// Row spans of a quad from its two long sides A->C and B->D (see `strand_quad`), in tile
@@ -358,7 +357,8 @@ fn scan_quad_best<const N: usize>(
     #[cfg(target_arch = "x86_64")]
     if N == 4 && has_avx2() && !forced_plain() {
         // SAFETY: the CPU has the features `scan_quad_avx2` is compiled for.
-        // (Two builds: with all of a quad's columns in one window, or not.)
+        // (Four builds: all of a quad's columns in one window or not, and one
+        // alpha-to-coverage count over the quad or not.)
         return unsafe {
             match (cols.1 - cols.0 < 4, shade.samples_kept.is_some()) {
                 (true, true) => {
@@ -719,9 +719,7 @@ impl<const N: usize> Shade<'_, N> {
             cov
         } else {
             let alpha = self.c0[3] * (1.0 - t) + self.c1[3] * t;
-            // Truncated without the saturating fix-ups; a NaN alpha (i32::MIN) keeps no
-            // sample, as `as` gives.
-            let k = trunc_i32(alpha.clamp(0.0, 1.0) * n as f32 + 0.5).max(0) as u32;
+            let k = a2c_count(n, alpha);
             let r = (px as u32)
                 .wrapping_add(2u32.wrapping_mul(py as u32))
                 .wrapping_add(self.strand)
@@ -914,10 +912,7 @@ mod tests {
     /// along the segment gets none.
     #[test]
     fn one_sample_count_holds_at_every_pixel() {
-        let pixel = |a0: f32, a1: f32, t: f32| {
-            let alpha = a0 * (1.0 - t) + a1 * t;
-            trunc_i32(alpha.clamp(0.0, 1.0) * 4.0 + 0.5).max(0) as u32
-        };
+        let pixel = |a0: f32, a1: f32, t: f32| a2c_count(4, a0 * (1.0 - t) + a1 * t);
         let mut rng = Rng::new(3);
         let (mut some, mut all) = (0, 0);
         for m in 0..20000 {

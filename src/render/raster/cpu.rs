@@ -171,18 +171,14 @@ fn raster_n<const N: usize>(s: &Scene) -> Vec<[f32; 4]> {
             let segs = seg_bins.iter().map(|b| &b[i]);
             let (tx, ty, tris) = (t % tiles_x, t / tiles_x, &tri_bins[i]);
             #[cfg(target_arch = "x86_64")]
-            let fast = avx2();
-            #[cfg(not(target_arch = "x86_64"))]
-            let fast = false;
-            if fast {
-                #[cfg(target_arch = "x86_64")]
+            if avx2() {
                 // SAFETY: the CPU has the features `tile_avx2` is compiled for.
-                unsafe {
-                    tile_avx2::<N>(s, buf, order, tx, ty, tris, segs)
-                }
+                unsafe { tile_avx2::<N>(s, buf, order, tx, ty, tris, segs) }
             } else {
-                tile::<N>(s, buf, order, tx, ty, tris, segs);
+                tile::<N>(s, buf, order, tx, ty, tris, segs)
             }
+            #[cfg(not(target_arch = "x86_64"))]
+            tile::<N>(s, buf, order, tx, ty, tris, segs);
             // Resolved straight into the image, row by row (resolving into a vector per
             // tile and copying the tiles into the image was 2% of the render).
             let (tw, th) = (buf.w as usize, buf.h as usize);
