@@ -25,6 +25,8 @@ pub struct GpuContext {
     pass_times: Mutex<Option<PassTotals>>,
     /// Objects built once per device and kept (see [`GpuContext::cached`]).
     kept: Mutex<std::collections::HashMap<String, Arc<dyn std::any::Any + Send + Sync>>>,
+    /// Buffers and textures kept for the next call that asks for the same ([`super::pool`]).
+    pub(super) pool: Mutex<super::pool::Pool>,
 }
 
 /// What an adapter is, for `coif info` and logs.
@@ -174,6 +176,7 @@ impl GpuContext {
             maps_storage,
             pass_times: Mutex::new(None),
             kept: Mutex::new(Default::default()),
+            pool: Mutex::new(Default::default()),
         })
     }
 

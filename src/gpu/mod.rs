@@ -3,6 +3,7 @@
 
 pub mod context;
 pub mod engine;
+pub mod pool;
 pub mod timer;
 pub mod wgsl;
 

@@ -1043,6 +1043,55 @@ fn strand_vis_draws_4x_frames_and_matches_the_cpu_across_workgroups() {
     );
 }
 
+/// The GPU path keeps its large buffers and targets for the next render of the same size
+/// (`coif::gpu::pool`): a render after another scene left other keys, holders, colours and
+/// segments in them gives the image it gives on fresh ones, to the bit, on every strand path
+/// (one walk, two walks, chunks). A fresh context, so the pool is this test's alone.
+#[test]
+fn reused_buffers_carry_nothing_from_one_render_to_the_next() {
+    let own = GpuContext::new().expect("a wgpu adapter (lavapipe) is needed");
+    let (w, h) = (70, 45);
+    let mut rng = Rng::new(21);
+    let mesh = head_mesh(w, h, &mut rng);
+    let a = random_strands(w, h, 150, &mut rng);
+    // Another scene of the same size, without the mesh or the background.
+    let b = random_strands(w, h, 150, &mut rng);
+    let mut f = frame(w, h);
+    f.depth_range = (-200.0, 200.0);
+    f.background = Some(gradient_background(w, h));
+    let bare = frame(w, h);
+    let p = RasterParams::default();
+    let bits = |v: &[[f32; 4]]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
+    let paths = [
+        (u64::MAX, GpuStrands::Best),
+        (80 * 37, GpuStrands::Best),
+        (u64::MAX, GpuStrands::TwoWalks),
+        (80 * 37, GpuStrands::TwoWalks),
+    ];
+    for (chunk, path) in paths {
+        let fresh = GpuContext::new().expect("a wgpu adapter");
+        let first = render_gpu_with(&fresh, &f, Some(&mesh), Some(&a), &p, chunk, path).unwrap();
+        assert!(fresh.pooled_bytes() > 0, "nothing kept after a render");
+        render_gpu_with(&own, &f, Some(&mesh), Some(&a), &p, chunk, path).unwrap();
+        let kept = own.pooled_bytes();
+        render_gpu_with(&own, &bare, None, Some(&b), &p, chunk, path).unwrap();
+        let again = render_gpu_with(&own, &f, Some(&mesh), Some(&a), &p, chunk, path).unwrap();
+        let differ = bits(&again)
+            .iter()
+            .zip(bits(&first))
+            .filter(|(x, y)| **x != *y)
+            .count();
+        assert_eq!(
+            differ, 0,
+            "{path:?}, {chunk} B chunks: a render on kept buffers differs from a fresh one"
+        );
+        assert!(
+            own.pooled_bytes() >= kept,
+            "{path:?}: the kept buffers were not given back"
+        );
+    }
+}
+
 #[test]
 fn gpu_renders_are_deterministic_and_chunking_is_invisible() {
     let (w, h) = (96, 80);

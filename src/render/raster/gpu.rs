@@ -8,6 +8,7 @@ use super::{GpuStrands, Scene};
 use crate::base::colour::f16_bits_to_f32;
 use crate::error::{Error, Result};
 use crate::gpu::engine::RenderStageDef;
+use crate::gpu::pool::Pooled;
 use crate::gpu::GpuContext;
 use crate::stages::{mesh_raster, strand_raster};
 use rayon::prelude::*;
@@ -195,29 +196,23 @@ fn texture_rgba32_or_blank(ctx: &GpuContext, t: Option<&super::Texture>) -> wgpu
     }
 }
 
-fn target(
-    ctx: &GpuContext,
-    label: &str,
+/// A render target from the pool (every render pass clears its targets first, so what a
+/// previous render left is never read).
+fn target<'a>(
+    ctx: &'a GpuContext,
+    label: &'static str,
     w: u32,
     h: u32,
     samples: u32,
     format: wgpu::TextureFormat,
     usage: wgpu::TextureUsages,
-) -> wgpu::Texture {
-    ctx.device.create_texture(&wgpu::TextureDescriptor {
-        label: Some(label),
-        size: wgpu::Extent3d {
-            width: w,
-            height: h,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: 1,
-        sample_count: samples,
-        dimension: wgpu::TextureDimension::D2,
-        format,
-        usage,
-        view_formats: &[],
-    })
+) -> Pooled<'a, wgpu::Texture> {
+    let size = wgpu::Extent3d {
+        width: w,
+        height: h,
+        depth_or_array_layers: 1,
+    };
+    ctx.texture(label, size, samples, format, usage)
 }
 
 /// Storage buffers of at most `chunk_bytes` each, with their item counts.
@@ -432,7 +427,9 @@ pub fn raster(
         _ => None,
     };
     // Only this path uses the strand module: the compute passes have their own.
-    let strands = (!s.segs.is_empty() && !vis).then(|| {
+    let strands = (!s.drawn.is_empty() && !vis).then(|| {
+        let segs: Vec<strand_raster::SegRec> =
+            s.drawn.par_iter().map(|&at| s.seg_rec(at)).collect();
         let strand_module = module(d, strand_src);
         let p = pipe(
             d,
@@ -454,7 +451,7 @@ pub fn raster(
             &p,
             "raster.strands",
             &uniform,
-            &s.segs,
+            &segs,
             chunk_bytes,
             &photo,
         );
@@ -538,14 +535,14 @@ pub fn raster(
     // The compute resolve's rows are not padded.
     let bytes_per_row = if vis { w * 8 } else { bytes_per_row };
     let readback_bytes = bytes_per_row as u64 * h as u64;
-    let readback = d.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("raster.readback"),
-        size: readback_bytes,
-        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
-    if let Some(out) = &vis_out {
-        encoder.copy_buffer_to_buffer(out, 0, &readback, 0, readback_bytes);
+    // From the pool: the copy below fills it whole before it is read.
+    let mut readback = ctx.buffer(
+        "raster.readback",
+        readback_bytes,
+        wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+    );
+    if let Some(v) = &vis_out {
+        encoder.copy_buffer_to_buffer(&v.out, 0, &readback, 0, readback_bytes);
     } else {
         encoder.copy_texture_to_buffer(
             wgpu::TexelCopyTextureInfo {
@@ -606,5 +603,7 @@ pub fn raster(
                 });
             }
         });
+    drop(view);
+    readback.unmap();
     Ok(img)
 }

@@ -190,8 +190,10 @@ struct Scene<'a> {
     /// Sanitised photo of the strands' photo colour.
     photo: Option<Texture>,
     tris: Vec<TriRec>,
-    /// Every drawable segment, prepared (the GPU path uploads them; empty on the CPU path).
-    segs: Vec<SegRec>,
+    /// Every drawable segment, in input order, as its first vertex and strand (the GPU path;
+    /// empty on the CPU path). Each is prepared where it is uploaded ([`Scene::seg_rec`]),
+    /// so that the host writes its 80 B once, into the GPU's buffer, and keeps 8 B here.
+    drawn: Vec<[u32; 2]>,
     /// The validated strands and how a segment is prepared. The CPU path prepares each
     /// segment in the tile that draws it: materialising 80 B per segment first cost more
     /// than drawing them (1.5M segments, 118 MB).
@@ -447,7 +449,7 @@ fn clip_poly(poly: &[[f32; 5]], axis: usize, bound: f32, keep_below: bool) -> Ve
 }
 
 impl<'a> Scene<'a> {
-    /// `materialise`: also prepare every segment into [`Scene::segs`] (the GPU path).
+    /// `materialise`: also list every drawable segment in [`Scene::drawn`] (the GPU path).
     fn new(
         frame: &Frame,
         mesh: Option<&ScreenMesh>,
@@ -507,7 +509,7 @@ impl<'a> Scene<'a> {
             texture: None,
             photo: None,
             tris: Vec::new(),
-            segs: Vec::new(),
+            drawn: Vec::new(),
             src: None,
         };
         if let Some(m) = mesh {
@@ -610,17 +612,43 @@ impl<'a> Scene<'a> {
             };
             if materialise {
                 let src = &src;
-                scene.segs = (0..s.counts.len())
+                scene.drawn = (0..s.counts.len())
                     .into_par_iter()
                     .flat_map_iter(|k| {
                         let (a, n) = (src.starts[k], s.counts[k] as usize);
-                        (a..(a + n).saturating_sub(1)).filter_map(move |i| src.seg(i, k as u32))
+                        (a..(a + n).saturating_sub(1))
+                            .filter(move |&i| src.seg(i, k as u32).is_some())
+                            .map(move |i| [i as u32, k as u32])
                     })
                     .collect();
             }
             scene.src = Some(src);
         }
         Ok(scene)
+    }
+
+    /// The prepared segment of [`Scene::drawn`] entry `at`, its `local` 0.
+    fn seg_rec(&self, at: [u32; 2]) -> SegRec {
+        self.src
+            .as_ref()
+            .and_then(|src| src.seg(at[0] as usize, at[1]))
+            .expect("a listed segment is drawable (the same preparation listed it)")
+    }
+
+    /// What the GPU path orders [`Scene::drawn`] entry `at` by: its first end in px and its
+    /// nearer end's depth, from the raw end points (any order gives the same image, so the
+    /// preparation's clipping need not be redone for it).
+    fn order_ends(&self, at: [u32; 2]) -> ([f32; 2], f32) {
+        let src = self
+            .src
+            .as_ref()
+            .expect("listed segments come from strands");
+        let (a, b) = (
+            src.s.points[at[0] as usize],
+            src.s.points[at[0] as usize + 1],
+        );
+        let z = src.prep.depth.z(a[2]).min(src.prep.depth.z(b[2]));
+        ([a[0], a[1]], z)
     }
 }
 

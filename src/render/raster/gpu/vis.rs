@@ -5,6 +5,7 @@
 
 use super::Scene;
 use crate::gpu::engine::RenderStageDef;
+use crate::gpu::pool::Pooled;
 use crate::gpu::timer::PassQueries;
 use crate::gpu::GpuContext;
 use crate::stages::strand_raster::{self, SegRec};
@@ -28,7 +29,7 @@ pub fn stage(ctx: &GpuContext, two_walks: bool) -> &'static RenderStageDef {
 /// 256² in magnitude; the longest segment is the guard band's diagonal.
 pub fn usable(ctx: &GpuContext, s: &Scene) -> bool {
     let c = &s.cfg;
-    if c.samples != 4 || s.segs.is_empty() {
+    if c.samples != 4 || s.drawn.is_empty() {
         return false;
     }
     let width = 2.0 * c.half_width as f64;
@@ -226,17 +227,24 @@ fn group(
 /// memory. Which segment holds a sample is decided by index, not by the order they run in,
 /// so the order changes nothing in the image. A counting sort of indices, stable; the keys
 /// in parallel.
-fn front_to_back(chunk: &[SegRec], w: u32, h: u32) -> (Vec<u32>, Vec<u32>) {
+fn front_to_back(
+    n: usize,
+    ends: impl Fn(usize) -> ([f32; 2], f32) + Sync,
+    w: u32,
+    h: u32,
+) -> (Vec<u32>, Vec<u32>) {
     const TILE: f32 = 64.0;
     const LEVELS: usize = 256;
     let tiles_x = (w as f32 / TILE).ceil() as usize;
     let tiles = tiles_x * (h as f32 / TILE).ceil() as usize;
-    let keys: Vec<u32> = chunk
-        .par_iter()
-        .map(|s| {
+    let keys: Vec<u32> = (0..n)
+        .into_par_iter()
+        .map(|i| {
+            let (p0, z) = ends(i);
             let t = |v: f32, n: usize| ((v / TILE).max(0.0) as usize).min(n - 1);
-            let tile = t(s.p0[1], tiles / tiles_x) * tiles_x + t(s.p0[0], tiles_x);
-            let z = s.z0.min(s.z1).clamp(0.0, 1.0);
+            let tile = t(p0[1], tiles / tiles_x) * tiles_x + t(p0[0], tiles_x);
+            // (A NaN depth clamps to 0 here: the order only needs a key.)
+            let z = z.clamp(0.0, 1.0);
             (tile * LEVELS + ((z * LEVELS as f32) as usize).min(LEVELS - 1)) as u32
         })
         .collect();
@@ -247,8 +255,8 @@ fn front_to_back(chunk: &[SegRec], w: u32, h: u32) -> (Vec<u32>, Vec<u32>) {
     for k in 1..start.len() {
         start[k] += start[k - 1];
     }
-    let mut order = vec![0u32; chunk.len()];
-    let mut position = vec![0u32; chunk.len()];
+    let mut order = vec![0u32; n];
+    let mut position = vec![0u32; n];
     for (i, &k) in keys.iter().enumerate() {
         let at = start[k as usize];
         start[k as usize] += 1;
@@ -258,61 +266,97 @@ fn front_to_back(chunk: &[SegRec], w: u32, h: u32) -> (Vec<u32>, Vec<u32>) {
     (order, position)
 }
 
-/// A storage buffer holding `chunk` in `order`, each record's `local` set to its input
-/// index, gathered in parallel straight into the buffer's mapping (a sorted copy on the host
-/// cost as much again as the gather); on a CPU driver the mapping is the buffer itself
-/// ([`GpuContext::maps_storage`]), elsewhere a staging buffer wgpu copies from.
-fn upload_ordered(ctx: &GpuContext, chunk: &[SegRec], order: &[u32]) -> wgpu::Buffer {
+/// A storage buffer of `size` bytes that `fill` writes whole through a mapping: on a CPU
+/// driver ([`GpuContext::maps_storage`]) the mapping is the buffer itself, one the pool
+/// kept from the previous call of this size (none of its old bytes survive `fill`),
+/// elsewhere a new buffer's staging memory that wgpu copies from. The buffer, and the pool's
+/// hold on it when it has one (dropped when the GPU is done with it).
+fn filled_storage<'a>(
+    ctx: &'a GpuContext,
+    label: &'static str,
+    size: u64,
+    fill: impl FnOnce(&mut wgpu::BufferViewMut),
+) -> (wgpu::Buffer, Option<Pooled<'a, wgpu::Buffer>>) {
+    let map_failed = "a storage buffer for the strands cannot be mapped";
+    if !ctx.maps_storage() {
+        let buf = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: true,
+        });
+        fill(&mut buf.slice(..).get_mapped_range_mut().expect(map_failed));
+        buf.unmap();
+        return (buf, None);
+    }
+    let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::MAP_WRITE;
+    let mut pooled = ctx.buffer(label, size, usage);
+    let (tx, rx) = std::sync::mpsc::channel();
+    pooled
+        .slice(..)
+        .map_async(wgpu::MapMode::Write, move |r| drop(tx.send(r)));
+    // The buffer's last use was a render already waited for: the map is ready at once.
+    let ready = ctx
+        .device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .ok()
+        .and_then(|_| rx.try_recv().ok())
+        .is_some_and(|r| r.is_ok());
+    assert!(ready, "{map_failed}");
+    fill(&mut pooled.slice(..).get_mapped_range_mut().expect(map_failed));
+    pooled.unmap();
+    ((*pooled).clone(), Some(pooled))
+}
+
+/// A storage buffer holding the segments `chunk` of `s`'s drawn list in `order`, each
+/// prepared ([`Scene::seg_rec`]) with its `local` set to its input index, in parallel
+/// straight into the buffer's mapping ([`filled_storage`]; prepared into a vector first,
+/// then gathered, cost as much again, in page faults and copies of 118 MB).
+fn upload_ordered<'a>(
+    ctx: &'a GpuContext,
+    s: &Scene,
+    chunk: &[[u32; 2]],
+    order: &[u32],
+) -> (wgpu::Buffer, Option<Pooled<'a, wgpu::Buffer>>) {
     const SIZE: usize = std::mem::size_of::<SegRec>();
-    let mut usage = wgpu::BufferUsages::STORAGE;
-    if ctx.maps_storage() {
-        usage |= wgpu::BufferUsages::MAP_WRITE;
-    }
-    let buf = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("strand_vis.segs"),
-        size: (order.len() * SIZE) as u64,
-        usage,
-        mapped_at_creation: true,
-    });
-    {
-        let mut view = buf
-            .slice(..)
-            .get_mapped_range_mut()
-            .expect("a buffer mapped at creation maps");
-        let mut out = view.slice(..);
-        assert_eq!(out.len(), order.len() * SIZE);
-        /// The mapping's start, shared by the gather's threads.
-        struct Out(std::ptr::NonNull<u8>);
-        // SAFETY: the threads write disjoint slots only (their own byte ranges), and the
-        // mapping outlives the gather.
-        unsafe impl Sync for Out {}
-        let base = Out(out.as_raw_element_ptr());
-        const PIECE: usize = 4096;
-        order
-            .par_chunks(PIECE)
-            .enumerate()
-            .for_each(|(piece, idx)| {
-                let base = &base;
-                for (j, &i) in idx.iter().enumerate() {
-                    let rec = SegRec {
-                        local: i,
-                        ..chunk[i as usize]
-                    };
-                    // SAFETY: slot piece·PIECE + j < order.len(), inside the mapping (checked
-                    // above), written by this thread alone; unaligned writes need no alignment
-                    // of the mapping; a SegRec is plain data.
-                    unsafe {
-                        base.0
-                            .as_ptr()
-                            .add((piece * PIECE + j) * SIZE)
-                            .cast::<SegRec>()
-                            .write_unaligned(rec);
+    filled_storage(
+        ctx,
+        "strand_vis.segs",
+        (order.len() * SIZE) as u64,
+        |view| {
+            let mut out = view.slice(..);
+            assert_eq!(out.len(), order.len() * SIZE);
+            /// The mapping's start, shared by the gather's threads.
+            struct Out(std::ptr::NonNull<u8>);
+            // SAFETY: the threads write disjoint slots only (their own byte ranges), and the
+            // mapping outlives the gather.
+            unsafe impl Sync for Out {}
+            let base = Out(out.as_raw_element_ptr());
+            const PIECE: usize = 4096;
+            order
+                .par_chunks(PIECE)
+                .enumerate()
+                .for_each(|(piece, idx)| {
+                    let base = &base;
+                    for (j, &i) in idx.iter().enumerate() {
+                        let rec = SegRec {
+                            local: i,
+                            ..s.seg_rec(chunk[i as usize])
+                        };
+                        // SAFETY: slot piece·PIECE + j < order.len(), inside the mapping (checked
+                        // above), written by this thread alone; unaligned writes need no alignment
+                        // of the mapping; a SegRec is plain data.
+                        unsafe {
+                            base.0
+                                .as_ptr()
+                                .add((piece * PIECE + j) * SIZE)
+                                .cast::<SegRec>()
+                                .write_unaligned(rec);
+                        }
                     }
-                }
-            });
-    }
-    buf.unmap();
-    buf
+                });
+        },
+    )
 }
 
 /// The WGSL `Chunk`.
@@ -340,8 +384,8 @@ fn walk_groups(count: u32) -> ([u32; 2], u32) {
 /// (`width · height` linear premultiplied RGBA in f16, rows unpadded, as the render
 /// pipeline's resolve target holds them).
 #[allow(clippy::too_many_arguments)]
-pub fn encode(
-    ctx: &GpuContext,
+pub fn encode<'a>(
+    ctx: &'a GpuContext,
     stage: &RenderStageDef,
     module: impl FnOnce() -> wgpu::ShaderModule,
     s: &Scene,
@@ -352,7 +396,7 @@ pub fn encode(
     chunk_bytes: u64,
     color: &wgpu::TextureView,
     depth: &wgpu::TextureView,
-) -> wgpu::Buffer {
+) -> Encoded<'a> {
     let d = &ctx.device;
     let (w, h) = (s.cfg.width, s.cfg.height);
     let px = w as u64 * h as u64;
@@ -380,20 +424,22 @@ pub fn encode(
     let (l, walks, [zinit_mesh, zinit_bare, colour_pipe, resolve_pipe, shade_pipe]) =
         (&kept.0, &kept.1, &kept.2);
     let zinit_pipe = if mesh_drawn { zinit_mesh } else { zinit_bare };
-    let storage = |label: &str, size: u64| {
-        d.create_buffer(&wgpu::BufferDescriptor {
-            label: Some(label),
+    // From the pool: every sample of `zbuf` (and `ibuf`) is written by `zinit`, every pixel
+    // of `out` by the resolve; a sample of `cbuf` is read only where a segment holds it,
+    // after that segment's chunk wrote it. So nothing a previous render left is read.
+    let storage = |label: &'static str, size: u64| {
+        ctx.buffer(
+            label,
             size,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        })
+            wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        )
     };
     // Per pixel, 4 samples of: depth key and holder (u32 each, or one u64), colour
     // (2 x u32); and the resolved RGBA in f16.
     let zbuf = storage("strand_vis.zbuf", px * if wide { 32 } else { 16 });
     let ibuf = (!wide).then(|| storage("strand_vis.ibuf", px * 16));
     // Where colour and resolve find the holders: ibuf, or zbuf's low words.
-    let holders = ibuf.as_ref().unwrap_or(&zbuf);
+    let holders: &wgpu::Buffer = ibuf.as_deref().unwrap_or(&zbuf);
     let holders_at = if wide { 10 } else { 12 };
     let out = storage("strand_vis.resolved", px * 8);
     let photo = super::texture_rgba32_or_blank(ctx, s.photo.as_ref());
@@ -402,21 +448,24 @@ pub fn encode(
     // One chunk (the usual case: a chunk holds the binding limit's worth, 1.6M segments on
     // lavapipe) is coloured and resolved in one pass (`shade`); more need the per-sample
     // colour buffer between a colour pass per chunk and the resolve.
-    let one_chunk = s.segs.len() <= per;
+    let one_chunk = s.drawn.len() <= per;
     let cbuf = storage("strand_vis.cbuf", if one_chunk { 8 } else { px * 32 });
     let mut base = 0u32;
+    let mut held = Vec::new();
     let per_chunk: Vec<(wgpu::BindGroup, wgpu::BindGroup, wgpu::BindGroup, [u32; 2])> = s
-        .segs
+        .drawn
         .chunks(per)
         .map(|segs| {
             let count = segs.len() as u32;
-            let (order, position) = front_to_back(segs, w, h);
-            let buf = upload_ordered(ctx, segs, &order);
-            let position = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("strand_vis.position"),
-                contents: bytemuck::cast_slice(&position),
-                usage: wgpu::BufferUsages::STORAGE,
-            });
+            let (order, position) = front_to_back(segs.len(), |i| s.order_ends(segs[i]), w, h);
+            let (buf, buf_pooled) = upload_ordered(ctx, s, segs, &order);
+            let (position, position_pooled) = filled_storage(
+                ctx,
+                "strand_vis.position",
+                (position.len() * 4) as u64,
+                |view| view.copy_from_slice(bytemuck::cast_slice(&position)),
+            );
+            held.extend(buf_pooled.into_iter().chain(position_pooled));
             let (groups, row) = walk_groups(count);
             let c = Chunk {
                 base,
@@ -437,8 +486,15 @@ pub fn encode(
                 (4, zbuf.as_entire_binding()),
                 (10, zbuf.as_entire_binding()),
             ];
-            // Zeroed at creation, as wgpu clears every new buffer.
-            let candidate = (!wide).then(|| storage("strand_vis.candidate", count as u64 * 4));
+            // Zeroed at creation, as wgpu clears every new buffer (so not from the pool).
+            let candidate = (!wide).then(|| {
+                d.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("strand_vis.candidate"),
+                    size: count as u64 * 4,
+                    usage: wgpu::BufferUsages::STORAGE,
+                    mapped_at_creation: false,
+                })
+            });
             if let (Some(ibuf), Some(candidate)) = (&ibuf, &candidate) {
                 walk.push((5, ibuf.as_entire_binding()));
                 walk.push((13, candidate.as_entire_binding()));
@@ -549,7 +605,16 @@ pub fn encode(
             }
         }
     }
-    out
+    held.extend([zbuf, cbuf].into_iter().chain(ibuf));
+    Encoded { out, _held: held }
+}
+
+/// What [`encode`] recorded passes into: the buffer of resolved pixels, and the pooled
+/// buffers the passes use, to be dropped (given back to the pool) once the encoder is
+/// submitted, so that no later request in this render can take and overwrite one first.
+pub struct Encoded<'a> {
+    pub out: Pooled<'a, wgpu::Buffer>,
+    pub _held: Vec<Pooled<'a, wgpu::Buffer>>,
 }
 
 #[cfg(test)]
@@ -584,7 +649,12 @@ mod tests {
                 )
             })
             .collect();
-        let (order, position) = front_to_back(&segs, 256, 192);
+        let (order, position) = front_to_back(
+            segs.len(),
+            |i| (segs[i].p0, segs[i].z0.min(segs[i].z1)),
+            256,
+            192,
+        );
         assert_eq!(order.len(), segs.len());
         for (i, &at) in position.iter().enumerate() {
             assert_eq!(order[at as usize] as usize, i);
