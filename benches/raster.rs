@@ -8,9 +8,12 @@
 //! Then growth rows: the cpu backend at 2048² and with 2x the strands, with peak memory.
 //!
 //! Run: `CARGO_TARGET_DIR=/work/target cargo bench --bench raster`
-//! (COIF_BENCH_REPS sets the rounds, default 3: after a warm-up, rounds of one cpu render
+//! (COIF_BENCH_REPS sets the rounds, default 9: after a warm-up, rounds of one cpu render
 //! and one skia draw, then rounds of one lavapipe render and one skia draw, so that the
-//! ratios, medians over rounds, compare neighbours in time; needs `pip install skia-python numpy` for the peer; RASTER_BENCH_PNG=dir writes our
+//! ratios, medians over rounds, compare neighbours in time (9 rather than 3: on the 2-core
+//! development VM the host slows one core or both for a second or more at a time, which
+//! moves our two threads' time and not skia's one; the median of 9 rounds holds through
+//! more of that); needs `pip install skia-python numpy` for the peer; RASTER_BENCH_PNG=dir writes our
 //! two images there; RASTER_BENCH_RAW=file writes the cpu image as raw f32 RGBA, for
 //! bit-exact before/after checks; RASTER_BENCH_CPU_ONLY=1 runs the cpu backend alone, for
 //! profiling it; RASTER_BENCH_GPU_ONLY=1 times lavapipe alone (its
@@ -253,7 +256,7 @@ fn main() {
     let reps: usize = std::env::var("COIF_BENCH_REPS")
         .ok()
         .and_then(|s| s.parse().ok())
-        .unwrap_or(3);
+        .unwrap_or(9);
     if let Some(row) = std::env::var("RASTER_BENCH_ROW")
         .ok()
         .and_then(|r| r.parse().ok())
@@ -386,9 +389,24 @@ fn main() {
             tg / ours,
             rss_mib().0
         );
+        // The rounds reuse the buffers and targets the render before them kept
+        // (`coif::gpu::pool`), as a video's frames or a batch's portraits of one size do;
+        // a render without them (the pool emptied first) is the first one of a size.
+        let ctx = g.gpu().expect("a gpu engine");
+        let kept = ctx.pooled_bytes() as f64 / (1u64 << 20) as f64;
+        ctx.release_pool();
+        let t = Instant::now();
+        render(g, &frame, None, Some(&strands), &p).unwrap();
+        ctx.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .expect("device poll");
+        println!(
+            "  lavapipe on fresh buffers (the pool emptied first): {:.3} s; kept between \
+             renders: {kept:.0} MiB",
+            t.elapsed().as_secs_f64()
+        );
         // The render pipeline's strands (one warm-up, one timed run: the before of the
         // compute passes, not a figure of the issue).
-        let ctx = g.gpu().expect("a gpu engine");
         let _ = render_gpu_pipeline(ctx, &frame, None, Some(&strands), &p).unwrap();
         let t = Instant::now();
         let pimg = render_gpu_pipeline(ctx, &frame, None, Some(&strands), &p).unwrap();
