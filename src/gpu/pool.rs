@@ -35,6 +35,7 @@ enum Key {
     },
 }
 
+/// A resource the pool holds.
 #[derive(Clone, Debug)]
 pub enum Res {
     Buffer(wgpu::Buffer),
@@ -158,13 +159,26 @@ impl GpuContext {
                 mapped_at_creation: false,
             }),
         };
+        let mappable =
+            usage.intersects(wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::MAP_WRITE);
+        self.hold(key, size, res, !mappable)
+    }
+
+    /// `res`, made as `key` (`bytes` of it), to be given back to the pool when dropped
+    /// (when `give_back`, or once [`Pooled::unmap`] says so).
+    fn hold<T: Clone + Into<Res>>(
+        &self,
+        key: Key,
+        bytes: u64,
+        res: T,
+        give_back: bool,
+    ) -> Pooled<'_, T> {
         Pooled {
             ctx: self,
             key,
-            bytes: size,
+            bytes,
             res,
-            give_back: !usage
-                .intersects(wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::MAP_WRITE),
+            give_back,
         }
     }
 
@@ -205,13 +219,7 @@ impl GpuContext {
             * size.depth_or_array_layers as u64
             * samples as u64
             * texel;
-        Pooled {
-            ctx: self,
-            key,
-            bytes,
-            res,
-            give_back: true,
-        }
+        self.hold(key, bytes, res, true)
     }
 
     /// Bytes of buffers and textures the pool keeps now.

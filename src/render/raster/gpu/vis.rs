@@ -219,9 +219,10 @@ fn group(
     })
 }
 
-/// The order the walks run a chunk's segments in: `order[slot]` is the input index of the
-/// segment in that slot and `position[i]` the slot of input index i. By 64 px tile of the
-/// first end, then front to back by the nearer end's depth (256 levels): most later segments
+/// The order the walks run a chunk's `n` segments in: `order[slot]` is the input index of
+/// the segment in that slot and `position[i]` the slot of input index i. By 64 px tile of the
+/// first end, then front to back by the nearer end's depth (256 levels), both as `ends(i)`
+/// gives them (the raw end points, before clipping, will do): most later segments
 /// then find their samples already nearer, so `depth` seldom lowers a key (and `pick` skips
 /// them, `candidate`), while the tile keeps the samples a walk touches close together in
 /// memory. Which segment holds a sample is decided by index, not by the order they run in,
