@@ -63,6 +63,8 @@ pub struct Analysis {
     pub resolved: Resolved,
     /// The direction strokes, root→tip.
     pub strokes: Vec<Vec<[f32; 2]>>,
+    /// The background strokes (drawn over `mask_overlay.png`).
+    pub background_strokes: Vec<Vec<[f32; 2]>>,
     /// Unit growth direction, H x W x 2 (x right, y down), NaN off hair.
     pub direction: Vec<f32>,
     /// Things the user should know that did not stop the run.
@@ -231,6 +233,12 @@ pub fn analyze(
         parting_lines: lines,
         resolved,
         strokes: dir_strokes,
+        background_strokes: strokes
+            .strokes
+            .iter()
+            .filter(|s| s.kind == StrokeKind::Background)
+            .map(|s| s.points.clone())
+            .collect(),
         direction,
         warnings,
         timings,

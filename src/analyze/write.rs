@@ -128,7 +128,7 @@ pub fn run(
     Ok((rgb, an))
 }
 
-/// `mask.png`, the orientation, `direction.npy`, `curves.json`, the curve and direction
+/// `mask.png` and `mask_overlay.png`, the orientation, `direction.npy`, `curves.json`, the curve and direction
 /// pictures and `analyze.json`.
 pub fn write(
     out: &Path,
@@ -148,6 +148,10 @@ pub fn write(
         }])
     });
     write_png(&out.join("mask.png"), &mask_img)?;
+    write_png(
+        &out.join("mask_overlay.png"),
+        &vis::mask_overlay(rgb, &an.mask, &an.strokes, &an.background_strokes),
+    )?;
     npy::write_f32(&out.join("orientation.npy"), &shape, &an.orient.theta)?;
     npy::write_f32(&out.join("confidence.npy"), &shape, &an.orient.confidence)?;
     npy::write_f32(

@@ -149,3 +149,80 @@ pub fn direction_field(backdrop: &RgbImage, dir: &[f32]) -> RgbImage {
     hue_ring(&mut img);
     img
 }
+
+/// Colour of a mask's outline in [`mask_overlay`]: no photo of hair is this pure a yellow.
+pub const MASK_EDGE: Rgb<u8> = Rgb([255, 230, 0]);
+/// Colour of background strokes in [`mask_overlay`].
+pub const BACKGROUND_STROKE: Rgb<u8> = Rgb([255, 0, 255]);
+
+/// A hair mask over its photo, for a person to check the segmentation at a glance: hair
+/// pixels keep the photo's colours, the rest is dimmed grey, the mask's edge (hair pixels
+/// with a 4-neighbour off the hair) is [`MASK_EDGE`], and the strokes are drawn on top:
+/// direction strokes white edged in black, background strokes [`BACKGROUND_STROKE`].
+/// `mask` is W·H bytes, non-zero on hair.
+pub fn mask_overlay(
+    photo: &RgbImage,
+    mask: &[u8],
+    direction: &[Vec<[f32; 2]>],
+    background: &[Vec<[f32; 2]>],
+) -> RgbImage {
+    let (w, h) = photo.dimensions();
+    assert_eq!(mask.len(), (w * h) as usize, "mask size");
+    let back = dimmed(photo, 0.55);
+    let hair = |x: i64, y: i64| {
+        // Outside the image counts as hair, so hair cut by the frame has no edge there.
+        x < 0 || y < 0 || x >= w as i64 || y >= h as i64 || mask[(y * w as i64 + x) as usize] != 0
+    };
+    let mut img = RgbImage::from_fn(w, h, |x, y| {
+        let (xi, yi) = (x as i64, y as i64);
+        if !hair(xi, yi) {
+            *back.get_pixel(x, y)
+        } else if [(-1, 0), (1, 0), (0, -1), (0, 1)]
+            .iter()
+            .any(|(dx, dy)| !hair(xi + dx, yi + dy))
+        {
+            MASK_EDGE
+        } else {
+            *photo.get_pixel(x, y)
+        }
+    });
+    for s in direction {
+        draw_polyline(&mut img, s, 4.0, |_| Rgb([0, 0, 0]));
+        draw_polyline(&mut img, s, 2.0, |_| Rgb([255, 255, 255]));
+    }
+    for s in background {
+        draw_polyline(&mut img, s, 2.0, |_| BACKGROUND_STROKE);
+    }
+    img
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn mask_overlay_keeps_hair_dims_the_rest_and_outlines_the_edge() {
+        let (w, h) = (20u32, 16u32);
+        let photo = RgbImage::from_fn(w, h, |x, y| Rgb([200, 120 + x as u8, 60 + y as u8]));
+        // Hair: the square x, y in 4..12.
+        let mask: Vec<u8> = (0..w * h)
+            .map(|i| (((4..12).contains(&(i % w)) && (4..12).contains(&(i / w))) as u8) * 255)
+            .collect();
+        let bg = vec![vec![[16.5, 2.0], [16.5, 14.0]]];
+        let img = mask_overlay(&photo, &mask, &[], &bg);
+        // Inside, away from the edge: the photo's own colour.
+        assert_eq!(img.get_pixel(7, 8), photo.get_pixel(7, 8));
+        // The edge: the square's outer ring of hair pixels.
+        for (x, y) in [(4, 4), (11, 7), (8, 11), (4, 9)] {
+            assert_eq!(*img.get_pixel(x, y), MASK_EDGE, "({x}, {y})");
+        }
+        // Off the hair: grey and darker than the photo.
+        let (p, q) = (img.get_pixel(1, 1), photo.get_pixel(1, 1));
+        assert!(p[0] == p[1] && p[1] == p[2] && p[0] < q[0], "{p:?}");
+        // The background stroke down column 16.
+        assert_eq!(*img.get_pixel(16, 8), BACKGROUND_STROKE);
+        // A mask of another size is a caller's bug.
+        let r = std::panic::catch_unwind(|| mask_overlay(&photo, &mask[1..], &[], &[]));
+        assert!(r.is_err());
+    }
+}

@@ -712,6 +712,7 @@ fn analyze_writes_directed_hair() {
     assert!(o.status.success(), "{}", stderr(&o));
     for f in [
         "mask.png",
+        "mask_overlay.png",
         "orientation.npy",
         "confidence.npy",
         "curves.json",
@@ -725,6 +726,18 @@ fn analyze_writes_directed_hair() {
     }
     let (shape, _) = coif::io::npy::read_f32(&c.p("an/direction.npy")).unwrap();
     assert_eq!(shape, vec![160, 160, 2]);
+    // The overlay outlines the mask it was written with: its edge colour lies on hair
+    // pixels only, around the whole mask.
+    let mask = image::open(c.p("an/mask.png")).unwrap().to_luma8();
+    let over = image::open(c.p("an/mask_overlay.png")).unwrap().to_rgb8();
+    assert_eq!(over.dimensions(), mask.dimensions());
+    let edge: Vec<(u32, u32)> = over
+        .enumerate_pixels()
+        .filter(|(_, _, p)| **p == coif::io::vis::MASK_EDGE)
+        .map(|(x, y, _)| (x, y))
+        .collect();
+    assert!(edge.len() > 100, "{} edge pixels", edge.len());
+    assert!(edge.iter().all(|&(x, y)| mask.get_pixel(x, y)[0] == 255));
     let curves: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(c.p("an/curves.json")).unwrap()).unwrap();
     assert_eq!(curves["version"], 1);
