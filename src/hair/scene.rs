@@ -355,16 +355,20 @@ impl Scene {
         let (w, h) = photo.dimensions();
         let mask_path = self.dir.join(&f.masks[k]);
         let mask = crate::io::images::load_mask(&mask_path, w, h, &photo_path)?;
-        let mut s = self.clone();
-        s.strands = self.frame(k)?;
-        s.photo = Some(photo);
-        s.mask = Some(mask);
-        s.camera = Some(f.cameras[k]);
-        s.width = w;
-        s.height = h;
-        s.animation = None;
-        s.rest = None;
-        Ok(Some(s))
+        // Field by field rather than a clone of `self`: the reference's strands, photo and
+        // animation would be copied only to be replaced (a model's strands are tens of MB).
+        Ok(Some(Scene {
+            dir: self.dir.clone(),
+            strands: self.frame(k)?,
+            camera: Some(f.cameras[k]),
+            head: self.head.clone(),
+            photo: Some(photo),
+            mask: Some(mask),
+            width: w,
+            height: h,
+            animation: None,
+            rest: None,
+        }))
     }
 
     /// Writes the scene to `dir` (created): `strands.hair`, `photo.png` and `mask.png` when
