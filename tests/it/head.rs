@@ -182,6 +182,43 @@ fn mesh_is_closed_oriented_and_on_surface() {
     assert_eq!(head.mesh(64).1, tris);
 }
 
+/// `Head::mesh` keeps recent meshes by parameters and resolution: asking again gives the
+/// same mesh, and a head of other parameters (or another resolution) never gets a kept one.
+#[test]
+fn kept_meshes_belong_to_their_head_and_resolution() {
+    let a = Head::new(&HeadParams::default());
+    let b = Head::new(&HeadParams {
+        skull_width: HeadParams::default().skull_width * 1.1,
+        ..HeadParams::default()
+    });
+    let first = a.mesh(24);
+    for _ in 0..2 {
+        assert_eq!(a.mesh(24), first);
+        let other = b.mesh(24);
+        assert_ne!(other.0, first.0);
+        // A wider skull: the extent in x says which head the mesh is of.
+        let span = |v: &[Vec3]| {
+            let (lo, hi) = v
+                .iter()
+                .fold((f32::MAX, f32::MIN), |(l, h), p| (l.min(p.x), h.max(p.x)));
+            hi - lo
+        };
+        let (wa, wb) = (span(&first.0), span(&other.0));
+        assert!(wb > wa + 1e-3, "widths {wa} and {wb} m");
+        assert_ne!(a.mesh(25).0.len(), 0);
+        assert_ne!(a.mesh(25), first);
+    }
+    // More heads than are kept, then the first again: rebuilt, the same.
+    for k in 0..6 {
+        let h = Head::new(&HeadParams {
+            skull_width: HeadParams::default().skull_width * (1.0 + 0.01 * k as f32),
+            ..HeadParams::default()
+        });
+        let _ = h.mesh(16);
+    }
+    assert_eq!(a.mesh(24), first);
+}
+
 #[test]
 fn scalp_map_on_surface_outward_and_off_the_face() {
     let head = Head::default();

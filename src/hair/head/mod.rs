@@ -30,8 +30,9 @@ use crate::base::sdf::{sd_ellipsoid, smin};
 use crate::error::{Error, Result};
 use glam::{DVec2, DVec3, Vec3};
 use serde::{Deserialize, Serialize};
-use std::collections::HashMap;
+use std::collections::{HashMap, VecDeque};
 use std::f64::consts::TAU;
+use std::sync::{Arc, Mutex};
 
 // ---------------------------------------------------------------------------------------------
 // Parameters.
@@ -578,7 +579,37 @@ impl Head {
     /// side of [`Head::bounds`] (Kuhn split of every cube, so neighbouring cubes share faces
     /// and the mesh is watertight), vertices shared per grid edge and then moved onto the
     /// surface by Newton steps. Resolution is clamped to [8, 512].
+    ///
+    /// The last few meshes are kept, by parameters and resolution (a head is a function of
+    /// its [`HeadParams`]): every frame of a rendered clip asks for the same head's mesh, and
+    /// meshing it again was a sixth of the render's time.
     pub fn mesh(&self, resolution: u32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+        type Kept = (HeadParams, u32, Arc<(Vec<Vec3>, Vec<[u32; 3]>)>);
+        const KEEP: usize = 4;
+        static KEPT: Mutex<VecDeque<Kept>> = Mutex::new(VecDeque::new());
+        let find = |kept: &VecDeque<Kept>| {
+            kept.iter()
+                .find(|(p, r, _)| *r == resolution && *p == self.params)
+                .map(|(_, _, m)| m.clone())
+        };
+        // A poisoned lock only means another thread panicked while holding it; the list
+        // itself is always whole.
+        let lock = || KEPT.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(m) = find(&lock()) {
+            return (m.0.clone(), m.1.clone());
+        }
+        let m = Arc::new(self.mesh_uncached(resolution));
+        let mut kept = lock();
+        if find(&kept).is_none() {
+            if kept.len() == KEEP {
+                kept.pop_front();
+            }
+            kept.push_back((self.params.clone(), resolution, m.clone()));
+        }
+        (m.0.clone(), m.1.clone())
+    }
+
+    fn mesh_uncached(&self, resolution: u32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
         let res = resolution.clamp(8, 512) as f64;
         let (lo, hi) = self.bounds();
         let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
