@@ -128,8 +128,8 @@ pub fn run(
     Ok((rgb, an))
 }
 
-/// `mask.png` and `mask_overlay.png`, the orientation, `direction.npy`, `curves.json`, the curve and direction
-/// pictures and `analyze.json`.
+/// `mask.png` and `mask_overlay.png`, the orientation, `direction.npy`, `curves.json`, the
+/// curve and direction pictures and `analyze.json`.
 pub fn write(
     out: &Path,
     image: &Path,

@@ -150,7 +150,7 @@ pub fn direction_field(backdrop: &RgbImage, dir: &[f32]) -> RgbImage {
     img
 }
 
-/// Colour of a mask's outline in [`mask_overlay`]: no photo of hair is this pure a yellow.
+/// Colour of a mask's outline in [`mask_overlay`]: a yellow purer than hair, even blond, shows.
 pub const MASK_EDGE: Rgb<u8> = Rgb([255, 230, 0]);
 /// Colour of background strokes in [`mask_overlay`].
 pub const BACKGROUND_STROKE: Rgb<u8> = Rgb([255, 0, 255]);
