@@ -7,8 +7,9 @@
 //!   the mask comes back as hair, never as skin or inpainted background (issue 19).
 //! * **Novel view**: the background is the photo with the hair and the face removed and
 //!   inpainted (the face: the photo's skin and inner face under the fitted head above the
-//!   chin, grown by the hair margin and 3 px; below the mouth it takes the colour under the
-//!   chin, the neck behind the jaw), the same for every novel view. The head mesh
+//!   chin, grown by the hair margin and 3 px; below the mouth and as wide as the photo's
+//!   neck it takes the colour under the chin, the neck behind the jaw), the same for every
+//!   novel view. The head mesh
 //!   keeps what the photo shows as head, cut along the photo's pixels by its texture's
 //!   alpha (coverage, anti-aliased; see `render::raster`): below the chin the photo's skin
 //!   ([`skin_mask`]), so the neck ends where the photo's neck does; above it, where it faces
@@ -390,8 +391,16 @@ fn base(
         colour_under_chin(lin, &hole, pw, ph, head, &cam0),
         face_frame(head, &cam0),
     ) {
+        // Only as wide as the photo's neck: a block the width of the face showed beside the
+        // jaw of a turned head as a slab of the neck's shadow where the backdrop belongs.
+        let (a, b) = neck_columns(&hole, &skin, pw, ph, head, &cam0).unwrap_or((0, pwu));
         for i in 0..pwu * phu {
-            if head_px[i] != 0 && hair[i] == 0 && (i / pwu) as f32 + 0.5 >= mouth.y {
+            let x = i % pwu;
+            if head_px[i] != 0
+                && hair[i] == 0
+                && (i / pwu) as f32 + 0.5 >= mouth.y
+                && (a..=b).contains(&x)
+            {
                 lin_pre[i] = neck;
                 hole_pm[i] = 0;
             }
@@ -567,6 +576,43 @@ fn colour_under_chin(
     Some(out)
 }
 
+/// The columns of the photo's neck under the chin: from the leftmost to the rightmost skin
+/// pixel outside the hole between the chin and 0.6 eye distances under it, within 0.8 eye
+/// distances of the chin, grown by 2 px. None when the photo shows fewer than 8 such
+/// pixels (a collar up to the chin).
+fn neck_columns(
+    hole: &[u8],
+    skin: &[u8],
+    w: u32,
+    h: u32,
+    head: &Head,
+    cam: &WeakPerspective,
+) -> Option<(usize, usize)> {
+    let (_, _, d) = face_frame(head, cam)?;
+    let chin = cam.project(head.landmark("chin")?).truncate();
+    let (wu, hu) = (w as usize, h as usize);
+    let (x0, x1) = (
+        (chin.x - 0.8 * d).max(0.0) as usize,
+        ((chin.x + 0.8 * d).max(0.0) as usize).min(wu),
+    );
+    let (y0, y1) = (
+        chin.y.max(0.0) as usize,
+        ((chin.y + 0.6 * d).max(0.0) as usize).min(hu),
+    );
+    let (mut n, mut first, mut last) = (0, usize::MAX, 0);
+    for y in y0..y1 {
+        for x in x0..x1 {
+            let i = y * wu + x;
+            if hole[i] == 0 && skin[i] != 0 {
+                n += 1;
+                first = first.min(x);
+                last = last.max(x);
+            }
+        }
+    }
+    (n >= 8).then(|| (first.saturating_sub(2), (last + 2).min(wu - 1)))
+}
+
 /// The inner face (brows, eyes, nose, mouth) in the photo: features whose colour is not
 /// skin but which belong on the face texture. A rounded box (a superellipse of degree 4)
 /// from above the brows (0.75 eye distances over the eyes) to below the lower lip (0.35
@@ -735,6 +781,42 @@ fn lowest_skin_row(skin: &[u8], w: u32, h: u32, chin: Vec2) -> Option<f32> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The neck's fill is as wide as the photo's skin under the chin, not the face: the
+    /// columns run from the outermost skin pixel outside the hole (grown by 2 px), and a
+    /// photo with no skin under the chin leaves the caller its whole-width fallback.
+    #[test]
+    fn neck_columns_follow_the_skin_under_the_chin() {
+        let head = Head::default();
+        let cam = WeakPerspective {
+            s: 1000.0,
+            r: Mat3::IDENTITY,
+            // The chin about the middle of the frame.
+            t: Vec2::new(128.0, -14.0),
+        };
+        let (w, h) = (256u32, 256u32);
+        let (_, _, d) = face_frame(&head, &cam).expect("default head has eyes and mouth");
+        let chin = cam.project(head.landmark("chin").unwrap()).truncate();
+        let (cx, cy) = (chin.x as usize, chin.y as usize);
+        let mut skin = vec![0u8; (w * h) as usize];
+        let mut hole = vec![0u8; (w * h) as usize];
+        // A neck 12 px either side of the chin, under a face hole reaching 3 px below it,
+        // and skin-coloured shoulders farther down than the band looks.
+        let band = (0.6 * d) as usize;
+        for y in cy..(cy + band + 20).min(h as usize) {
+            for x in 0..w as usize {
+                let i = y * w as usize + x;
+                let neck = x + 12 >= cx && x <= cx + 12;
+                skin[i] = (neck || y > cy + band + 2) as u8;
+                hole[i] = (y < cy + 3) as u8;
+            }
+        }
+        let (a, b) = neck_columns(&hole, &skin, w, h, &head, &cam).expect("a neck is shown");
+        assert_eq!((a, b), (cx - 14, cx + 14));
+        // Skin only inside the hole: nothing the photo shows.
+        let covered = vec![1u8; (w * h) as usize];
+        assert_eq!(neck_columns(&covered, &skin, w, h, &head, &cam), None);
+    }
 
     /// Turned-away texels stay on the back of the skull and go around the ears and on the
     /// back of the neck (what a turned view showed as a ribbon beside the face).
