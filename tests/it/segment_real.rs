@@ -181,6 +181,13 @@ fn masks_from_strokes_match_hand_drawn_masks_on_real_portraits() {
         let (w, h) = r.image.dimensions();
         let strokes =
             Strokes::load(&dir().join(format!("{name}_strokes.json")), Some((w, h))).unwrap();
+        // The hand-placed landmarks (for `coif model --landmarks` on the crop) load and lie
+        // on the crop.
+        coif::io::annot::Landmarks::load(
+            &dir().join(format!("{name}_landmarks.json")),
+            Some((w, h)),
+        )
+        .unwrap();
         let got = segment(&r.image, &strokes, &p).unwrap();
         let (iou, missed, taken) = score(&r, &got);
         let (iou_c, _, taken_c) = score(&r, &segment(&r.image, &strokes, &colour).unwrap());
