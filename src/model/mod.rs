@@ -280,9 +280,19 @@ pub fn model_from_analysis(
         })
         .collect();
     if roots.is_empty() {
-        return Err(Error::Invalid(
-            "no scalp root projects onto the hair mask: the mask misses the head".into(),
-        ));
+        // Seen on a real portrait: wisps below a cap, beside the fitted head, and no hair
+        // over its scalp. Say which of the two usual causes it can be.
+        let hint = if landmarks.is_some() {
+            "hair the photo shows only below a hat or cap (coif grows strands from the scalp \
+             the hair mask covers)"
+        } else {
+            "a head placed away from the hair by the default fit (give --landmarks), or hair \
+             shown only below a hat or cap"
+        };
+        return Err(Error::Invalid(format!(
+            "no scalp root projects onto the hair mask: the mask covers none of the fitted \
+             head's scalp; {hint}"
+        )));
     }
     let signs = vec![1.0f32; roots.len()];
     let grown = grow(engine, &grid, &d, &hg, &roots, &signs, &p.grow)?;

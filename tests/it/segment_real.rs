@@ -254,3 +254,34 @@ fn masks_from_strokes_match_hand_drawn_masks_on_real_portraits() {
         sum_colour / n
     );
 }
+
+/// Grace Hopper's hair shows only as wisps below her cap, beside the fitted head: `coif
+/// model` cannot grow strands from a scalp the mask does not cover, and says so with the
+/// likely cause, exits 64 and leaves no output folder.
+#[test]
+fn hair_only_below_a_cap_is_refused_with_the_cause() {
+    let r = load("hopper");
+    let tmp = tempfile::tempdir().unwrap();
+    let photo = tmp.path().join("hopper.png");
+    r.image.save(&photo).unwrap();
+    let out = tmp.path().join("model");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_coif"))
+        .arg("model")
+        .arg("--image")
+        .arg(&photo)
+        .arg("--strokes")
+        .arg(dir().join("hopper_strokes.json"))
+        .arg("--landmarks")
+        .arg(dir().join("hopper_landmarks.json"))
+        .args(["--backend", "cpu", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(64), "{err}");
+    assert!(
+        err.contains("hopper.png") && err.contains("below a hat or cap"),
+        "{err}"
+    );
+    assert!(!out.exists(), "a refused run left {}", out.display());
+}
