@@ -534,6 +534,27 @@ fn face_frame(head: &Head, cam: &WeakPerspective) -> Option<(Vec2, Vec2, f32)> {
     (d.is_finite() && d > 1.0).then_some((0.5 * (le + re), 0.5 * (ml + mr), d))
 }
 
+/// The photo pixels of a box under the chin, `half` eye distances either side of it and
+/// from `top` to `bottom` eye distances below it, clipped to the w × h photo: (columns,
+/// rows). None without eyes, mouth or chin.
+fn box_under_chin(
+    head: &Head,
+    cam: &WeakPerspective,
+    w: u32,
+    h: u32,
+    half: f32,
+    top: f32,
+    bottom: f32,
+) -> Option<(std::ops::Range<usize>, std::ops::Range<usize>)> {
+    let (_, _, d) = face_frame(head, cam)?;
+    let chin = cam.project(head.landmark("chin")?).truncate();
+    let span = |a: f32, b: f32, n: u32| (a.max(0.0) as usize)..(b.min(n as f32).max(0.0) as usize);
+    Some((
+        span(chin.x - half * d, chin.x + half * d, w),
+        span(chin.y + top * d, chin.y + bottom * d, h),
+    ))
+}
+
 /// The median colour (per channel) of the photo under the chin, outside the hole: a box
 /// 0.8 eye distances wide from 0.15 to 0.6 eye distances under the chin. None when it holds
 /// fewer than 8 such pixels.
@@ -545,19 +566,10 @@ fn colour_under_chin(
     head: &Head,
     cam: &WeakPerspective,
 ) -> Option<[f32; 3]> {
-    let (_, _, d) = face_frame(head, cam)?;
-    let chin = cam.project(head.landmark("chin")?).truncate();
-    let (x0, x1) = (
-        (chin.x - 0.4 * d).max(0.0),
-        (chin.x + 0.4 * d).min(w as f32),
-    );
-    let (y0, y1) = (
-        (chin.y + 0.15 * d).max(0.0),
-        (chin.y + 0.6 * d).min(h as f32),
-    );
+    let (xs, ys) = box_under_chin(head, cam, w, h, 0.4, 0.15, 0.6)?;
     let mut px: Vec<[f32; 3]> = Vec::new();
-    for y in (y0 as usize)..(y1.max(0.0) as usize) {
-        for x in (x0 as usize)..(x1.max(0.0) as usize) {
+    for y in ys {
+        for x in xs.clone() {
             let i = y * w as usize + x;
             if hole[i] == 0 {
                 px.push(lin[i]);
@@ -588,20 +600,11 @@ fn neck_columns(
     head: &Head,
     cam: &WeakPerspective,
 ) -> Option<(usize, usize)> {
-    let (_, _, d) = face_frame(head, cam)?;
-    let chin = cam.project(head.landmark("chin")?).truncate();
-    let (wu, hu) = (w as usize, h as usize);
-    let (x0, x1) = (
-        (chin.x - 0.8 * d).max(0.0) as usize,
-        ((chin.x + 0.8 * d).max(0.0) as usize).min(wu),
-    );
-    let (y0, y1) = (
-        chin.y.max(0.0) as usize,
-        ((chin.y + 0.6 * d).max(0.0) as usize).min(hu),
-    );
+    let (xs, ys) = box_under_chin(head, cam, w, h, 0.8, 0.0, 0.6)?;
+    let wu = w as usize;
     let (mut n, mut first, mut last) = (0, usize::MAX, 0);
-    for y in y0..y1 {
-        for x in x0..x1 {
+    for y in ys {
+        for x in xs.clone() {
             let i = y * wu + x;
             if hole[i] == 0 && skin[i] != 0 {
                 n += 1;
