@@ -137,9 +137,12 @@ pub struct SketchOpts {
     /// Contrasts chosen by rate too.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub rate_contrast: bool,
-    /// A budget for `hair.czs`, bytes.
+    /// A budget for `hair.czs`, bytes: met or refused (replaces `target_bytes`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub max_bytes: Option<usize>,
+    /// The size `hair.czs` is brought under where it can be (default 1024; 0: off).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub target_bytes: Option<usize>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub directions: Option<String>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -474,7 +477,13 @@ impl BatchJob {
                     params.pursuit.refine_sides = !o.dictionary_sides;
                     set(&mut params.pursuit.bit_cost, o.bit_cost);
                     params.pursuit.rate_contrast = o.rate_contrast;
-                    params.max_bytes = o.max_bytes;
+                    use crate::sketch::run::ByteBudget;
+                    params.budget = match (o.max_bytes, o.target_bytes) {
+                        (Some(b), _) => ByteBudget::Max(b),
+                        (None, Some(0)) => ByteBudget::Off,
+                        (None, Some(b)) => ByteBudget::Target(b),
+                        (None, None) => params.budget,
+                    };
                     if let Some(d) = &o.directions {
                         params.method = d.parse().expect("checked");
                     }

@@ -121,6 +121,25 @@ pub(super) fn run_sketch(engine: &Engine, j: &SketchJob) -> anyhow::Result<Repor
     record_all(&r.seconds);
     stage("write").run(|| write(&j.out, &photo, &r, extra))?;
     let sizes = crate::sketch::format::czs_sizes(&r.sketch);
+    let mut details = stage_lines(&r.seconds);
+    let mut warnings = Vec::new();
+    if let Some(b) = &r.budget {
+        if !b.met {
+            warnings.push(format!(
+                "{}: hair.czs is {} B, over the {} B target: not even a sketch without curves                  fits it (the region, shading and colour map); kept as pursued",
+                j.image.display(),
+                sizes.total,
+                b.max_bytes
+            ));
+        } else if b.tries.len() > 1 {
+            details.push(format!(
+                "primitive penalty raised to {} to fit {} B ({} pursuits)",
+                b.lambda_b,
+                b.max_bytes,
+                b.tries.len()
+            ));
+        }
+    }
     Ok(Report {
         summary: format!(
             "sketch: {} curves, {} B (.czs; sketch part {} B) -> {} ({:.1} s on {})",
@@ -131,8 +150,8 @@ pub(super) fn run_sketch(engine: &Engine, j: &SketchJob) -> anyhow::Result<Repor
             t0.elapsed().as_secs_f64(),
             engine.describe()
         ),
-        details: stage_lines(&r.seconds),
-        warnings: Vec::new(),
+        details,
+        warnings,
     })
 }
 

@@ -194,9 +194,15 @@ pub struct SketchArgs {
     #[arg(long)]
     rate_contrast: bool,
     /// A budget for hair.czs in bytes: where the sketch comes out larger, the primitive
-    /// penalty is raised until it fits (the steps tried are in report.json).
+    /// penalty is raised until it fits (the steps tried are in report.json); refused (exit
+    /// 64) where not even a sketch without curves fits. Replaces --target-bytes.
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
     max_bytes: Option<u64>,
+    /// The size hair.czs is brought under as --max-bytes does, where a sketch with curves can
+    /// be (else it is kept as pursued, with a warning); 0 keeps the primitive penalty as
+    /// given whatever the size.
+    #[arg(long, default_value_t = coif::sketch::run::DEFAULT_TARGET_BYTES as u64)]
+    target_bytes: u64,
     /// How directions are chosen: swc (Swendsen-Wang cuts, CZ06 §4.2), icm, or prior (each
     /// curve by the direction prior alone; the ablation baselines).
     #[arg(long, default_value = "swc")]
@@ -717,13 +723,18 @@ impl Command {
                         .into())
                     }
                 };
+                use coif::sketch::run::ByteBudget;
                 let mut params = coif::sketch::run::SketchParams::default();
                 params.pursuit.lambda_nc = a.curve_penalty;
                 params.pursuit.lambda_b = a.primitive_penalty;
                 params.pursuit.refine_sides = !a.dictionary_sides;
                 params.pursuit.bit_cost = a.bit_cost;
                 params.pursuit.rate_contrast = a.rate_contrast;
-                params.max_bytes = a.max_bytes.map(|b| b as usize);
+                params.budget = match (a.max_bytes, a.target_bytes) {
+                    (Some(b), _) => ByteBudget::Max(b as usize),
+                    (None, 0) => ByteBudget::Off,
+                    (None, b) => ByteBudget::Target(b as usize),
+                };
                 params.method = a.directions.parse()?;
                 params.swc.prior.crown = a.crown.parse()?;
                 params.swc.sweeps = a.sweeps;
