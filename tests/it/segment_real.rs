@@ -125,19 +125,29 @@ fn overlay(r: &Reference, got: &GrayImage, out: &Path) {
     o.save(out).unwrap();
 }
 
-/// The IoU left if every error farther than `band` px from the reference mask's edge were
-/// fixed: a hand-drawn polygon is itself only good to a pixel or two, so this is about the
-/// best any segmentation can score against it with the errors it makes at the edge.
-fn iou_within_band(r: &Reference, got: &GrayImage, band: f32) -> f64 {
+/// Per pixel, the distance to the nearest pixel of the other label in the reference mask.
+fn edge_distance(r: &Reference, got: &GrayImage) -> Vec<f32> {
     let (w, h) = got.dimensions();
     let (w, h) = (w as usize, h as usize);
     let not: Vec<bool> = r.mask.iter().map(|&t| !t).collect();
     let to_hair = coif::synth::distance_to(&r.mask, w, h);
     let to_not = coif::synth::distance_to(&not, w, h);
+    r.mask
+        .iter()
+        .enumerate()
+        .map(|(i, &t)| if t { to_not[i] } else { to_hair[i] })
+        .collect()
+}
+
+/// The IoU left if every error farther than `band` px from the reference mask's edge were
+/// fixed: a hand-drawn polygon is itself only good to a pixel or two, so this is about the
+/// best any segmentation can score against it with the errors it makes at the edge.
+fn iou_within_band(r: &Reference, got: &GrayImage, band: f32) -> f64 {
+    let to_edge = edge_distance(r, got);
     let (mut hair, mut missed, mut taken) = (0u64, 0u64, 0u64);
     for (i, &t) in r.mask.iter().enumerate() {
         let c = got.as_raw()[i] > 127;
-        let near = if t { to_not[i] } else { to_hair[i] } <= band;
+        let near = to_edge[i] <= band;
         hair += t as u64;
         missed += (t && !c && near) as u64;
         taken += (!t && c && near) as u64;
@@ -148,14 +158,10 @@ fn iou_within_band(r: &Reference, got: &GrayImage, band: f32) -> f64 {
 /// The IoU over the pixels farther than `band` px from the reference mask's edge (a trimap's
 /// unknown band left out): what the segmentation gets wrong where the reference is sure.
 fn iou_outside_band(r: &Reference, got: &GrayImage, band: f32) -> f64 {
-    let (w, h) = got.dimensions();
-    let (w, h) = (w as usize, h as usize);
-    let not: Vec<bool> = r.mask.iter().map(|&t| !t).collect();
-    let to_hair = coif::synth::distance_to(&r.mask, w, h);
-    let to_not = coif::synth::distance_to(&not, w, h);
+    let to_edge = edge_distance(r, got);
     let (mut inter, mut uni) = (0u64, 0u64);
     for (i, &t) in r.mask.iter().enumerate() {
-        if (if t { to_not[i] } else { to_hair[i] }) <= band {
+        if to_edge[i] <= band {
             continue;
         }
         let c = got.as_raw()[i] > 127;

@@ -305,16 +305,7 @@ fn the_command_writes_every_file_and_they_agree() {
     write_case(&d.join("case"));
     let mut sizes = Vec::new();
     for (name, extra) in [("sk", None), ("dict", Some("--dictionary-sides"))] {
-        let out = coif()
-            .args(["sketch", "--backend", "cpu", "--image"])
-            .arg(d.join("case/image.png"))
-            .arg("--mask")
-            .arg(d.join("case/mask.png"))
-            .arg("--out")
-            .arg(d.join(name))
-            .args(extra)
-            .output()
-            .unwrap();
+        let out = sketch_case(d, name, extra.as_slice());
         succeeded(&out);
         println!("{}", String::from_utf8_lossy(&out.stdout));
         let dir = d.join(name);
@@ -374,17 +365,8 @@ fn a_byte_budget_is_met_or_refused() {
     let d = tmp.path();
     write_case(&d.join("case"));
     let run = |name: &str, budget: Option<u64>| {
-        let mut cmd = coif();
-        cmd.args(["sketch", "--backend", "cpu", "--image"])
-            .arg(d.join("case/image.png"))
-            .arg("--mask")
-            .arg(d.join("case/mask.png"))
-            .arg("--out")
-            .arg(d.join(name));
-        if let Some(b) = budget {
-            cmd.arg(format!("--max-bytes={b}"));
-        }
-        cmd.output().unwrap()
+        let flag = budget.map(|b| format!("--max-bytes={b}"));
+        sketch_case(d, name, flag.as_slice())
     };
     let czs = |name: &str| {
         std::fs::metadata(d.join(name).join("hair.czs"))
@@ -430,18 +412,7 @@ fn a_byte_target_out_of_reach_keeps_the_sketch_and_warns() {
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
     write_case(&d.join("case"));
-    let run = |name: &str, extra: &[&str]| {
-        coif()
-            .args(["sketch", "--backend", "cpu", "--image"])
-            .arg(d.join("case/image.png"))
-            .arg("--mask")
-            .arg(d.join("case/mask.png"))
-            .arg("--out")
-            .arg(d.join(name))
-            .args(extra)
-            .output()
-            .unwrap()
-    };
+    let run = |name: &str, extra: &[&str]| sketch_case(d, name, extra);
     let off = run("off", &["--target-bytes", "0"]);
     succeeded(&off);
     let report = |name: &str| -> serde_json::Value {
@@ -471,6 +442,24 @@ fn a_byte_target_out_of_reach_keeps_the_sketch_and_warns() {
     assert_eq!(b["met"], true, "{b}");
     let got = std::fs::metadata(d.join("fit/hair.czs")).unwrap().len();
     assert!(got <= aim, "{got} B over the target of {aim} B");
+}
+
+/// `coif sketch` on the case [`write_case`] wrote under `d`, into `d/name`.
+fn sketch_case(
+    d: &Path,
+    name: &str,
+    extra: &[impl AsRef<std::ffi::OsStr>],
+) -> std::process::Output {
+    coif()
+        .args(["sketch", "--backend", "cpu", "--image"])
+        .arg(d.join("case/image.png"))
+        .arg("--mask")
+        .arg(d.join("case/mask.png"))
+        .arg("--out")
+        .arg(d.join(name))
+        .args(extra)
+        .output()
+        .unwrap()
 }
 
 /// A run that must succeed; its error output is the failure's message.
