@@ -174,6 +174,8 @@ pub fn analyse(engine: &Engine, inp: &SketchInputs, p: &SketchParams) -> Result<
     // Steps 1 and 2 and the stored sketch, for one λ_B; their times summed over attempts.
     let times = std::cell::Cell::new([0.0f64; 2]);
     let attempt = |lambda_b: f32| -> Result<(pursuit::Pursuit, swc::Directed, Sketch)> {
+        // A budget's pursuits are the run's longest stretch: a signal stops it between them.
+        crate::interrupt::check()?;
         let pp = pursuit::PursuitParams {
             lambda_b,
             ..p.pursuit
@@ -280,6 +282,10 @@ fn fit_budget<T>(
     let (mut lo, mut hi) = (lambda0, None);
     let mut next = (2.0 * lo).max(1.0);
     while hi.is_none() && next <= BUDGET_MAX_LAMBDA_B {
+        log::info!(
+            "sketch: {} B at λ_B {lo}, over the {max} B {kind}: pursuing again at λ_B {next}",
+            tries.last().map_or(0, |t| t.1)
+        );
         let r = attempt(next)?;
         let n = bytes(&r.2);
         tries.push((next, n));
@@ -308,6 +314,7 @@ fn fit_budget<T>(
     };
     for _ in 0..2 {
         let mid = 0.5 * (lo + best);
+        log::info!("sketch: fits at λ_B {best}; trying λ_B {mid}");
         let r = attempt(mid)?;
         let n = bytes(&r.2);
         tries.push((mid, n));
