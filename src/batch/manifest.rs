@@ -477,13 +477,8 @@ impl BatchJob {
                     params.pursuit.refine_sides = !o.dictionary_sides;
                     set(&mut params.pursuit.bit_cost, o.bit_cost);
                     params.pursuit.rate_contrast = o.rate_contrast;
-                    use crate::sketch::run::ByteBudget;
-                    params.budget = match (o.max_bytes, o.target_bytes) {
-                        (Some(b), _) => ByteBudget::Max(b),
-                        (None, Some(0)) => ByteBudget::Off,
-                        (None, Some(b)) => ByteBudget::Target(b),
-                        (None, None) => params.budget,
-                    };
+                    params.budget =
+                        crate::sketch::run::ByteBudget::from_options(o.max_bytes, o.target_bytes);
                     if let Some(d) = &o.directions {
                         params.method = d.parse().expect("checked");
                     }

@@ -126,7 +126,8 @@ pub(super) fn run_sketch(engine: &Engine, j: &SketchJob) -> anyhow::Result<Repor
     if let Some(b) = &r.budget {
         if !b.met {
             warnings.push(format!(
-                "{}: hair.czs is {} B, over the {} B target: not even a sketch without curves                  fits it (the region, shading and colour map); kept as pursued",
+                "{}: hair.czs is {} B, over the {} B target: not even a sketch without curves \
+                 fits it (the region, shading and colour map); kept as pursued",
                 j.image.display(),
                 sizes.total,
                 b.max_bytes

@@ -56,6 +56,17 @@ pub enum ByteBudget {
 }
 
 impl ByteBudget {
+    /// From the command's or the manifest's options: a budget (`--max-bytes`) wins over a
+    /// target (`--target-bytes`, 0 off); neither gives the default target.
+    pub fn from_options(max_bytes: Option<usize>, target_bytes: Option<usize>) -> Self {
+        match (max_bytes, target_bytes) {
+            (Some(b), _) => ByteBudget::Max(b),
+            (None, Some(0)) => ByteBudget::Off,
+            (None, Some(b)) => ByteBudget::Target(b),
+            (None, None) => ByteBudget::Target(DEFAULT_TARGET_BYTES),
+        }
+    }
+
     fn bytes(self) -> Option<usize> {
         match self {
             ByteBudget::Off => None,
@@ -255,23 +266,26 @@ fn fit_budget<T>(
     let bytes = |s: &Sketch| format::to_czs(s).len();
     let kind = if strict { "max" } else { "target" };
     let mut tries = vec![(lambda0, bytes(&first.2))];
-    let bare = || {
+    let met = tries[0].1 <= max;
+    // The region, shading and colour map alone; only needed when the first is over.
+    let bare = if met {
+        0
+    } else {
         bytes(&Sketch {
             curves: Vec::new(),
             ..first.2.clone()
         })
     };
-    if tries[0].1 <= max || (!strict && bare() > max) {
+    if met || (!strict && bare > max) {
         let b = Budget {
             kind,
             max_bytes: max,
-            met: tries[0].1 <= max,
+            met,
             lambda_b: lambda0,
             tries,
         };
         return Ok((first, b));
     }
-    let bare = bare();
     if bare > max {
         return Err(Error::Invalid(format!(
             "a byte budget of {max} B cannot be met: without any curve the sketch takes \

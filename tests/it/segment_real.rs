@@ -142,8 +142,7 @@ fn edge_distance(r: &Reference, got: &GrayImage) -> Vec<f32> {
 /// The IoU left if every error farther than `band` px from the reference mask's edge were
 /// fixed: a hand-drawn polygon is itself only good to a pixel or two, so this is about the
 /// best any segmentation can score against it with the errors it makes at the edge.
-fn iou_within_band(r: &Reference, got: &GrayImage, band: f32) -> f64 {
-    let to_edge = edge_distance(r, got);
+fn iou_within_band(r: &Reference, got: &GrayImage, to_edge: &[f32], band: f32) -> f64 {
     let (mut hair, mut missed, mut taken) = (0u64, 0u64, 0u64);
     for (i, &t) in r.mask.iter().enumerate() {
         let c = got.as_raw()[i] > 127;
@@ -157,8 +156,7 @@ fn iou_within_band(r: &Reference, got: &GrayImage, band: f32) -> f64 {
 
 /// The IoU over the pixels farther than `band` px from the reference mask's edge (a trimap's
 /// unknown band left out): what the segmentation gets wrong where the reference is sure.
-fn iou_outside_band(r: &Reference, got: &GrayImage, band: f32) -> f64 {
-    let to_edge = edge_distance(r, got);
+fn iou_outside_band(r: &Reference, got: &GrayImage, to_edge: &[f32], band: f32) -> f64 {
     let (mut inter, mut uni) = (0u64, 0u64);
     for (i, &t) in r.mask.iter().enumerate() {
         if to_edge[i] <= band {
@@ -233,8 +231,9 @@ fn masks_from_strokes_match_hand_drawn_masks_on_real_portraits() {
         let (iou, missed, taken) = score(&r, &got);
         let (iou_c, _, taken_c) = score(&r, &segment(&r.image, &strokes, &colour).unwrap());
         let (iou_f, _, _) = score(&r, &segment(&r.image, &strokes, &no_flow).unwrap());
-        let edge = iou_within_band(&r, &got, 2.0);
-        let sure = iou_outside_band(&r, &got, 2.0);
+        let to_edge = edge_distance(&r, &got);
+        let edge = iou_within_band(&r, &got, &to_edge, 2.0);
+        let sure = iou_outside_band(&r, &got, &to_edge, 2.0);
         let (grown, shrunk) = one_pixel_off(&r, w, h);
         let hair = r.mask.iter().filter(|&&t| t).count();
         let mark = if iou >= GOAL {

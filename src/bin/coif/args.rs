@@ -730,11 +730,10 @@ impl Command {
                 params.pursuit.refine_sides = !a.dictionary_sides;
                 params.pursuit.bit_cost = a.bit_cost;
                 params.pursuit.rate_contrast = a.rate_contrast;
-                params.budget = match (a.max_bytes, a.target_bytes) {
-                    (Some(b), _) => ByteBudget::Max(b as usize),
-                    (None, 0) => ByteBudget::Off,
-                    (None, b) => ByteBudget::Target(b as usize),
-                };
+                params.budget = ByteBudget::from_options(
+                    a.max_bytes.map(|b| b as usize),
+                    Some(a.target_bytes as usize),
+                );
                 params.method = a.directions.parse()?;
                 params.swc.prior.crown = a.crown.parse()?;
                 params.swc.sweeps = a.sweeps;
