@@ -1,8 +1,9 @@
-//! `coif batch`: the jobs of a manifest, one shard of them, with `--resume`.
+//! `coif batch`: the jobs of a manifest, one shard of them, with `--resume` and `--jobs`.
 
 use super::{BackendArgs, Request};
 use clap::Args;
 use coif::batch::{BatchOptions, Shard};
+use std::num::NonZeroUsize;
 use std::path::PathBuf;
 
 #[derive(Args)]
@@ -23,8 +24,25 @@ pub struct BatchArgs {
     /// <manifest>.shard-I-of-N.summary.json for a shard).
     #[arg(long)]
     summary: Option<PathBuf>,
+    /// Run up to N jobs at once (N >= 1), started in manifest order, each in a worker
+    /// thread of its own sharing the CPU threads: one job's serial stages overlap another's
+    /// work. The memory budget (--max-memory, else the machine's) is divided by N; with N > 1
+    /// each job's peak memory is the process's, and the ok/failed lines come in completion
+    /// order (the summary stays in manifest order).
+    #[arg(long, value_name = "N", default_value = "1", value_parser = parse_jobs)]
+    jobs: NonZeroUsize,
     #[command(flatten)]
     backend: BackendArgs,
+}
+
+fn parse_jobs(s: &str) -> Result<NonZeroUsize, String> {
+    match s.trim().parse::<usize>() {
+        Ok(n) => NonZeroUsize::new(n)
+            .ok_or_else(|| "expected at least 1 job at once (1 runs the jobs in turn)".into()),
+        Err(_) => Err(format!(
+            "expected a whole number of jobs to run at once (1 or more), got {s:?}"
+        )),
+    }
 }
 
 fn parse_shard(s: &str) -> Result<Shard, String> {
@@ -41,6 +59,7 @@ impl BatchArgs {
             backend: self.backend.backend,
             // Set from the global --max-memory by main.
             max_memory: None,
+            jobs: self.jobs,
         })
     }
 }
