@@ -272,6 +272,33 @@ pub fn run(opts: &BatchOptions, timings: Option<&Path>) -> anyhow::Result<Summar
     Ok(summary)
 }
 
+thread_local! {
+    /// The id of the job this thread is running, for log lines to name it.
+    static CURRENT: std::cell::RefCell<Option<String>> = const { std::cell::RefCell::new(None) };
+}
+
+/// The id of the batch job running on this thread, if any: with jobs at once a log line
+/// (a segmentation warning, say) would otherwise not say which job it is about.
+pub fn current_job() -> Option<String> {
+    CURRENT.with(|c| c.borrow().clone())
+}
+
+/// Sets this thread's job id until dropped.
+struct CurrentJob;
+
+impl CurrentJob {
+    fn set(id: &str) -> CurrentJob {
+        CURRENT.with(|c| *c.borrow_mut() = Some(id.to_string()));
+        CurrentJob
+    }
+}
+
+impl Drop for CurrentJob {
+    fn drop(&mut self) {
+        CURRENT.with(|c| *c.borrow_mut() = None);
+    }
+}
+
 /// What a worker tells the thread that prints: job k (in the shard's order) started, or
 /// ended with its outcome, warnings and timings.
 enum Event {
@@ -317,6 +344,7 @@ fn run_one(
     resume: bool,
     own_peak: bool,
 ) -> (JobOutcome, Vec<String>, Option<RunTimings>) {
+    let _current = CurrentJob::set(job.id());
     let t = Instant::now();
     let scope = match own_peak && crate::timings::reset_peak_rss() {
         true => PeakScope::Job,

@@ -24,12 +24,13 @@ pub struct BatchArgs {
     /// <manifest>.shard-I-of-N.summary.json for a shard).
     #[arg(long)]
     summary: Option<PathBuf>,
-    /// Run up to N jobs at once (N >= 1), started in manifest order, each in a worker
-    /// thread of its own sharing the CPU threads: one job's serial stages overlap another's
-    /// work. The memory budget (--max-memory, else the machine's) is divided by N; with N > 1
-    /// each job's peak memory is the process's, and the ok/failed lines come in completion
-    /// order (the summary stays in manifest order).
-    #[arg(long, value_name = "N", default_value = "1", value_parser = parse_jobs)]
+    /// Run up to N jobs at once (N >= 1), started in manifest order, each on a worker thread
+    /// of its own, all sharing the CPU threads: one job's serial stages overlap another's
+    /// parallel work. The memory budget (--max-memory, else the machine's) is divided by the
+    /// jobs run at once. With more than one at once a job's peak memory in the summary is the
+    /// process's, and the ok/failed lines come in completion order (the summary stays in
+    /// manifest order). 1 runs the jobs in turn.
+    #[arg(long, value_name = "N", default_value = "2", value_parser = parse_jobs)]
     jobs: NonZeroUsize,
     #[command(flatten)]
     backend: BackendArgs,
