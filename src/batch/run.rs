@@ -1,5 +1,6 @@
-//! Runs one shard of a manifest: each job's steps in order, a failing job recorded and the
-//! rest carrying on, records for `--resume`, and the summary file.
+//! Runs one shard of a manifest: each job's steps in order, up to `--jobs` jobs at once on
+//! worker threads, a failing job recorded and the rest carrying on, records for `--resume`,
+//! and the summary file.
 
 use super::manifest::{self, BatchJob};
 use super::record::Record;
