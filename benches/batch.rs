@@ -9,8 +9,9 @@
 //! image side), COIF_BENCH_STYLES ("long,sidepart,whorl,short,fringe"), COIF_BENCH_ASTRONAUT
 //! (1; 0 leaves the 512² photo out), COIF_BENCH_REPEAT (1: copies of every job, for bigger
 //! runs), COIF_BENCH_STEPS ("model,render"; any of orient, analyze, model, render, sketch,
-//! synth-hair), COIF_BENCH_BACKEND (cpu), COIF_BENCH_PARALLEL (2: parallel's -j),
-//! COIF_BENCH_ROUNDS (1: rounds of batch then peer; each side's fastest is kept).
+//! synth-hair), COIF_BENCH_BACKEND (cpu), COIF_BENCH_JOBS (2: the batch's --jobs),
+//! COIF_BENCH_PARALLEL (2: parallel's -j), COIF_BENCH_ROUNDS (1: rounds of batch then peer;
+//! each side's fastest is kept).
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -201,6 +202,8 @@ fn main() {
     let steps_s = env("COIF_BENCH_STEPS", "model,render");
     let steps: Vec<&str> = steps_s.split(',').filter(|s| !s.is_empty()).collect();
     let backend = env("COIF_BENCH_BACKEND", "cpu");
+    // 0 is passed on, for coif to refuse: the bench measures what the user would type.
+    let jobs = num("COIF_BENCH_JOBS", 2);
     let pj = num("COIF_BENCH_PARALLEL", 2).max(1);
     let rounds = num("COIF_BENCH_ROUNDS", 1).max(1);
 
@@ -226,7 +229,7 @@ fn main() {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     println!(
         "batch throughput: {n} jobs ({} synthetic at {size}²{}, x{repeat}), steps {}, \
-         backend {backend}, {cores} cores, best of {rounds} round(s)",
+         backend {backend}, batch --jobs {jobs}, {cores} cores, best of {rounds} round(s)",
         cases.len() - astronaut as usize,
         if astronaut { " + astronaut 512²" } else { "" },
         steps.join("+"),
@@ -257,6 +260,8 @@ fn main() {
                 "jobs.jsonl",
                 "--backend",
                 &backend,
+                "--jobs",
+                &jobs.to_string(),
             ]),
             "coif batch",
         );
@@ -275,7 +280,7 @@ fn main() {
     }
     let per_hour = |s: f64| n as f64 * 3600.0 / s;
     println!(
-        "  coif batch (one process, jobs in turn)     {batch_s:8.1} s  {:8.0} jobs/hour",
+        "  coif batch --jobs {jobs:<3} (one process)       {batch_s:8.1} s  {:8.0} jobs/hour",
         per_hour(batch_s)
     );
     if !parallel {

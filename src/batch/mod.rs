@@ -8,7 +8,7 @@ pub mod shard;
 pub mod timings;
 
 pub use manifest::{BatchJob, Entry, Step};
-pub use run::{run, BatchOptions, JobOutcome, Status, Summary};
+pub use run::{current_job, run, BatchOptions, JobOutcome, Status, Summary};
 pub use shard::Shard;
 
 #[cfg(test)]

@@ -1,5 +1,6 @@
-//! Runs one shard of a manifest: each job's steps in order, a failing job recorded and the
-//! rest carrying on, records for `--resume`, and the summary file.
+//! Runs one shard of a manifest: each job's steps in order, up to `--jobs` jobs at once on
+//! worker threads, a failing job recorded and the rest carrying on, records for `--resume`,
+//! and the summary file.
 
 use super::manifest::{self, BatchJob};
 use super::record::Record;
@@ -11,7 +12,10 @@ use crate::timings::{GpuTime, PeakScope, RunTimings};
 use anyhow::Context;
 use serde::Serialize;
 use serde_json::json;
+use std::num::NonZeroUsize;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::mpsc;
 use std::time::Instant;
 
 /// What `coif batch` was asked.
@@ -26,6 +30,9 @@ pub struct BatchOptions {
     pub backend: BackendChoice,
     /// `--max-memory`; None: the machine's ([`crate::base::budget::Budget::machine`]).
     pub max_memory: Option<crate::base::budget::Budget>,
+    /// `--jobs`: jobs run at once, each on a worker thread and an engine of its own with
+    /// the memory budget divided between them.
+    pub jobs: NonZeroUsize,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -123,22 +130,78 @@ pub fn run(opts: &BatchOptions, timings: Option<&Path>) -> anyhow::Result<Summar
         .map(|(_, j)| j)
         .collect();
     let t0 = Instant::now();
-    let mut engine = Engine::new(opts.backend)?;
-    if let Some(b) = &opts.max_memory {
-        engine.set_budget(b.clone());
-    }
-    // Every job's GPU passes are timed where the adapter can (for the summary).
-    engine.gpu().map(|g| g.time_passes());
-    let mut done: Vec<RunTimings> = Vec::new();
+    // Never more workers than jobs: a lone worker keeps the per-job peak memory and the
+    // whole budget.
+    let workers = opts.jobs.get().min(mine.len()).max(1);
+    let engines = engines(opts, workers)?;
+    let engine = &engines[0];
     let bar = indicatif::ProgressBar::new(mine.len() as u64).with_style(
         indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}")
             .expect("static template"),
     );
+    let mut slots: Vec<Option<(JobOutcome, Option<RunTimings>)>> = vec![None; mine.len()];
+    let next = AtomicUsize::new(0);
+    std::thread::scope(|s| -> anyhow::Result<()> {
+        let (tx, rx) = mpsc::channel::<Event>();
+        for (w, engine) in engines.iter().enumerate() {
+            let (tx, next, mine) = (tx.clone(), &next, &mine);
+            // Each job runs on a worker thread of its own so that the thread-local stage
+            // collection ([`crate::timings::collect`]) holds that job's stages only.
+            std::thread::Builder::new()
+                .name(format!("coif-batch-{w}"))
+                // The main thread's usual 8 MiB, where the jobs ran before, not a spawned
+                // thread's 2 MiB.
+                .stack_size(8 << 20)
+                .spawn_scoped(s, move || loop {
+                    // A job boundary: after a signal no job starts; the rest are not run.
+                    if crate::interrupt::pending().is_some() {
+                        break;
+                    }
+                    // Taken in manifest order, so jobs start in that order.
+                    let k = next.fetch_add(1, Ordering::SeqCst);
+                    let Some(job) = mine.get(k) else { break };
+                    if tx.send(Event::Started(k)).is_err() {
+                        break;
+                    }
+                    let done = run_one(engine, job, opts.resume, workers == 1);
+                    if tx.send(Event::Done(k, Box::new(done))).is_err() {
+                        break;
+                    }
+                })
+                .context("cannot start a batch worker thread")?;
+        }
+        drop(tx);
+        // Only this thread prints, so lines never interleave; they come in completion order.
+        let mut running: Vec<usize> = Vec::new();
+        for ev in rx {
+            match ev {
+                Event::Started(k) => running.push(k),
+                Event::Done(k, done) => {
+                    running.retain(|&r| r != k);
+                    let (o, warnings, jt) = *done;
+                    report(&bar, &o, &warnings);
+                    slots[k] = Some((o, jt));
+                    bar.inc(1);
+                }
+            }
+            let ids: Vec<&str> = running.iter().map(|&r| mine[r].id()).collect();
+            bar.set_message(ids.join(" "));
+        }
+        Ok(())
+    })?;
+    bar.finish_and_clear();
+    // In manifest order; a job that never started was stopped by a signal.
     let mut outcomes = Vec::with_capacity(mine.len());
-    for job in mine {
-        // A job boundary: after a signal the rest are listed as not run.
-        if crate::interrupt::pending().is_some() {
-            outcomes.push(JobOutcome {
+    let mut done: Vec<RunTimings> = Vec::new();
+    for (job, slot) in mine.iter().zip(slots) {
+        match slot {
+            Some((o, jt)) => {
+                if let (Status::Ok, Some(jt)) = (o.status, jt) {
+                    done.push(jt);
+                }
+                outcomes.push(o);
+            }
+            None => outcomes.push(JobOutcome {
                 id: job.id().to_string(),
                 line: job.line,
                 status: Status::NotRun,
@@ -146,61 +209,9 @@ pub fn run(opts: &BatchOptions, timings: Option<&Path>) -> anyhow::Result<Summar
                 message: None,
                 seconds: 0.0,
                 timings: None,
-            });
-            continue;
+            }),
         }
-        bar.set_message(job.id().to_string());
-        let t = Instant::now();
-        let scope = match crate::timings::reset_peak_rss() {
-            true => PeakScope::Job,
-            false => PeakScope::Process,
-        };
-        let ((result, stages), wall) = (
-            crate::timings::collect(|| run_job(&engine, job, opts.resume)),
-            t.elapsed().as_secs_f64(),
-        );
-        let ran = !matches!(result, Ok((true, _)));
-        let jt = ran.then(|| RunTimings {
-            wall_seconds: wall,
-            stages,
-            gpu: GpuTime::take(&engine),
-            peak_rss_bytes: crate::timings::peak_rss_bytes(),
-            peak_rss_scope: scope,
-        });
-        let (status, err) = match result {
-            Ok((skipped, warnings)) => {
-                for w in warnings {
-                    bar.suspend(|| eprintln!("coif: warning: {}: {w}", job.id()));
-                }
-                (if skipped { Status::Skipped } else { Status::Ok }, None)
-            }
-            Err(e) if is_interrupt(&e) => (Status::Interrupted, Some(e)),
-            Err(e) => (Status::Failed, Some(e)),
-        };
-        let o = JobOutcome {
-            id: job.id().to_string(),
-            line: job.line,
-            status,
-            exit_code: err.as_ref().map(exit_code),
-            message: err.as_ref().map(|e| format!("{e:#}")),
-            seconds: wall,
-            timings: jt.as_ref().map(RunTimings::to_json),
-        };
-        if let (Status::Ok, Some(jt)) = (o.status, jt) {
-            done.push(jt);
-        }
-        bar.suspend(|| match (&o.status, &o.message) {
-            (Status::Failed, Some(m)) => {
-                println!("failed  {} (exit {}): {m}", o.id, o.exit_code.unwrap_or(1))
-            }
-            (Status::Skipped, _) => println!("skipped {} (record matches)", o.id),
-            (Status::Interrupted, _) => println!("stopped {} (interrupted)", o.id),
-            _ => println!("ok      {} in {:.1} s", o.id, o.seconds),
-        });
-        outcomes.push(o);
-        bar.inc(1);
     }
-    bar.finish_and_clear();
     let interrupted = crate::interrupt::pending();
     let exit_code = match interrupted {
         Some(sig) => 128 + sig,
@@ -222,6 +233,7 @@ pub fn run(opts: &BatchOptions, timings: Option<&Path>) -> anyhow::Result<Summar
                   "rule": "job k (from 0, in manifest order) is in shard k mod count"},
         "resume": opts.resume,
         "backend": engine.describe(),
+        "jobs_at_once": workers,
         "jobs_in_manifest": jobs.len(),
         "counts": {
             "jobs": summary.jobs.len(),
@@ -247,7 +259,7 @@ pub fn run(opts: &BatchOptions, timings: Option<&Path>) -> anyhow::Result<Summar
             stages: agg.stage_totals(),
             gpu: match super::timings::pass_totals(&done) {
                 Some(p) => GpuTime::Measured(p),
-                None => GpuTime::take(&engine),
+                None => GpuTime::take(engine),
             },
             peak_rss_bytes: done
                 .iter()
@@ -256,9 +268,137 @@ pub fn run(opts: &BatchOptions, timings: Option<&Path>) -> anyhow::Result<Summar
                 .max(),
             peak_rss_scope: PeakScope::Process,
         };
-        crate::timings::write(p, "batch", &engine, &t)?;
+        crate::timings::write(p, "batch", engine, &t)?;
     }
     Ok(summary)
+}
+
+thread_local! {
+    /// The id of the job this thread is running, for log lines to name it.
+    static CURRENT: std::cell::RefCell<Option<String>> = const { std::cell::RefCell::new(None) };
+}
+
+/// The id of the batch job running on this thread, if any: with jobs at once a log line
+/// (a segmentation warning, say) would otherwise not say which job it is about.
+pub fn current_job() -> Option<String> {
+    CURRENT.with(|c| c.borrow().clone())
+}
+
+/// Sets this thread's job id until dropped.
+struct CurrentJob;
+
+impl CurrentJob {
+    fn set(id: &str) -> CurrentJob {
+        CURRENT.with(|c| *c.borrow_mut() = Some(id.to_string()));
+        CurrentJob
+    }
+}
+
+impl Drop for CurrentJob {
+    fn drop(&mut self) {
+        CURRENT.with(|c| *c.borrow_mut() = None);
+    }
+}
+
+/// What a worker tells the thread that prints: job k (in the shard's order) started, or
+/// ended with its outcome, warnings and timings.
+enum Event {
+    Started(usize),
+    Done(usize, Box<(JobOutcome, Vec<String>, Option<RunTimings>)>),
+}
+
+/// An engine per worker: a job's GPU pass times ([`GpuTime::take`]) are then its own (on the
+/// GPU backend each worker opens its own device), and each holds its share of the memory
+/// budget so that the jobs running at once stay within it together.
+fn engines(opts: &BatchOptions, workers: usize) -> anyhow::Result<Vec<Engine>> {
+    let budget = opts
+        .max_memory
+        .clone()
+        .unwrap_or_else(crate::base::budget::Budget::machine);
+    let share = match workers {
+        1 => budget,
+        n => crate::base::budget::Budget::new(
+            budget.bytes / n as u64,
+            format!(
+                "{} divided by --jobs {n}: fewer jobs at once give each more",
+                budget.source
+            ),
+        ),
+    };
+    (0..workers)
+        .map(|_| {
+            let mut e = Engine::new(opts.backend)?;
+            e.set_budget(share.clone());
+            // Every job's GPU passes are timed where the adapter can (for the summary).
+            e.gpu().map(|g| g.time_passes());
+            Ok(e)
+        })
+        .collect()
+}
+
+/// Runs one job and times it: its outcome, its warnings, and its timings when it ran (not
+/// when skipped). `own_peak`: no other job runs meanwhile, so the peak memory may be reset
+/// and reported as the job's; otherwise it is the process's.
+fn run_one(
+    engine: &Engine,
+    job: &BatchJob,
+    resume: bool,
+    own_peak: bool,
+) -> (JobOutcome, Vec<String>, Option<RunTimings>) {
+    let _current = CurrentJob::set(job.id());
+    let t = Instant::now();
+    let scope = match own_peak && crate::timings::reset_peak_rss() {
+        true => PeakScope::Job,
+        false => PeakScope::Process,
+    };
+    let ((result, stages), wall) = (
+        crate::timings::collect(|| run_job(engine, job, resume)),
+        t.elapsed().as_secs_f64(),
+    );
+    let ran = !matches!(result, Ok((true, _)));
+    let jt = ran.then(|| RunTimings {
+        wall_seconds: wall,
+        stages,
+        gpu: GpuTime::take(engine),
+        peak_rss_bytes: crate::timings::peak_rss_bytes(),
+        peak_rss_scope: scope,
+    });
+    let (status, err, warnings) = match result {
+        Ok((skipped, warnings)) => (
+            if skipped { Status::Skipped } else { Status::Ok },
+            None,
+            warnings,
+        ),
+        Err(e) if is_interrupt(&e) => (Status::Interrupted, Some(e), Vec::new()),
+        Err(e) => (Status::Failed, Some(e), Vec::new()),
+    };
+    let o = JobOutcome {
+        id: job.id().to_string(),
+        line: job.line,
+        status,
+        exit_code: err.as_ref().map(exit_code),
+        message: err.as_ref().map(|e| format!("{e:#}")),
+        seconds: wall,
+        timings: jt.as_ref().map(RunTimings::to_json),
+    };
+    (o, warnings, jt)
+}
+
+/// Prints a finished job's warnings (named by the job) and its line.
+fn report(bar: &indicatif::ProgressBar, o: &JobOutcome, warnings: &[String]) {
+    bar.suspend(|| {
+        for w in warnings {
+            eprintln!("coif: warning: {}: {w}", o.id);
+        }
+        match (&o.status, &o.message) {
+            (Status::Failed, Some(m)) => {
+                println!("failed  {} (exit {}): {m}", o.id, o.exit_code.unwrap_or(1))
+            }
+            (Status::Skipped, _) => println!("skipped {} (record matches)", o.id),
+            (Status::Interrupted, _) => println!("stopped {} (interrupted)", o.id),
+            _ => println!("ok      {} in {:.1} s", o.id, o.seconds),
+        }
+    });
 }
 
 fn is_interrupt(e: &anyhow::Error) -> bool {

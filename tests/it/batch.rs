@@ -1,6 +1,7 @@
 //! `coif batch` as real processes: shards run at once give the unsharded run's files, a bad
 //! job is reported while the others complete, `--resume` skips exactly the matching jobs,
-//! and manifest errors name the line and key before any job runs.
+//! manifest errors name the line and key before any job runs, and `--jobs 2` gives the
+//! files and summary of jobs run in turn.
 
 use crate::common;
 
@@ -387,4 +388,140 @@ fn manifest_errors_name_the_line_and_key_before_any_job_runs() {
     assert_eq!(o.status.code(), Some(64));
     assert!(String::from_utf8_lossy(&o.stderr).contains("COIF_SHARDS"));
     assert!(!root.join("out").exists());
+}
+
+// `--jobs N` runs up to N jobs at once in one process: the same files, statuses, order and
+// exit code as jobs run in turn, a failing job among them reported while the others
+// complete, the memory budget divided between the jobs at once, and 0 or junk refused.
+#[test]
+fn jobs_at_once_give_the_files_and_summary_of_jobs_in_turn() {
+    let t0 = Instant::now();
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    let styles = ["long", "sidepart", "fringe"];
+    cases(root, &styles);
+    let mut lines = manifest_lines(&styles);
+    // A missing image (74) early and a mask of another size (65) later: the batch exits
+    // with the first in manifest order whichever ends first.
+    lines.insert(
+        3,
+        r#"{"id": "missing", "image": "../cases/nope.png", "out": "out/missing", "steps": ["orient"]}"#.into(),
+    );
+    let o = coif(root)
+        .args(["synth", "--out", "cases/s64", "--size", "64"])
+        .output()
+        .unwrap();
+    ok(o, "synth 64");
+    lines.push(
+        r#"{"id": "mask-size", "image": "../cases/long/image.png", "mask": "../cases/s64/mask.png", "out": "out/mask-size", "steps": ["orient"]}"#.into(),
+    );
+    let (one, two) = (root.join("one"), root.join("two"));
+    let run = |dir: &Path, jobs: &str| {
+        write_manifest(dir, &lines);
+        let o = coif(dir)
+            .args(["batch", "jobs.jsonl", "--backend", "cpu", "--jobs", jobs])
+            .output()
+            .unwrap();
+        assert_eq!(
+            o.status.code(),
+            Some(74),
+            "--jobs {jobs}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        let out = String::from_utf8_lossy(&o.stdout).into_owned();
+        (read_json(&dir.join("jobs.jsonl.summary.json")), out)
+    };
+    let (s1, _) = run(&one, "1");
+    let (s2, out2) = run(&two, "2");
+    assert_eq!(s1["jobs_at_once"], 1);
+    assert_eq!(s2["jobs_at_once"], 2);
+    assert_eq!(s2["exit_code"], 74);
+    assert_eq!(s2["counts"]["ok"], 9);
+    assert_eq!(s2["counts"]["failed"], 2);
+    // The same jobs in manifest order with the same outcomes.
+    let outcome = |s: &Value| -> Vec<(Value, Value, Value, Value, Value)> {
+        s["jobs"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|j| {
+                let f = |k: &str| j.get(k).cloned().unwrap_or(Value::Null);
+                (
+                    f("id"),
+                    f("line"),
+                    f("status"),
+                    f("exit_code"),
+                    f("message"),
+                )
+            })
+            .collect()
+    };
+    assert_eq!(outcome(&s1), outcome(&s2));
+    let code = |id: &str| outcome(&s2).into_iter().find(|o| o.0 == id).unwrap().3;
+    assert_eq!(code("missing"), 74);
+    assert_eq!(code("mask-size"), 65);
+    // Every job's line printed, in whatever order they ended.
+    for j in s2["jobs"].as_array().unwrap() {
+        let id = j["id"].as_str().unwrap();
+        assert!(
+            out2.lines()
+                .any(|l| l.split_whitespace().nth(1) == Some(id)),
+            "{id} not in {out2}"
+        );
+        // Two jobs shared the process: its peak is not one job's.
+        if j["status"] == "ok" {
+            assert_eq!(j["timings"]["peak_rss_scope"], "process", "{j}");
+            assert!(!j["timings"]["stages"].as_array().unwrap().is_empty());
+        }
+    }
+    let n = same_outputs(&one.join("out"), &two.join("out"));
+    // The failed job left no folder (it had none before).
+    assert!(!two.join("out/mask-size").exists());
+
+    // Each of 2 jobs at once gets half of --max-memory: 40 MiB holds one 128² orient
+    // (about 24 MiB estimated) but not two.
+    let budget = root.join("budget");
+    write_manifest(
+        &budget,
+        &[
+            r#"{"id": "a", "image": "../cases/long/image.png", "out": "out/a", "steps": ["orient"]}"#.into(),
+            r#"{"id": "b", "image": "../cases/sidepart/image.png", "out": "out/b", "steps": ["orient"]}"#.into(),
+        ],
+    );
+    let with = |jobs: &str| {
+        coif(&budget)
+            .args(["--max-memory", "40M", "batch", "jobs.jsonl"])
+            .args(["--backend", "cpu", "--jobs", jobs])
+            .output()
+            .unwrap()
+    };
+    ok(with("1"), "batch --jobs 1 --max-memory 40M");
+    let o = with("2");
+    assert_eq!(o.status.code(), Some(65));
+    let s = read_json(&budget.join("jobs.jsonl.summary.json"));
+    for j in s["jobs"].as_array().unwrap() {
+        let m = j["message"].as_str().unwrap_or_default();
+        assert!(m.contains("20.0 MiB") && m.contains("--jobs 2"), "{j}");
+    }
+
+    // 0 and junk are usage errors, before any job runs.
+    for bad in ["0", "two", "-1", ""] {
+        let dir = root.join("refused");
+        write_manifest(&dir, &lines);
+        let o = coif(&dir)
+            .args(["batch", "jobs.jsonl", "--backend", "cpu"])
+            .arg(format!("--jobs={bad}"))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(64), "--jobs {bad:?}: {err}");
+        assert!(err.contains("--jobs"), "{err}");
+        assert!(!dir.join("out").exists() && !dir.join("jobs.jsonl.summary.json").exists());
+    }
+    println!(
+        "11 jobs (9 good, 2 bad) with --jobs 1 and --jobs 2: same statuses, order and exit \
+         (74); {n} files identical; --max-memory 40M divided by --jobs 2; --jobs 0 refused: \
+         {:.1} s",
+        t0.elapsed().as_secs_f64()
+    );
 }

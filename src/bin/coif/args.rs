@@ -104,7 +104,8 @@ pub enum Command {
     /// (each follows its nearest tracked strand) and rendered into every frame.
     Transfer(TransferArgs),
     /// The jobs of a manifest (one JSON object per line), or one shard of them; a failing
-    /// job is recorded in the summary and the rest carry on; --resume skips completed jobs.
+    /// job is recorded in the summary and the rest carry on; --resume skips completed jobs;
+    /// --jobs runs several at once.
     Batch(batch::BatchArgs),
 }
 

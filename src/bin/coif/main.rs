@@ -32,7 +32,21 @@ fn main() {
         _ => "debug",
     };
     env_logger::Builder::from_env(env_logger::Env::default().default_filter_or(level))
-        .format_timestamp(None)
+        .format(|buf, rec| {
+            // env_logger's own layout, with the batch job a line comes from named: jobs run
+            // at once (`coif batch --jobs`) would otherwise log anonymously.
+            let style = buf.default_level_style(rec.level());
+            let job = coif::batch::current_job()
+                .map(|id| format!("{id}: "))
+                .unwrap_or_default();
+            writeln!(
+                buf,
+                "[{style}{:<5}{style:#} {}] {job}{}",
+                rec.level(),
+                rec.target(),
+                rec.args()
+            )
+        })
         .init();
     // SIGINT/SIGTERM stop a run at its next stage boundary, its temporaries removed (exit
     // 130/143); without the handlers they would end it mid-write.

@@ -1,8 +1,9 @@
-//! `coif batch`: the jobs of a manifest, one shard of them, with `--resume`.
+//! `coif batch`: the jobs of a manifest, one shard of them, with `--resume` and `--jobs`.
 
 use super::{BackendArgs, Request};
 use clap::Args;
 use coif::batch::{BatchOptions, Shard};
+use std::num::NonZeroUsize;
 use std::path::PathBuf;
 
 #[derive(Args)]
@@ -23,8 +24,26 @@ pub struct BatchArgs {
     /// <manifest>.shard-I-of-N.summary.json for a shard).
     #[arg(long)]
     summary: Option<PathBuf>,
+    /// Run up to N jobs at once (N >= 1), started in manifest order, each on a worker thread
+    /// of its own, all sharing the CPU threads: one job's serial stages overlap another's
+    /// parallel work. The memory budget (--max-memory, else the machine's) is divided by the
+    /// jobs run at once. With more than one at once a job's peak memory in the summary is the
+    /// process's, and the ok/failed lines come in completion order (the summary stays in
+    /// manifest order). 1 runs the jobs in turn.
+    #[arg(long, value_name = "N", default_value = "2", value_parser = parse_jobs)]
+    jobs: NonZeroUsize,
     #[command(flatten)]
     backend: BackendArgs,
+}
+
+fn parse_jobs(s: &str) -> Result<NonZeroUsize, String> {
+    match s.trim().parse::<usize>() {
+        Ok(n) => NonZeroUsize::new(n)
+            .ok_or_else(|| "expected at least 1 job at once (1 runs the jobs in turn)".into()),
+        Err(_) => Err(format!(
+            "expected a whole number of jobs to run at once (1 or more), got {s:?}"
+        )),
+    }
 }
 
 fn parse_shard(s: &str) -> Result<Shard, String> {
@@ -41,6 +60,7 @@ impl BatchArgs {
             backend: self.backend.backend,
             // Set from the global --max-memory by main.
             max_memory: None,
+            jobs: self.jobs,
         })
     }
 }
