@@ -37,6 +37,19 @@ fn live_remove(p: &Path) {
         .retain(|q| q != p);
 }
 
+/// Held while a run makes `out`'s parents and takes its lock, and while a run that did not
+/// commit removes the parents it made: with batch jobs at once in one process, a failing
+/// job could otherwise remove an empty parent just after another job made sure of it and
+/// before its lock file lies there.
+static PARENTS: Mutex<()> = Mutex::new(());
+
+#[cfg(test)]
+thread_local! {
+    /// A pause (ms) between making sure of the parent and taking the lock, set by a test on
+    /// its thread to hold that window open.
+    static PAUSE_BEFORE_LOCK: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+}
+
 fn is_live(p: &Path) -> bool {
     LIVE.lock()
         .unwrap_or_else(|e| e.into_inner())
@@ -111,6 +124,7 @@ impl Txn {
     /// temporary folder. `out`'s missing parents are created.
     pub fn begin(out: &Path) -> Result<Txn> {
         let (out, name, parent) = named(out)?;
+        let parents = PARENTS.lock().unwrap_or_else(|e| e.into_inner());
         let mut created = Vec::new();
         let mut d = parent.as_path();
         while !d.as_os_str().is_empty() && !d.exists() {
@@ -122,6 +136,10 @@ impl Txn {
         }
         created.reverse();
         super::ensure_dir(&parent)?;
+        #[cfg(test)]
+        std::thread::sleep(std::time::Duration::from_millis(
+            PAUSE_BEFORE_LOCK.with(|p| p.get()),
+        ));
         let mut txn = Txn {
             tmp: out.with_file_name(format!(".{name}{TMP_TAG}{}", std::process::id())),
             out: out.clone(),
@@ -129,10 +147,10 @@ impl Txn {
             lock: None,
             done: false,
         };
-        txn.lock = Some(Lock::acquire(
-            &out.with_file_name(format!(".{name}{LOCK_TAG}")),
-            &out,
-        )?);
+        let lock = Lock::acquire(&out.with_file_name(format!(".{name}{LOCK_TAG}")), &out);
+        // Released before `txn` can drop on an error: its drop takes the guard too.
+        drop(parents);
+        txn.lock = Some(lock?);
         clean_stale(&parent, Some(&name))?;
         if out.is_dir() {
             clean_stale(&out, None)?;
@@ -194,6 +212,7 @@ impl Drop for Txn {
         live_remove(&self.tmp);
         self.lock.take();
         if !self.done {
+            let _parents = PARENTS.lock().unwrap_or_else(|e| e.into_inner());
             for d in self.created.iter().rev() {
                 // Only when empty: another run may have put something there.
                 if std::fs::remove_dir(d).is_err() {
@@ -500,6 +519,28 @@ mod tests {
         }
         // The parents it made are gone too.
         assert!(names(d.path()).is_empty(), "{:?}", names(d.path()));
+    }
+
+    // Batch jobs at once: one job that fails while another into a sibling folder starts
+    // must not take the parent folder from under the other's lock file.
+    #[test]
+    fn a_failing_run_leaves_a_shared_parent_to_a_sibling_starting_meanwhile() {
+        let d = tempfile::tempdir().unwrap();
+        let (a, b) = (d.path().join("p/a"), d.path().join("p/b"));
+        // The first run makes the parent `p`.
+        let first = Txn::begin(&a).unwrap();
+        std::thread::scope(|s| {
+            let second = s.spawn(|| {
+                // Made sure of `p`, then held before its lock file lies there.
+                PAUSE_BEFORE_LOCK.with(|p| p.set(300));
+                Txn::begin(&b).and_then(Txn::commit)
+            });
+            std::thread::sleep(std::time::Duration::from_millis(60));
+            // The first run fails meanwhile and removes the parents it made, when empty.
+            drop(first);
+            second.join().unwrap().unwrap();
+        });
+        assert!(b.is_dir());
     }
 
     #[test]
