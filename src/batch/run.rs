@@ -377,7 +377,13 @@ fn run_one(
         line: job.line,
         status,
         exit_code: err.as_ref().map(exit_code),
-        message: err.as_ref().map(|e| format!("{e:#}")),
+        // A later step reads an earlier step's files in the job's temporary folder, and an
+        // error there names it: the user knows the job's folder.
+        message: err.as_ref().map(|e| {
+            let out = job.out();
+            let tmp = crate::io::txn::tmp_path(&out);
+            format!("{e:#}").replace(&*tmp.to_string_lossy(), &out.to_string_lossy())
+        }),
         seconds: wall,
         timings: jt.as_ref().map(RunTimings::to_json),
     };

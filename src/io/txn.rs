@@ -89,6 +89,12 @@ pub fn require_folder_or_absent(out: &Path) -> Result<()> {
     }
 }
 
+/// The temporary folder a run of this process into `out` writes (`out` named as given).
+pub fn tmp_path(out: &Path) -> PathBuf {
+    let name = out.file_name().unwrap_or_default().to_string_lossy();
+    out.with_file_name(format!(".{name}{TMP_TAG}{}", std::process::id()))
+}
+
 /// `out` with a name of its own (`--out .` has none: the resolved path is used), the name
 /// and the parent folder.
 fn named(out: &Path) -> Result<(PathBuf, String, PathBuf)> {
@@ -141,7 +147,7 @@ impl Txn {
             PAUSE_BEFORE_LOCK.with(|p| p.get()),
         ));
         let mut txn = Txn {
-            tmp: out.with_file_name(format!(".{name}{TMP_TAG}{}", std::process::id())),
+            tmp: tmp_path(&out),
             out: out.clone(),
             created,
             lock: None,

@@ -525,3 +525,32 @@ fn jobs_at_once_give_the_files_and_summary_of_jobs_in_turn() {
         t0.elapsed().as_secs_f64()
     );
 }
+
+// A later step that fails on an earlier step's file names it in the job's folder, not in the
+// job's temporary folder (whose name carries the process id and is gone after the run).
+#[test]
+fn a_failing_step_names_the_jobs_folder_not_its_temporary() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    cases(root, &["whorl"]);
+    // The 128² whorl's sketch has no curves, so synth-hair refuses the sketch step's file.
+    let line = r#"{"id": "w", "image": "../cases/whorl/image.png", "mask": "../cases/whorl/mask.png", "out": "out/w", "steps": ["sketch", "synth-hair"], "sketch": {"sweeps": 100, "bases": 4}}"#;
+    let m = write_manifest(&root.join("m"), &[line.to_string()]);
+    let o = coif(root)
+        .args(["batch", "--backend", "cpu"])
+        .arg(&m)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert_eq!(o.status.code(), Some(65), "{stdout}");
+    let s = read_json(&root.join("m/jobs.jsonl.summary.json"));
+    let msg = s["jobs"][0]["message"].as_str().unwrap();
+    assert!(
+        msg.contains("out/w/sketch/hair.czs") && !msg.contains("coif-tmp"),
+        "{msg}"
+    );
+    assert!(
+        stdout.contains("out/w/sketch/hair.czs") && !stdout.contains("coif-tmp"),
+        "{stdout}"
+    );
+}
