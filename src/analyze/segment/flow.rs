@@ -9,9 +9,25 @@ pub(super) use crate::base::mask::NEIGHBOURS_8 as DIRS;
 /// GrabCut smoothness gamma * exp(-beta |dI|^2) / dist for every pixel and direction
 /// (`n * 8`, zero towards outside the image), with beta = 1 / (2 <|dI|^2>) over all
 /// neighbour pairs.
-pub(super) fn smoothness_weights(rgb: &[[f32; 3]], w: usize, h: usize, gamma: f32) -> Vec<f32> {
+///
+/// |dI|^2 splits the RGB step into its part along grey, l = mean of the channel steps
+/// (3 l^2 of the squared distance), and the chroma left over; the grey part is weighted by
+/// `lum^2`. Hair in a photo is lit on one side and shadowed on the other, and with `lum` 1
+/// (GrabCut) the cheapest cut often runs along that shading edge inside the hair rather than
+/// along the hair's outline, where the colour changes as well as the brightness.
+pub(super) fn smoothness_weights(
+    rgb: &[[f32; 3]],
+    w: usize,
+    h: usize,
+    gamma: f32,
+    lum: f32,
+) -> Vec<f32> {
+    let damp = 3.0 * (lum * lum - 1.0);
     let diff2 = |a: [f32; 3], b: [f32; 3]| {
-        (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)
+        let d = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+        let l = (d[0] + d[1] + d[2]) / 3.0;
+        // |d|^2 = chroma^2 + 3 l^2, so this is chroma^2 + 3 (lum l)^2 (never below 0).
+        (d[0] * d[0] + d[1] * d[1] + d[2] * d[2] + damp * l * l).max(0.0)
     };
     let inside = |x: usize, y: usize, d: usize| {
         let (nx, ny) = (x as i64 + DIRS[d].0 as i64, y as i64 + DIRS[d].1 as i64);
@@ -450,6 +466,48 @@ mod tests {
             let reference = edmonds_karp(w, h, &smooth, &term);
             assert_eq!(cut, reference, "trial {trial} ({w}x{h})");
         }
+    }
+
+    /// Three vertical bands: a shading step (the same colour, darker) and then a chroma step of
+    /// the same RGB length. GrabCut's contrast (`lum` 1) prices both edges alike; with the
+    /// luminance damped, cutting along the shading costs more than cutting along the chroma.
+    #[test]
+    fn damped_luminance_makes_shading_edges_dearer_than_colour_edges() {
+        let (w, h) = (9, 4);
+        // Lit hair, shadowed hair (-30 on every channel: all grey, |d| = 52), then a step
+        // towards red of the same length (grey part 17, chroma 42).
+        let (lit, shade, other) = (
+            [150.0, 100.0, 60.0],
+            [120.0, 70.0, 30.0],
+            [150.0f32, 70.0, 30.0],
+        );
+        let mut third = other;
+        let d: Vec<f32> = (0..3).map(|c| third[c] - shade[c]).collect();
+        let norm = d.iter().map(|v| v * v).sum::<f32>().sqrt();
+        for c in 0..3 {
+            third[c] = shade[c] + d[c] * (30.0 * 3f32.sqrt()) / norm;
+        }
+        let rgb: Vec<[f32; 3]> = (0..w * h)
+            .map(|i| match i % w {
+                0..=2 => lit,
+                3..=5 => shade,
+                _ => third,
+            })
+            .collect();
+        // Direction 4.. points forward; find the one pointing +x.
+        let east = DIRS.iter().position(|&d| d == (1, 0)).unwrap();
+        let at = |wts: &[f32], x: usize| wts[(w + x) * 8 + east];
+        let grabcut = smoothness_weights(&rgb, w, h, 50.0, 1.0);
+        assert!((at(&grabcut, 2) - at(&grabcut, 5)).abs() < 1e-3 * at(&grabcut, 2));
+        let damped = smoothness_weights(&rgb, w, h, 50.0, 0.5);
+        assert!(
+            at(&damped, 2) > 2.0 * at(&damped, 5),
+            "shading edge {} against colour edge {}",
+            at(&damped, 2),
+            at(&damped, 5)
+        );
+        // Flat regions keep the full weight either way.
+        assert_eq!(at(&damped, 0), 50.0);
     }
 
     /// Max-flow value by BFS augmenting paths on a dense matrix (small graphs only).

@@ -42,6 +42,11 @@ pub struct SegmentParams {
     pub iterations: usize,
     /// Smoothness weight gamma (GrabCut uses 50).
     pub smoothness: f32,
+    /// Weight of a colour step's luminance against its chroma in the smoothness's contrast
+    /// (1 is GrabCut's RGB distance). Below 1 the cut is drawn to edges of colour more than
+    /// to edges of shading, so it leaves the shadowed side of a lock with the lit side
+    /// (see `flow::smoothness_weights`).
+    pub luminance: f32,
     /// Hair islands touching no direction stroke and smaller than this (px) are dropped.
     pub min_island: u32,
     /// Enclosed non-hair regions smaller than this (px) and free of background strokes are
@@ -69,6 +74,7 @@ impl Default for SegmentParams {
             components: 5,
             iterations: 4,
             smoothness: 50.0,
+            luminance: 0.5,
             min_island: 2000,
             max_hole: 500,
             texture: 1.0,
@@ -91,6 +97,12 @@ impl SegmentParams {
             return bad(format!(
                 "smoothness must be a finite number >= 0, got {}",
                 self.smoothness
+            ));
+        }
+        if !(self.luminance.is_finite() && self.luminance >= 0.0) {
+            return bad(format!(
+                "luminance must be a finite number >= 0, got {}",
+                self.luminance
             ));
         }
         if !(self.geodesic.is_finite() && self.geodesic >= 0.0) {
@@ -266,7 +278,7 @@ pub fn segment(image: &RgbImage, strokes: &Strokes, p: &SegmentParams) -> Result
         vec![0.0; n]
     };
 
-    let smooth = smoothness_weights(&rgb, wu, hu, p.smoothness);
+    let smooth = smoothness_weights(&rgb, wu, hu, p.smoothness, p.luminance);
     let mut flow = GridFlow::new(wu, hu);
     let mut label = vec![false; n];
     for round in 0..=p.iterations {
