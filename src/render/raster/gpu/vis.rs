@@ -296,12 +296,15 @@ fn filled_storage<'a>(
     pooled
         .slice(..)
         .map_async(wgpu::MapMode::Write, move |r| drop(tx.send(r)));
-    // The buffer's last use was a render already waited for: the map is ready at once.
+    // The buffer's last use was a render already waited for, so the map completes in this
+    // poll; but when threads share the device another thread's poll may be the one running
+    // the callback, and ours may return before it has sent: wait for the message, not just
+    // for the poll (a `try_recv` here failed a test now and then under a full test run).
     let ready = ctx
         .device
         .poll(wgpu::PollType::wait_indefinitely())
         .ok()
-        .and_then(|_| rx.try_recv().ok())
+        .and_then(|_| rx.recv_timeout(std::time::Duration::from_secs(60)).ok())
         .is_some_and(|r| r.is_ok());
     assert!(ready, "{map_failed}");
     fill(&mut pooled.slice(..).get_mapped_range_mut().expect(map_failed));
