@@ -19,7 +19,7 @@ use crate::analyze::orient::{orient, GrayImage, OrientMap, OrientParams};
 use crate::analyze::parting::{cut_at_partings, Parted, PartingImage, PartingLine, PartingParams};
 use crate::analyze::recut::{cut_disagreeing, RecutParams};
 use crate::analyze::resolve::{resolve_directions_apart, ResolveParams, Resolved};
-use crate::analyze::segment::{segment, SegmentParams};
+use crate::analyze::segment::{segment_with_warnings, SegmentParams};
 use crate::analyze::trace::{split_curves, trace_curves, Curve, TraceParams};
 use crate::error::{Error, Result};
 use crate::gpu::engine::Engine;
@@ -113,7 +113,8 @@ pub fn analyze(
     let (mask, mask_computed) = match mask {
         Some(m) => (m, false),
         None => {
-            let m = segment(image, strokes, &p.segment)?;
+            let (m, said) = segment_with_warnings(image, strokes, &p.segment)?;
+            warnings.extend(said);
             timings.push(("segment", t.elapsed().as_secs_f64()));
             (m.pixels().map(|v| (v[0] > 127) as u8).collect(), true)
         }

@@ -329,3 +329,52 @@ fn hair_only_below_a_cap_is_refused_with_the_cause() {
     );
     assert!(!out.exists(), "a refused run left {}", out.display());
 }
+
+/// A direction stroke drawn down the edge of a face (the blond hair's third: 724 of its 1,322
+/// brush pixels off the reference's hair) is named in a warning, which `coif analyze` keeps
+/// in `analyze.json`; the strokes of the other portraits are not.
+#[test]
+fn a_stroke_down_the_edge_of_the_face_is_named() {
+    let p = AnalyzeParams::default().segment;
+    for name in PORTRAITS {
+        let r = load(name);
+        let (w, h) = r.image.dimensions();
+        let strokes =
+            Strokes::load(&dir().join(format!("{name}_strokes.json")), Some((w, h))).unwrap();
+        let (_, said) =
+            coif::analyze::segment::segment_with_warnings(&r.image, &strokes, &p).unwrap();
+        if name == "phoebe" {
+            assert_eq!(said.len(), 1, "{said:?}");
+            assert!(said[0].starts_with("direction stroke 2: "), "{said:?}");
+        } else {
+            assert!(said.is_empty(), "{name}: {said:?}");
+        }
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let photo = tmp.path().join("phoebe.png");
+    load("phoebe").image.save(&photo).unwrap();
+    let out = tmp.path().join("an");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_coif"))
+        .arg("analyze")
+        .arg("--image")
+        .arg(&photo)
+        .arg("--strokes")
+        .arg(dir().join("phoebe_strokes.json"))
+        .args(["--backend", "cpu", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("analyze.json")).unwrap()).unwrap();
+    let said: Vec<&str> = v["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|w| w.as_str())
+        .collect();
+    assert!(
+        said.iter().any(|w| w.starts_with("direction stroke 2: ")),
+        "{said:?}"
+    );
+}

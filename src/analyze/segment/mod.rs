@@ -141,8 +141,23 @@ const BACK: u8 = 2;
 /// Segments the hair of `image` from the user's strokes: 255 = hair, 0 = not hair.
 ///
 /// Needs at least one `direction` stroke touching the image. `comb` and `cut` strokes are
-/// ignored. Where strokes of different kinds overlap, the later stroke wins.
+/// ignored. Where strokes of different kinds overlap, the later stroke wins. Warnings (see
+/// [`segment_with_warnings`]) go to the log.
 pub fn segment(image: &RgbImage, strokes: &Strokes, p: &SegmentParams) -> Result<GrayImage> {
+    let (mask, warnings) = segment_with_warnings(image, strokes, p)?;
+    for w in warnings {
+        log::warn!("{w}");
+    }
+    Ok(mask)
+}
+
+/// [`segment`], with its warnings returned for a caller that records them (`coif analyze`
+/// writes them into `analyze.json`): direction strokes that seem to lie off the hair.
+pub fn segment_with_warnings(
+    image: &RgbImage,
+    strokes: &Strokes,
+    p: &SegmentParams,
+) -> Result<(GrayImage, Vec<String>)> {
     p.validate()?;
     let (w, h) = image.dimensions();
     if w == 0 || h == 0 {
@@ -321,22 +336,24 @@ pub fn segment(image: &RgbImage, strokes: &Strokes, p: &SegmentParams) -> Result
         }
     }
 
+    let mut warnings = Vec::new();
     for o in off_model_strokes(&rgb, &owner, strokes, wu, &bg, p.components) {
         let [x0, y0, x1, y1] = o.bbox;
-        log::warn!(
+        warnings.push(format!(
             "direction stroke {}: {} of its {} pixels (within x {x0}-{x1}, y {y0}-{y1}) look \
              like background to the colour models (hair model from the other direction \
              strokes); stroke pixels are always hair, so a stroke along the edge of the face \
              or over the backdrop puts that strip in the mask: draw it on the hair",
-            o.stroke,
-            o.off,
-            o.total
-        );
+            o.stroke, o.off, o.total
+        ));
     }
     clean(&mut label, &seed, wu, hu, p.min_island, p.max_hole);
     check_share(&label, &seed, w, h)?;
     let data = label.iter().map(|&l| if l { 255 } else { 0 }).collect();
-    Ok(GrayImage::from_raw(w, h, data).expect("w*h buffer"))
+    Ok((
+        GrayImage::from_raw(w, h, data).expect("w*h buffer"),
+        warnings,
+    ))
 }
 
 /// Above this share of the image as hair, the segmentation has found no edge between hair
