@@ -339,12 +339,17 @@ pub fn segment_with_warnings(
     let mut warnings = Vec::new();
     for o in off_model_strokes(&rgb, &owner, strokes, wu, &bg, p.components) {
         let [x0, y0, x1, y1] = o.bbox;
+        // Numbered among the direction strokes, as `analyze`'s own stroke warnings are.
+        let k = strokes.strokes[..o.stroke]
+            .iter()
+            .filter(|s| s.kind == StrokeKind::Direction)
+            .count();
         warnings.push(format!(
             "direction stroke {}: {} of its {} pixels (within x {x0}-{x1}, y {y0}-{y1}) look \
              like background to the colour models (hair model from the other direction \
              strokes); stroke pixels are always hair, so a stroke along the edge of the face \
              or over the backdrop puts that strip in the mask: draw it on the hair",
-            o.stroke, o.off, o.total
+            k, o.off, o.total
         ));
     }
     clean(&mut label, &seed, wu, hu, p.min_island, p.max_hole);
@@ -867,6 +872,12 @@ mod tests {
         });
         let m = segment(&img, &with_bg, &SegmentParams::default()).unwrap();
         assert_eq!(m.get_pixel(50, 22)[0], 255, "stroke pixels are hard hair");
+        // The warning numbers the stroke among the direction strokes, whatever comes before.
+        let mut bg_first = with_bg.clone();
+        bg_first.strokes.rotate_right(1);
+        let (_, said) = segment_with_warnings(&img, &bg_first, &SegmentParams::default()).unwrap();
+        assert_eq!(said.len(), 1, "{said:?}");
+        assert!(said[0].starts_with("direction stroke 2: "), "{said:?}");
         assert_eq!(m.get_pixel(16, 20)[0], 255);
 
         let mut owner = vec![u32::MAX; 64 * 48];
