@@ -75,6 +75,10 @@ pub struct AnalyzeOpts {
     pub radius: Option<f32>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub stroke_weight: Option<f32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub segment_smoothness: Option<f32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub segment_luminance: Option<f32>,
 }
 
 /// Options of `model`.
@@ -418,6 +422,8 @@ impl BatchJob {
                     };
                     set(&mut params.resolve.radius, o.radius);
                     set(&mut params.resolve.stroke_weight, o.stroke_weight);
+                    set(&mut params.segment.smoothness, o.segment_smoothness);
+                    set(&mut params.segment.luminance, o.segment_luminance);
                     Job::Analyze(AnalyzeJob {
                         image: image.clone(),
                         strokes: strokes.clone().expect("checked"),
@@ -550,7 +556,7 @@ mod tests {
 
     #[test]
     fn options_reach_the_jobs_and_paths_the_manifest_folder() {
-        let line = r#"{"id": "p", "image": "a.png", "strokes": "s.json", "mask": "/abs/m.png", "out": "o", "steps": ["orient", "analyze", "model", "render", "sketch", "synth-hair"], "orient": {"orientations": 16, "smooth": 0}, "analyze": {"radius": 5}, "model": {"seed": 7, "roots": 99, "cells": 20, "refine": 2}, "render": {"yaw": 25, "hue": 30, "seed": 4}, "sketch": {"directions": "icm", "sweeps": 5, "seed": 9}, "synth-hair": {"rounds": 1, "over": true}}"#;
+        let line = r#"{"id": "p", "image": "a.png", "strokes": "s.json", "mask": "/abs/m.png", "out": "o", "steps": ["orient", "analyze", "model", "render", "sketch", "synth-hair"], "orient": {"orientations": 16, "smooth": 0}, "analyze": {"radius": 5, "segment_smoothness": 25, "segment_luminance": 1}, "model": {"seed": 7, "roots": 99, "cells": 20, "refine": 2}, "render": {"yaw": 25, "hue": 30, "seed": 4}, "sketch": {"directions": "icm", "sweeps": 5, "seed": 9}, "synth-hair": {"rounds": 1, "over": true}}"#;
         let jobs = parse(Path::new("runs/jobs.jsonl"), line).unwrap();
         let j = jobs[0].jobs();
         assert_eq!(j.len(), 6);
@@ -569,6 +575,8 @@ mod tests {
             Job::Analyze(a) => {
                 assert_eq!(a.params.orient.kernel.n_orient, 16);
                 assert_eq!(a.params.resolve.radius, 5.0);
+                assert_eq!(a.params.segment.smoothness, 25.0);
+                assert_eq!(a.params.segment.luminance, 1.0);
                 assert_eq!(a.strokes, base.join("s.json"));
             }
             other => panic!("{other:?}"),

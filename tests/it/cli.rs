@@ -839,6 +839,50 @@ fn analyze_refuses_a_bad_parting_ratio_and_can_turn_it_off() {
 }
 
 #[test]
+fn analyze_takes_the_segmentation_s_smoothness_and_luminance_weight() {
+    let c = Case::new();
+    synth_case(&c);
+    let run = |out: &str, flags: &[&str]| {
+        let mut args = vec![
+            "analyze",
+            "--image",
+            &c.s("case/image.png"),
+            "--strokes",
+            &c.s("case/strokes.json"),
+            "--backend",
+            "cpu",
+            "--out",
+        ]
+        .into_iter()
+        .map(String::from)
+        .collect::<Vec<_>>();
+        args.push(c.s(out));
+        args.extend(flags.iter().map(|f| f.to_string()));
+        coif(&args.iter().map(String::as_str).collect::<Vec<_>>())
+    };
+    for bad in ["-1", "nan", "inf", "x"] {
+        for flag in ["--segment-smoothness", "--segment-luminance"] {
+            fails(
+                &run("bad", &[&format!("{flag}={bad}")]),
+                64,
+                &[flag, "finite number"],
+            );
+        }
+    }
+    assert!(!c.p("bad").exists());
+    let o = run("a", &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = run("b", &["--segment-smoothness=10", "--segment-luminance=1"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (a, b) = (
+        image::open(c.p("a/mask.png")).unwrap().to_luma8(),
+        image::open(c.p("b/mask.png")).unwrap().to_luma8(),
+    );
+    let differ = a.pixels().zip(b.pixels()).filter(|(p, q)| p != q).count();
+    assert!(differ > 0, "the flags did not reach the segmentation");
+}
+
+#[test]
 fn analyze_with_strokes_off_the_hair() {
     let c = Case::new();
     synth_case(&c);

@@ -668,6 +668,17 @@ pub struct AnalyzeArgs {
     #[arg(long, value_name = "RATIO", value_parser = parse_non_negative,
           default_value_t = coif::analyze::parting::PartingParams::default().line_threshold)]
     parting_line: f32,
+    /// Without --mask: the graph cut's smoothness γ (GrabCut's 50); lower lets the mask's
+    /// edge follow weaker colour edges.
+    #[arg(long, value_name = "GAMMA", value_parser = parse_non_negative,
+          default_value_t = coif::analyze::segment::SegmentParams::default().smoothness)]
+    segment_smoothness: f32,
+    /// Without --mask: weight of a colour step's luminance against its chroma in the cut's
+    /// contrast (1: GrabCut's RGB distance); below 1 the cut keeps off shading edges inside
+    /// the hair.
+    #[arg(long, value_name = "WEIGHT", value_parser = parse_non_negative,
+          default_value_t = coif::analyze::segment::SegmentParams::default().luminance)]
+    segment_luminance: f32,
 }
 
 /// What the command line asks for.
@@ -792,6 +803,8 @@ impl Command {
                 params.resolve.stroke_weight = a.stroke_weight;
                 params.parting.threshold = a.parting;
                 params.parting.line_threshold = a.parting_line;
+                params.segment.smoothness = a.segment_smoothness;
+                params.segment.luminance = a.segment_luminance;
                 let job = AnalyzeJob {
                     image: a.input.image,
                     strokes: a.input.strokes,
