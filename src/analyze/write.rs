@@ -135,6 +135,7 @@ pub fn write(
     image: &Path,
     rgb: &image::RgbImage,
     an: &Analysis,
+    params: &AnalyzeParams,
     backend: &str,
 ) -> Result<()> {
     ensure_dir(out)?;
@@ -211,6 +212,8 @@ pub fn write(
         "coif": env!("CARGO_PKG_VERSION"),
         "image": image.display().to_string(),
         "backend": backend,
+        // What a rerun needs (the segmentation's, the orientation's, the vote's, ...).
+        "params": params,
         "mask": if an.mask_computed { "segmented from the strokes" } else { "given" },
         "curves": an.traced.len(),
         "parting_cuts": an.parting_cuts.len(),

@@ -604,7 +604,7 @@ fn run_analyze(engine: &Engine, j: &AnalyzeJob) -> anyhow::Result<Report> {
     let t = Instant::now();
     let (rgb, an) = analyze::run(engine, &j.image, &j.strokes, j.mask.as_deref(), p)?;
     record_all(&an.timings);
-    stage("write").run(|| analyze::write(&j.out, &j.image, &rgb, &an, &engine.describe()))?;
+    stage("write").run(|| analyze::write(&j.out, &j.image, &rgb, &an, p, &engine.describe()))?;
     Ok(Report {
         summary: format!(
             "analyze: mask {}, {} curve pieces ({} unreachable from strokes) -> {} ({:.2} s on {})",

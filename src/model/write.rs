@@ -43,7 +43,7 @@ pub fn write(
     p: &ModelParams,
     backend: &str,
 ) -> Result<()> {
-    analyze::write(out, image, rgb, &m.analysis, backend)?;
+    analyze::write(out, image, rgb, &m.analysis, &p.analyze, backend)?;
     let figures = figures(m);
     let extra = json!({
         "image": image.display().to_string(),

@@ -880,6 +880,11 @@ fn analyze_takes_the_segmentation_s_smoothness_and_luminance_weight() {
     );
     let differ = a.pixels().zip(b.pixels()).filter(|(p, q)| p != q).count();
     assert!(differ > 0, "the flags did not reach the segmentation");
+    // analyze.json says what the mask was cut with.
+    let meta: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(c.p("b/analyze.json")).unwrap()).unwrap();
+    assert_eq!(meta["params"]["segment"]["smoothness"], 10.0, "{meta}");
+    assert_eq!(meta["params"]["segment"]["luminance"], 1.0, "{meta}");
 }
 
 #[test]
