@@ -487,27 +487,19 @@ fn off_model_strokes(
             .collect();
         let mut rng = Rng::new(0x5e6_0002 + s as u64);
         let fg = Gmm::fit(&sample(rgb, &others, &mut rng), components, &mut rng);
-        let off = by_stroke[s]
+        let off: Vec<usize> = by_stroke[s]
             .iter()
-            .filter(|&&i| bg.nll(rgb[i]) < fg.nll(rgb[i]))
-            .count();
-        if off * 2 > by_stroke[s].len() {
-            let mut bbox = [usize::MAX, usize::MAX, 0, 0];
-            for &i in by_stroke[s]
-                .iter()
-                .filter(|&&i| bg.nll(rgb[i]) < fg.nll(rgb[i]))
-            {
+            .copied()
+            .filter(|&i| bg.nll(rgb[i]) < fg.nll(rgb[i]))
+            .collect();
+        if off.len() * 2 > by_stroke[s].len() {
+            let bbox = off.iter().fold([usize::MAX, usize::MAX, 0, 0], |b, &i| {
                 let (x, y) = (i % w, i / w);
-                bbox = [
-                    bbox[0].min(x),
-                    bbox[1].min(y),
-                    bbox[2].max(x),
-                    bbox[3].max(y),
-                ];
-            }
+                [b[0].min(x), b[1].min(y), b[2].max(x), b[3].max(y)]
+            });
             out.push(OffStroke {
                 stroke: s,
-                off,
+                off: off.len(),
                 total: by_stroke[s].len(),
                 bbox,
             });
