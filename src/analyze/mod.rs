@@ -12,7 +12,7 @@ pub mod singular;
 pub mod trace;
 mod write;
 
-pub use write::{load_photo, run, run_orient, write, write_orient, OrientRun};
+pub use write::{load_photo, run, run_orient, write, write_agreement, write_orient, OrientRun};
 
 use crate::analyze::direction::{dense_direction, DirectionParams, Domain};
 use crate::analyze::orient::{orient, GrayImage, OrientMap, OrientParams};

@@ -228,3 +228,35 @@ pub fn write(
     });
     write_json(&out.join("analyze.json"), &meta)
 }
+
+/// `mask_agreement.json` and `mask_vs_reference.png`: the analysis's mask scored against a
+/// reference mask (`coif analyze --reference-mask`); returns the figures.
+pub fn write_agreement(
+    out: &Path,
+    rgb: &image::RgbImage,
+    an: &Analysis,
+    reference: &image::GrayImage,
+    reference_path: &Path,
+) -> Result<crate::eval::mask::MaskAgreement> {
+    use crate::eval::mask::{agreement, disagreement_picture};
+    let mask = image::GrayImage::from_raw(
+        an.width,
+        an.height,
+        an.mask.iter().map(|&v| 255 * (v != 0) as u8).collect(),
+    )
+    .expect("the mask has the image's size");
+    let a = agreement(&mask, reference);
+    write_png(
+        &out.join("mask_vs_reference.png"),
+        &disagreement_picture(rgb, &mask, reference),
+    )?;
+    let doc = json!({
+        "version": 1,
+        "reference": reference_path.display().to_string(),
+        "mask": if an.mask_computed { "segmented from the strokes" } else { "given" },
+        "agreement": a,
+        "picture": "mask_vs_reference.png: agreed hair green, missed hair red, taken non-hair blue",
+    });
+    write_json(&out.join("mask_agreement.json"), &doc)?;
+    Ok(a)
+}

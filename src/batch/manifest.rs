@@ -192,6 +192,9 @@ pub struct Entry {
     pub mask: Option<PathBuf>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub landmarks: Option<PathBuf>,
+    /// A hair mask drawn by hand that the analyze step scores its mask against.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reference_mask: Option<PathBuf>,
     pub out: PathBuf,
     pub steps: Vec<Step>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -339,6 +342,11 @@ fn check(e: &Entry) -> Result<(), String> {
             &[Step::Orient, Step::Analyze][..],
         ),
         ("analyze", e.analyze.is_some(), &[Step::Analyze][..]),
+        (
+            "reference_mask",
+            e.reference_mask.is_some(),
+            &[Step::Analyze][..],
+        ),
         ("model", e.model.is_some(), &[Step::Model][..]),
         ("render", e.render.is_some(), &[Step::Render][..]),
         ("sketch", e.sketch.is_some(), &[Step::Sketch][..]),
@@ -346,7 +354,7 @@ fn check(e: &Entry) -> Result<(), String> {
     ];
     for (key, given, users) in opts {
         if given && !users.iter().any(|u| e.steps.contains(u)) {
-            return Err(format!("key `{key}`: options for a step not in `steps`"));
+            return Err(format!("key `{key}`: for a step not in `steps`"));
         }
     }
     if let Some(d) = e.sketch.as_ref().and_then(|o| o.directions.as_ref()) {
@@ -382,6 +390,7 @@ impl BatchJob {
             ("strokes", &e.strokes),
             ("mask", &e.mask),
             ("landmarks", &e.landmarks),
+            ("reference_mask", &e.reference_mask),
         ] {
             if let Some(p) = p {
                 v.push((k, self.path(p)));
@@ -403,6 +412,7 @@ impl BatchJob {
         let strokes = e.strokes.as_ref().map(|p| self.path(p));
         let mask = e.mask.as_ref().map(|p| self.path(p));
         let landmarks = e.landmarks.as_ref().map(|p| self.path(p));
+        let reference_mask = e.reference_mask.as_ref().map(|p| self.path(p));
         let orient = orient_params(e.orient.as_ref().unwrap_or(&OrientOpts::default()));
         e.steps
             .iter()
@@ -430,6 +440,7 @@ impl BatchJob {
                         mask: mask.clone(),
                         out: out.join("analyze"),
                         params,
+                        reference_mask: reference_mask.clone(),
                     })
                 }
                 Step::Model => {
@@ -556,7 +567,7 @@ mod tests {
 
     #[test]
     fn options_reach_the_jobs_and_paths_the_manifest_folder() {
-        let line = r#"{"id": "p", "image": "a.png", "strokes": "s.json", "mask": "/abs/m.png", "out": "o", "steps": ["orient", "analyze", "model", "render", "sketch", "synth-hair"], "orient": {"orientations": 16, "smooth": 0}, "analyze": {"radius": 5, "segment_smoothness": 25, "segment_luminance": 1}, "model": {"seed": 7, "roots": 99, "cells": 20, "refine": 2}, "render": {"yaw": 25, "hue": 30, "seed": 4}, "sketch": {"directions": "icm", "sweeps": 5, "seed": 9}, "synth-hair": {"rounds": 1, "over": true}}"#;
+        let line = r#"{"id": "p", "image": "a.png", "strokes": "s.json", "mask": "/abs/m.png", "reference_mask": "refs/r.png", "out": "o", "steps": ["orient", "analyze", "model", "render", "sketch", "synth-hair"], "orient": {"orientations": 16, "smooth": 0}, "analyze": {"radius": 5, "segment_smoothness": 25, "segment_luminance": 1}, "model": {"seed": 7, "roots": 99, "cells": 20, "refine": 2}, "render": {"yaw": 25, "hue": 30, "seed": 4}, "sketch": {"directions": "icm", "sweeps": 5, "seed": 9}, "synth-hair": {"rounds": 1, "over": true}}"#;
         let jobs = parse(Path::new("runs/jobs.jsonl"), line).unwrap();
         let j = jobs[0].jobs();
         assert_eq!(j.len(), 6);
@@ -578,6 +589,7 @@ mod tests {
                 assert_eq!(a.params.segment.smoothness, 25.0);
                 assert_eq!(a.params.segment.luminance, 1.0);
                 assert_eq!(a.strokes, base.join("s.json"));
+                assert_eq!(a.reference_mask, Some(base.join("refs/r.png")));
             }
             other => panic!("{other:?}"),
         }
@@ -636,6 +648,10 @@ mod tests {
             (
                 r#"{"id": "a", "image": "a.png", "out": "o", "steps": ["render", "model"], "strokes": "s"}"#.into(),
                 "line 1: key `steps`: render needs model before it",
+            ),
+            (
+                r#"{"id": "a", "image": "a.png", "out": "o", "steps": ["orient"], "reference_mask": "r.png"}"#.into(),
+                "line 1: key `reference_mask`: for a step not in `steps`",
             ),
             (
                 r#"{"id": "a", "image": "a.png", "out": "o", "steps": ["orient", "orient"]}"#.into(),

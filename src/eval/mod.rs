@@ -2,5 +2,6 @@
 //! against 3D ground-truth strands.
 
 pub mod gt3d;
+pub mod mask;
 pub mod metrics;
 pub mod video;

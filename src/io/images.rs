@@ -49,6 +49,32 @@ pub fn load_rgb(path: &Path) -> Result<image::RgbImage> {
     Ok(open(path)?.to_rgb8())
 }
 
+/// A reference hair mask (drawn by hand, > 127 on hair) to score a result against: it must
+/// have the size of the image at `image_path` (when that reads) and hold some hair.
+pub fn load_reference_mask(path: &Path, image_path: &Path) -> Result<image::GrayImage> {
+    let m = open(path)?.to_luma8();
+    if let Ok((w, h)) = image::image_dimensions(image_path) {
+        if m.dimensions() != (w, h) {
+            return Err(Error::bad_file(
+                path,
+                format!(
+                    "reference mask is {}x{} px but {} is {w}x{h} px",
+                    m.width(),
+                    m.height(),
+                    image_path.display()
+                ),
+            ));
+        }
+    }
+    if !m.as_raw().iter().any(|&v| v > 127) {
+        return Err(Error::bad_file(
+            path,
+            "reference mask is empty: no pixel is above 127, so there is no hair to score against",
+        ));
+    }
+    Ok(m)
+}
+
 /// A hair mask of the given size: one byte per pixel, 1 where the mask is > 127.
 /// `image_path` names the image it must match in the error message.
 pub fn load_mask(path: &Path, width: u32, height: u32, image_path: &Path) -> Result<Vec<u8>> {

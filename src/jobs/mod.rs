@@ -102,6 +102,8 @@ pub struct AnalyzeJob {
     pub mask: Option<PathBuf>,
     pub out: PathBuf,
     pub params: AnalyzeParams,
+    /// A hair mask drawn by hand to score the result's mask against (`mask_agreement.json`).
+    pub reference_mask: Option<PathBuf>,
 }
 
 /// Single-view 3D strands (`coif model`).
@@ -327,6 +329,7 @@ pub fn demo(out: &Path) -> Vec<Job> {
             mask: None,
             out: out.join(format!("analyze-{name}")),
             params: AnalyzeParams::default(),
+            reference_mask: None,
         }));
     }
     // 3D strands: the synthetic case with its mask and landmarks, the photo from its strokes
@@ -602,12 +605,27 @@ fn run_analyze(engine: &Engine, j: &AnalyzeJob) -> anyhow::Result<Report> {
         return Err(Error::Invalid("--radius and --stroke-weight must be positive".into()).into());
     }
     let t = Instant::now();
+    // Read before the work, so that a bad reference fails at once.
+    let reference = match &j.reference_mask {
+        Some(r) => Some((r, crate::io::images::load_reference_mask(r, &j.image)?)),
+        None => None,
+    };
     let (rgb, an) = analyze::run(engine, &j.image, &j.strokes, j.mask.as_deref(), p)?;
     record_all(&an.timings);
     stage("write").run(|| analyze::write(&j.out, &j.image, &rgb, &an, p, &engine.describe()))?;
+    let scored = match &reference {
+        Some((path, m)) => {
+            let a = analyze::write_agreement(&j.out, &rgb, &an, m, path)?;
+            format!(
+                " (IoU {:.4} with the reference: {} hair px missed, {} taken)",
+                a.iou, a.missed, a.taken
+            )
+        }
+        None => String::new(),
+    };
     Ok(Report {
         summary: format!(
-            "analyze: mask {}, {} curve pieces ({} unreachable from strokes) -> {} ({:.2} s on {})",
+            "analyze: mask {}{scored}, {} curve pieces ({} unreachable from strokes) -> {} ({:.2} s on {})",
             if an.mask_computed {
                 "segmented"
             } else {

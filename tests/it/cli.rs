@@ -887,6 +887,82 @@ fn analyze_takes_the_segmentation_s_smoothness_and_luminance_weight() {
     assert_eq!(meta["params"]["segment"]["luminance"], 1.0, "{meta}");
 }
 
+/// `--reference-mask` scores the analysis's mask against a mask drawn by hand: the figures in
+/// mask_agreement.json are those of the mask written beside them, a mask given as its own
+/// reference scores 1, and a reference of another size, an empty one or a missing one is
+/// refused before any work, naming the file, with nothing written.
+#[test]
+fn analyze_scores_its_mask_against_a_reference_mask() {
+    let c = Case::new();
+    synth_case(&c);
+    let run = |out: &str, extra: &[&str]| {
+        let mut args = vec![
+            "analyze".to_string(),
+            "--image".into(),
+            c.s("case/image.png"),
+            "--strokes".into(),
+            c.s("case/strokes.json"),
+            "--backend".into(),
+            "cpu".into(),
+            "--out".into(),
+            c.s(out),
+        ];
+        args.extend(extra.iter().map(|f| f.to_string()));
+        coif(&args.iter().map(String::as_str).collect::<Vec<_>>())
+    };
+    let truth = c.s("case/mask.png");
+    let o = run("seg", &["--reference-mask", &truth]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let said = format!("{}{}", String::from_utf8_lossy(&o.stdout), stderr(&o));
+    assert!(said.contains("IoU 0.9"), "{said}");
+    let doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(c.p("seg/mask_agreement.json")).unwrap())
+            .unwrap();
+    let (got, reference) = (
+        image::open(c.p("seg/mask.png")).unwrap().to_luma8(),
+        image::open(c.p("case/mask.png")).unwrap().to_luma8(),
+    );
+    let a = coif::eval::mask::agreement(&got, &reference);
+    crate::common::assert_same_agreement(&doc["agreement"], &a);
+    assert_eq!(doc["mask"], "segmented from the strokes");
+    assert!(a.iou > 0.95 && a.iou < 1.0, "{a:?}");
+    let pic = image::open(c.p("seg/mask_vs_reference.png")).unwrap();
+    assert_eq!(pic.width(), got.width());
+    // The true mask given and scored against itself.
+    let o = run("given", &["--mask", &truth, "--reference-mask", &truth]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(c.p("given/mask_agreement.json")).unwrap())
+            .unwrap();
+    assert_eq!(doc["agreement"]["iou"], 1.0, "{doc}");
+    assert_eq!(doc["mask"], "given");
+    // Bad references.
+    image::GrayImage::from_pixel(10, 12, image::Luma([255]))
+        .save(c.p("small.png"))
+        .unwrap();
+    let (w, h) = reference.dimensions();
+    image::GrayImage::new(w, h).save(c.p("empty.png")).unwrap();
+    let small = c.s("small.png");
+    fails(
+        &run("bad", &["--reference-mask", &small]),
+        65,
+        &["small.png", "reference mask is 10x12 px"],
+    );
+    let empty = c.s("empty.png");
+    fails(
+        &run("bad", &["--reference-mask", &empty]),
+        65,
+        &["empty.png", "reference mask is empty"],
+    );
+    let missing = c.s("missing.png");
+    fails(
+        &run("bad", &["--reference-mask", &missing]),
+        74,
+        &["missing.png"],
+    );
+    assert!(!c.p("bad").exists());
+}
+
 #[test]
 fn analyze_with_strokes_off_the_hair() {
     let c = Case::new();

@@ -18,6 +18,7 @@
 
 use coif::analyze::segment::segment;
 use coif::analyze::AnalyzeParams;
+use coif::eval::mask::{agreement, disagreement_picture};
 use coif::io::annot::Strokes;
 use image::{GrayImage, RgbImage};
 use std::path::{Path, PathBuf};
@@ -108,95 +109,6 @@ fn load(name: &str) -> Reference {
     }
 }
 
-fn overlay(r: &Reference, got: &GrayImage, out: &Path) {
-    let mut o = r.image.clone();
-    for (i, p) in o.pixels_mut().enumerate() {
-        let (t, c) = (r.mask[i], got.as_raw()[i] > 127);
-        let tint = match (t, c) {
-            (true, true) => [0, 255, 0],
-            (true, false) => [255, 0, 0],
-            (false, true) => [0, 80, 255],
-            _ => continue,
-        };
-        for k in 0..3 {
-            p[k] = ((p[k] as u32 + tint[k]) / 2) as u8;
-        }
-    }
-    o.save(out).unwrap();
-}
-
-/// Per pixel, the distance to the nearest pixel of the other label in the reference mask.
-fn edge_distance(r: &Reference, got: &GrayImage) -> Vec<f32> {
-    let (w, h) = got.dimensions();
-    let (w, h) = (w as usize, h as usize);
-    let not: Vec<bool> = r.mask.iter().map(|&t| !t).collect();
-    let to_hair = coif::synth::distance_to(&r.mask, w, h);
-    let to_not = coif::synth::distance_to(&not, w, h);
-    r.mask
-        .iter()
-        .enumerate()
-        .map(|(i, &t)| if t { to_not[i] } else { to_hair[i] })
-        .collect()
-}
-
-/// The IoU left if every error farther than `band` px from the reference mask's edge were
-/// fixed: a hand-drawn polygon is itself only good to a pixel or two, so this is about the
-/// best any segmentation can score against it with the errors it makes at the edge.
-fn iou_within_band(r: &Reference, got: &GrayImage, to_edge: &[f32], band: f32) -> f64 {
-    let (mut hair, mut missed, mut taken) = (0u64, 0u64, 0u64);
-    for (i, &t) in r.mask.iter().enumerate() {
-        let c = got.as_raw()[i] > 127;
-        let near = to_edge[i] <= band;
-        hair += t as u64;
-        missed += (t && !c && near) as u64;
-        taken += (!t && c && near) as u64;
-    }
-    (hair - missed) as f64 / (hair + taken).max(1) as f64
-}
-
-/// The IoU over the pixels farther than `band` px from the reference mask's edge (a trimap's
-/// unknown band left out): what the segmentation gets wrong where the reference is sure.
-fn iou_outside_band(r: &Reference, got: &GrayImage, to_edge: &[f32], band: f32) -> f64 {
-    let (mut inter, mut uni) = (0u64, 0u64);
-    for (i, &t) in r.mask.iter().enumerate() {
-        if to_edge[i] <= band {
-            continue;
-        }
-        let c = got.as_raw()[i] > 127;
-        inter += (t && c) as u64;
-        uni += (t || c) as u64;
-    }
-    inter as f64 / uni.max(1) as f64
-}
-
-/// The IoU with the reference of the reference itself grown and shrunk by one pixel all
-/// round (a 3x3 square): how much a one-pixel disagreement along the whole outline costs on
-/// this crop, the scale against which the goal's 0.92 is read.
-fn one_pixel_off(r: &Reference, w: u32, h: u32) -> (f64, f64) {
-    use coif::base::mask::{dilate, erode};
-    let (w, h) = (w as usize, h as usize);
-    let m: Vec<u8> = r.mask.iter().map(|&t| t as u8).collect();
-    let iou = |o: &[u8]| {
-        let got = GrayImage::from_raw(w as u32, h as u32, o.iter().map(|&v| 255 * v).collect())
-            .expect("mask size");
-        score(r, &got).0
-    };
-    (iou(&dilate(&m, w, h, 1)), iou(&erode(&m, w, h, 1)))
-}
-
-/// IoU, hair pixels missed and non-hair pixels taken.
-fn score(r: &Reference, got: &GrayImage) -> (f64, u64, u64) {
-    let (mut inter, mut uni, mut missed, mut taken) = (0u64, 0u64, 0u64, 0u64);
-    for (i, &t) in r.mask.iter().enumerate() {
-        let c = got.as_raw()[i] > 127;
-        inter += (t && c) as u64;
-        uni += (t || c) as u64;
-        missed += (t && !c) as u64;
-        taken += (!t && c) as u64;
-    }
-    (inter as f64 / uni.max(1) as f64, missed, taken)
-}
-
 #[test]
 fn masks_from_strokes_match_hand_drawn_masks_on_real_portraits() {
     let p = AnalyzeParams::default().segment;
@@ -227,14 +139,19 @@ fn masks_from_strokes_match_hand_drawn_masks_on_real_portraits() {
             Some((w, h)),
         )
         .unwrap();
+        let reference = GrayImage::from_fn(w, h, |x, y| {
+            image::Luma([255 * r.mask[(y * w + x) as usize] as u8])
+        });
+        let score = |m: &GrayImage| agreement(m, &reference);
         let got = segment(&r.image, &strokes, &p).unwrap();
-        let (iou, missed, taken) = score(&r, &got);
-        let (iou_c, _, taken_c) = score(&r, &segment(&r.image, &strokes, &colour).unwrap());
-        let (iou_f, _, _) = score(&r, &segment(&r.image, &strokes, &no_flow).unwrap());
-        let to_edge = edge_distance(&r, &got);
-        let edge = iou_within_band(&r, &got, &to_edge, 2.0);
-        let sure = iou_outside_band(&r, &got, &to_edge, 2.0);
-        let (grown, shrunk) = one_pixel_off(&r, w, h);
+        let a = score(&got);
+        let (iou, missed, taken) = (a.iou, a.missed, a.taken);
+        let c = score(&segment(&r.image, &strokes, &colour).unwrap());
+        let (iou_c, taken_c) = (c.iou, c.taken);
+        let iou_f = score(&segment(&r.image, &strokes, &no_flow).unwrap()).iou;
+        let (edge, sure) = (a.iou_edge_errors_only, a.iou_beyond_band);
+        let [grown, shrunk] = a.one_pixel_off_iou;
+        let bf = a.boundary_f;
         let hair = r.mask.iter().filter(|&&t| t).count();
         let mark = if iou >= GOAL {
             reached += 1;
@@ -248,7 +165,7 @@ fn masks_from_strokes_match_hand_drawn_masks_on_real_portraits() {
              errors within 2 px of the reference's edge; {sure:.4} over the pixels farther \
              from it); without the strokes' flow: IoU {iou_f:.4}; colour alone: IoU \
              {iou_c:.4}, {taken_c} taken; the reference grown / shrunk by 1 px scores \
-             {grown:.4} / {shrunk:.4}",
+             {grown:.4} / {shrunk:.4}; boundary F-measure (2 px) {bf:.4}",
             r.what
         );
         sum += iou;
@@ -257,15 +174,14 @@ fn masks_from_strokes_match_hand_drawn_masks_on_real_portraits() {
         first.get_or_insert((name, iou, iou_c));
         if let Some(d) = std::env::var_os("COIF_SEGMENT_OUT") {
             let d = Path::new(&d);
-            overlay(&r, &got, &d.join(format!("real_{name}.png")));
+            disagreement_picture(&r.image, &got, &reference)
+                .save(d.join(format!("real_{name}.png")))
+                .unwrap();
             // The crop, the reference and the result as files, for looking at in other tools.
             r.image
                 .save(d.join(format!("real_{name}_photo.png")))
                 .unwrap();
             got.save(d.join(format!("real_{name}_got.png"))).unwrap();
-            let reference = GrayImage::from_fn(w, h, |x, y| {
-                image::Luma([255 * r.mask[(y * w + x) as usize] as u8])
-            });
             reference
                 .save(d.join(format!("real_{name}_reference.png")))
                 .unwrap();
@@ -350,9 +266,18 @@ fn a_stroke_down_the_edge_of_the_face_is_named() {
             assert!(said.is_empty(), "{name}: {said:?}");
         }
     }
+    // The command line, scored against the reference as a user with a mask drawn by hand
+    // would: the same mask and figures as the library's.
     let tmp = tempfile::tempdir().unwrap();
     let photo = tmp.path().join("phoebe.png");
-    load("phoebe").image.save(&photo).unwrap();
+    let r = load("phoebe");
+    r.image.save(&photo).unwrap();
+    let (w, h) = r.image.dimensions();
+    let reference = GrayImage::from_fn(w, h, |x, y| {
+        image::Luma([255 * r.mask[(y * w + x) as usize] as u8])
+    });
+    let ref_path = tmp.path().join("phoebe_reference.png");
+    reference.save(&ref_path).unwrap();
     let out = tmp.path().join("an");
     let o = std::process::Command::new(env!("CARGO_BIN_EXE_coif"))
         .arg("analyze")
@@ -360,11 +285,19 @@ fn a_stroke_down_the_edge_of_the_face_is_named() {
         .arg(&photo)
         .arg("--strokes")
         .arg(dir().join("phoebe_strokes.json"))
+        .arg("--reference-mask")
+        .arg(&ref_path)
         .args(["--backend", "cpu", "--out"])
         .arg(&out)
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let strokes = Strokes::load(&dir().join("phoebe_strokes.json"), Some((w, h))).unwrap();
+    let want = agreement(&segment(&r.image, &strokes, &p).unwrap(), &reference);
+    let scored: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("mask_agreement.json")).unwrap())
+            .unwrap();
+    crate::common::assert_same_agreement(&scored["agreement"], &want);
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("analyze.json")).unwrap()).unwrap();
     let said: Vec<&str> = v["warnings"]

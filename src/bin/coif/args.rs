@@ -679,6 +679,11 @@ pub struct AnalyzeArgs {
     #[arg(long, value_name = "WEIGHT", value_parser = parse_non_negative,
           default_value_t = coif::analyze::segment::SegmentParams::default().luminance)]
     segment_luminance: f32,
+    /// A hair mask drawn by hand (same size, > 127 on hair): the result's mask is scored
+    /// against it (IoU, missed and taken pixels, errors at and beyond the edge, boundary
+    /// F-measure) into mask_agreement.json, with mask_vs_reference.png.
+    #[arg(long, value_name = "PNG")]
+    reference_mask: Option<PathBuf>,
 }
 
 /// What the command line asks for.
@@ -811,6 +816,7 @@ impl Command {
                     mask: a.input.mask,
                     out: a.out,
                     params,
+                    reference_mask: a.reference_mask,
                 };
                 Request::one(Job::Analyze(job), a.backend.backend)
             }

@@ -65,3 +65,47 @@ pub fn fails(o: &std::process::Output, code: i32, needles: &[&str]) {
         assert!(e.contains(n), "stderr lacks {n:?}:\n{e}");
     }
 }
+
+/// Asserts that `written` (a `mask_agreement.json`'s `agreement`, read back) holds the
+/// figures of `want`: counts exactly, ratios to 1e-12 (the JSON reader may round the last
+/// bit of a float).
+pub fn assert_same_agreement(written: &serde_json::Value, want: &coif::eval::mask::MaskAgreement) {
+    let want = serde_json::to_value(want).unwrap();
+    let close = |a: &serde_json::Value, b: &serde_json::Value| match (a.as_f64(), b.as_f64()) {
+        (Some(x), Some(y)) => (x - y).abs() <= 1e-12 * y.abs().max(1.0),
+        _ => a == b,
+    };
+    let fields = want.as_object().unwrap();
+    assert_eq!(
+        written.as_object().map(|o| o.len()),
+        Some(fields.len()),
+        "{written}"
+    );
+    for (k, v) in fields {
+        let w = &written[k];
+        let same = match (v.as_array(), w.as_array()) {
+            (Some(a), Some(b)) => a.len() == b.len() && a.iter().zip(b).all(|(p, q)| close(q, p)),
+            _ => close(w, v),
+        };
+        assert!(same, "{k}: written {w}, computed {v}");
+    }
+}
+
+/// The helper above passes written figures that are the computed ones up to the last bit,
+/// and fails on any other figure.
+#[test]
+fn assert_same_agreement_tells_other_figures_apart() {
+    let a = image::GrayImage::from_fn(20, 20, |x, _| image::Luma([255 * (x < 10) as u8]));
+    let b = image::GrayImage::from_fn(20, 20, |x, _| image::Luma([255 * (x < 11) as u8]));
+    let want = coif::eval::mask::agreement(&b, &a);
+    let mut written = serde_json::to_value(&want).unwrap();
+    let iou = written["iou"].as_f64().unwrap();
+    written["iou"] = serde_json::json!(iou * (1.0 + 1e-15));
+    assert_same_agreement(&written, &want);
+    let other = serde_json::to_value(coif::eval::mask::agreement(&a, &a)).unwrap();
+    let refused = std::panic::catch_unwind(|| assert_same_agreement(&other, &want));
+    assert!(refused.is_err(), "the helper passed another mask's figures");
+    written["taken"] = serde_json::json!(want.taken + 1);
+    let refused = std::panic::catch_unwind(|| assert_same_agreement(&written, &want));
+    assert!(refused.is_err(), "the helper passed a count off by one");
+}
