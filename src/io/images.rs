@@ -52,50 +52,44 @@ pub fn load_rgb(path: &Path) -> Result<image::RgbImage> {
 /// A reference hair mask (drawn by hand, > 127 on hair) to score a result against: it must
 /// have the size of the image at `image_path` (when that reads) and hold some hair.
 pub fn load_reference_mask(path: &Path, image_path: &Path) -> Result<image::GrayImage> {
-    let m = open(path)?.to_luma8();
-    if let Ok((w, h)) = image::image_dimensions(image_path) {
-        if m.dimensions() != (w, h) {
-            return Err(Error::bad_file(
-                path,
-                format!(
-                    "reference mask is {}x{} px but {} is {w}x{h} px",
-                    m.width(),
-                    m.height(),
-                    image_path.display()
-                ),
-            ));
-        }
-    }
-    if !m.as_raw().iter().any(|&v| v > 127) {
-        return Err(Error::bad_file(
-            path,
-            "reference mask is empty: no pixel is above 127, so there is no hair to score against",
-        ));
-    }
+    let size = image::image_dimensions(image_path).ok();
+    let m = open_mask(path, "reference mask", size, image_path, "score against")?;
     Ok(m)
 }
 
 /// A hair mask of the given size: one byte per pixel, 1 where the mask is > 127.
 /// `image_path` names the image it must match in the error message.
 pub fn load_mask(path: &Path, width: u32, height: u32, image_path: &Path) -> Result<Vec<u8>> {
+    let m = open_mask(path, "mask", Some((width, height)), image_path, "analyse")?;
+    Ok(m.pixels().map(|p| (p[0] > 127) as u8).collect())
+}
+
+/// The mask at `path` as grey levels, refused (naming it as `what`) when it is not of `size`
+/// (the image at `image_path`'s) or has no pixel above 127 (no hair to `use_for`).
+fn open_mask(
+    path: &Path,
+    what: &str,
+    size: Option<(u32, u32)>,
+    image_path: &Path,
+    use_for: &str,
+) -> Result<image::GrayImage> {
     let m = open(path)?.to_luma8();
-    if m.dimensions() != (width, height) {
+    if let Some((w, h)) = size.filter(|&s| s != m.dimensions()) {
         return Err(Error::bad_file(
             path,
             format!(
-                "mask is {}x{} px but {} is {width}x{height} px",
+                "{what} is {}x{} px but {} is {w}x{h} px",
                 m.width(),
                 m.height(),
                 image_path.display()
             ),
         ));
     }
-    let px: Vec<u8> = m.pixels().map(|p| (p[0] > 127) as u8).collect();
-    if !px.contains(&1) {
+    if !m.as_raw().iter().any(|&v| v > 127) {
         return Err(Error::bad_file(
             path,
-            "mask is empty: no pixel is above 127, so there is no hair to analyse",
+            format!("{what} is empty: no pixel is above 127, so there is no hair to {use_for}"),
         ));
     }
-    Ok(px)
+    Ok(m)
 }
