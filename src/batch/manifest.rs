@@ -345,7 +345,7 @@ fn check(e: &Entry) -> Result<(), String> {
         (
             "reference_mask",
             e.reference_mask.is_some(),
-            &[Step::Analyze][..],
+            &[Step::Analyze, Step::Model][..],
         ),
         ("model", e.model.is_some(), &[Step::Model][..]),
         ("render", e.render.is_some(), &[Step::Render][..]),
@@ -455,6 +455,7 @@ impl BatchJob {
                         strokes: strokes.clone().expect("checked"),
                         mask: mask.clone(),
                         landmarks: landmarks.clone(),
+                        reference_mask: reference_mask.clone(),
                         out: out.join("model"),
                         params,
                     })
@@ -599,6 +600,7 @@ mod tests {
                 assert_eq!(m.params.volume.cells, 20);
                 assert_eq!(m.params.refine.max_iterations, 2);
                 assert_eq!(m.out, base.join("o/model"));
+                assert_eq!(m.reference_mask, Some(base.join("refs/r.png")));
             }
             other => panic!("{other:?}"),
         }

@@ -113,6 +113,8 @@ pub struct ModelJob {
     pub strokes: PathBuf,
     pub mask: Option<PathBuf>,
     pub landmarks: Option<PathBuf>,
+    /// A hair mask drawn by hand to score the mask against (`mask_agreement.json`).
+    pub reference_mask: Option<PathBuf>,
     pub out: PathBuf,
     pub params: ModelParams,
 }
@@ -356,6 +358,7 @@ pub fn demo(out: &Path) -> Vec<Job> {
             strokes: dir.join("strokes.json"),
             mask: truth.then(|| dir.join("mask.png")),
             landmarks: truth.then(|| dir.join("landmarks.json")),
+            reference_mask: None,
             out: model.clone(),
             params: ModelParams::default(),
         }));
@@ -605,24 +608,11 @@ fn run_analyze(engine: &Engine, j: &AnalyzeJob) -> anyhow::Result<Report> {
         return Err(Error::Invalid("--radius and --stroke-weight must be positive".into()).into());
     }
     let t = Instant::now();
-    // Read before the work, so that a bad reference fails at once.
-    let reference = match &j.reference_mask {
-        Some(r) => Some((r, crate::io::images::load_reference_mask(r, &j.image)?)),
-        None => None,
-    };
+    let reference = Reference::load(j.reference_mask.as_deref(), &j.image)?;
     let (rgb, an) = analyze::run(engine, &j.image, &j.strokes, j.mask.as_deref(), p)?;
     record_all(&an.timings);
     stage("write").run(|| analyze::write(&j.out, &j.image, &rgb, &an, p, &engine.describe()))?;
-    let scored = match &reference {
-        Some((path, m)) => {
-            let a = analyze::write_agreement(&j.out, &rgb, &an, m, path)?;
-            format!(
-                " (IoU {:.4} with the reference: {} hair px missed, {} taken)",
-                a.iou, a.missed, a.taken
-            )
-        }
-        None => String::new(),
-    };
+    let scored = reference.score(&j.out, &rgb, &an, ", ")?;
     Ok(Report {
         summary: format!(
             "analyze: mask {}{scored}, {} curve pieces ({} unreachable from strokes) -> {} ({:.2} s on {})",
@@ -642,9 +632,42 @@ fn run_analyze(engine: &Engine, j: &AnalyzeJob) -> anyhow::Result<Report> {
     })
 }
 
+/// A hair mask drawn by hand that a job scores its mask against (`--reference-mask`), read
+/// before the work so that a bad one fails at once.
+struct Reference<'a>(Option<(&'a Path, image::GrayImage)>);
+
+impl<'a> Reference<'a> {
+    fn load(path: Option<&'a Path>, image: &Path) -> crate::Result<Self> {
+        Ok(Reference(match path {
+            Some(r) => Some((r, crate::io::images::load_reference_mask(r, image)?)),
+            None => None,
+        }))
+    }
+
+    /// Writes the agreement into `out`; returns the summary's words on it, after `lead`
+    /// (or nothing without a reference).
+    fn score(
+        &self,
+        out: &Path,
+        rgb: &image::RgbImage,
+        an: &analyze::Analysis,
+        lead: &str,
+    ) -> crate::Result<String> {
+        let Some((path, m)) = &self.0 else {
+            return Ok(String::new());
+        };
+        let a = analyze::write_agreement(out, rgb, an, m, path)?;
+        Ok(format!(
+            "{lead}IoU {:.4} with the reference ({} hair px missed, {} taken)",
+            a.iou, a.missed, a.taken
+        ))
+    }
+}
+
 fn run_model(engine: &Engine, j: &ModelJob) -> anyhow::Result<Report> {
     let p = &j.params;
     let t = Instant::now();
+    let reference = Reference::load(j.reference_mask.as_deref(), &j.image)?;
     let (rgb, m) = model::run(
         engine,
         &j.image,
@@ -655,10 +678,11 @@ fn run_model(engine: &Engine, j: &ModelJob) -> anyhow::Result<Report> {
     )?;
     record_all(&m.timings);
     stage("write").run(|| model::write(&j.out, &j.image, &rgb, &m, p, &engine.describe()))?;
+    let scored = reference.score(&j.out, &rgb, &m.analysis, "; mask ")?;
     Ok(Report {
         summary: format!(
             "model: {} strands ({} grown from {} roots on hair, {} added by refinement), {} H \
-             cells, field {} cycles to {:.1e} -> {} ({:.2} s on {})",
+             cells, field {} cycles to {:.1e}{scored} -> {} ({:.2} s on {})",
             m.strands.len(),
             m.grown_strands,
             m.roots_kept,

@@ -888,8 +888,8 @@ fn analyze_takes_the_segmentation_s_smoothness_and_luminance_weight() {
 }
 
 /// `--reference-mask` scores the analysis's mask against a mask drawn by hand: the figures in
-/// mask_agreement.json are those of the mask written beside them, a mask given as its own
-/// reference scores 1, and a reference of another size, an empty one or a missing one is
+/// mask_agreement.json are those of the mask written beside them (by `analyze` and by
+/// `model`), a mask given as its own reference scores 1, and a reference of another size, an empty one or a missing one is
 /// refused before any work, naming the file, with nothing written.
 #[test]
 fn analyze_scores_its_mask_against_a_reference_mask() {
@@ -936,6 +936,33 @@ fn analyze_scores_its_mask_against_a_reference_mask() {
             .unwrap();
     assert_eq!(doc["agreement"]["iou"], 1.0, "{doc}");
     assert_eq!(doc["mask"], "given");
+    // `coif model` scores the mask it grew the strands in the same way.
+    let o = coif(&[
+        "model",
+        "--image",
+        &c.s("case/image.png"),
+        "--strokes",
+        &c.s("case/strokes.json"),
+        "--reference-mask",
+        &truth,
+        "--roots",
+        "300",
+        "--refine",
+        "0",
+        "--backend",
+        "cpu",
+        "--out",
+        &c.s("model"),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(c.p("model/mask_agreement.json")).unwrap())
+            .unwrap();
+    let got = image::open(c.p("model/mask.png")).unwrap().to_luma8();
+    crate::common::assert_same_agreement(
+        &doc["agreement"],
+        &coif::eval::mask::agreement(&got, &reference),
+    );
     // Bad references.
     image::GrayImage::from_pixel(10, 12, image::Luma([255]))
         .save(c.p("small.png"))

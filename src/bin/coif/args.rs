@@ -386,6 +386,11 @@ pub struct PhotoArgs {
     /// strokes (direction strokes are hair; background strokes, else the image border, are not).
     #[arg(long)]
     mask: Option<PathBuf>,
+    /// A hair mask drawn by hand (same size, > 127 on hair): the mask used (segmented or
+    /// given) is scored against it (IoU, missed and taken pixels, errors at and beyond the
+    /// edge, boundary F-measure) into mask_agreement.json, with mask_vs_reference.png.
+    #[arg(long, value_name = "PNG")]
+    reference_mask: Option<PathBuf>,
 }
 
 #[derive(Args)]
@@ -679,11 +684,6 @@ pub struct AnalyzeArgs {
     #[arg(long, value_name = "WEIGHT", value_parser = parse_non_negative,
           default_value_t = coif::analyze::segment::SegmentParams::default().luminance)]
     segment_luminance: f32,
-    /// A hair mask drawn by hand (same size, > 127 on hair): the result's mask is scored
-    /// against it (IoU, missed and taken pixels, errors at and beyond the edge, boundary
-    /// F-measure) into mask_agreement.json, with mask_vs_reference.png.
-    #[arg(long, value_name = "PNG")]
-    reference_mask: Option<PathBuf>,
 }
 
 /// What the command line asks for.
@@ -816,7 +816,7 @@ impl Command {
                     mask: a.input.mask,
                     out: a.out,
                     params,
-                    reference_mask: a.reference_mask,
+                    reference_mask: a.input.reference_mask,
                 };
                 Request::one(Job::Analyze(job), a.backend.backend)
             }
@@ -841,6 +841,7 @@ impl Command {
                     strokes: a.input.strokes,
                     mask: a.input.mask,
                     landmarks: a.landmarks,
+                    reference_mask: a.input.reference_mask,
                     out: a.out,
                     params,
                 };
