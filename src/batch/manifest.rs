@@ -147,6 +147,10 @@ pub struct SketchOpts {
     /// The size `hair.czs` is brought under where it can be (default 1024; 0: off).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub target_bytes: Option<usize>,
+    /// The fill's distance from the dense field the sketch is brought within, degrees
+    /// (default 12; 0: off).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub target_fill: Option<f32>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub directions: Option<String>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -361,6 +365,13 @@ fn check(e: &Entry) -> Result<(), String> {
         d.parse::<crate::sketch::swc::Method>()
             .map_err(|err| format!("key `sketch.directions`: {err}"))?;
     }
+    if let Some(t) = e.sketch.as_ref().and_then(|o| o.target_fill) {
+        if !(t.is_finite() && t >= 0.0) {
+            return Err(format!(
+                "key `sketch.target_fill`: must be a finite number >= 0, got {t}"
+            ));
+        }
+    }
     if let Some(c) = e.sketch.as_ref().and_then(|o| o.crown.as_ref()) {
         c.parse::<crate::sketch::swc::Crown>()
             .map_err(|err| format!("key `sketch.crown`: {err}"))?;
@@ -497,6 +508,9 @@ impl BatchJob {
                     params.pursuit.rate_contrast = o.rate_contrast;
                     params.budget =
                         crate::sketch::run::ByteBudget::from_options(o.max_bytes, o.target_bytes);
+                    if let Some(t) = o.target_fill {
+                        params.fill_target = (t > 0.0).then_some(t);
+                    }
                     if let Some(d) = &o.directions {
                         params.method = d.parse().expect("checked");
                     }

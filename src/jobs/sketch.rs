@@ -123,6 +123,27 @@ pub(super) fn run_sketch(engine: &Engine, j: &SketchJob) -> anyhow::Result<Repor
     let sizes = crate::sketch::format::czs_sizes(&r.sketch);
     let mut details = stage_lines(&r.seconds);
     let mut warnings = Vec::new();
+    if let Some(f) = &r.fill_target {
+        if !f.met {
+            warnings.push(format!(
+                "{}: the fill strays {:.2}° from the dense field, over the {}° target, even \
+                 with the curve penalty at {} (kept: the closest)",
+                j.image.display(),
+                r.fill_error.0,
+                f.target_deg,
+                f.lambda_nc
+            ));
+        } else if f.tries.len() > 1 {
+            details.push(format!(
+                "curve penalty lowered to {} to bring the fill within {}° of the dense field \
+                 ({:.2}°; {} analyses)",
+                f.lambda_nc,
+                f.target_deg,
+                r.fill_error.0,
+                f.tries.len()
+            ));
+        }
+    }
     if let Some(b) = &r.budget {
         if !b.met {
             warnings.push(format!(

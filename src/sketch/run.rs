@@ -35,6 +35,29 @@ pub struct SketchParams {
     pub seed: u64,
     /// What `hair.czs`'s size is held to (see [`ByteBudget`]).
     pub budget: ByteBudget,
+    /// The fill's mean distance from Step 1's dense Θ (degrees, over hair ≥ 5 px inside the
+    /// mask) that the sketch is held to: where it strays further, λ_NC is halved (down to
+    /// [`FILL_MIN_LAMBDA_NC`]) and the analysis run again (see [`FillTarget`]); None: off.
+    pub fill_target: Option<f32>,
+}
+
+/// Issue 16's bound on the fill against the dense field on real hair photos, the default
+/// fill target (degrees).
+pub const DEFAULT_FILL_TARGET_DEG: f32 = 12.0;
+/// λ_NC is not halved below this for the fill target.
+pub const FILL_MIN_LAMBDA_NC: f32 = 5.0;
+/// How far inside the mask the fill's error is read (px): the mask's edge is where neither
+/// field is sure.
+pub const FILL_INSET: usize = 5;
+
+/// How the fill target was met: every (λ_NC, fill error in degrees, `.czs` bytes) tried, in
+/// order, and the kept one.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct FillTarget {
+    pub target_deg: f32,
+    pub met: bool,
+    pub lambda_nc: f32,
+    pub tries: Vec<(f32, f64, usize)>,
 }
 
 /// Issue 16's bound on `hair.czs` ("≤ 1 KiB on every test image"), the default target.
@@ -87,6 +110,7 @@ impl Default for SketchParams {
             outline: Default::default(),
             seed: 1,
             budget: ByteBudget::Target(DEFAULT_TARGET_BYTES),
+            fill_target: Some(DEFAULT_FILL_TARGET_DEG),
         }
     }
 }
@@ -120,6 +144,11 @@ pub struct SketchResult {
     pub seconds: Vec<(&'static str, f64)>,
     /// How a byte budget was met, when one was given.
     pub budget: Option<Budget>,
+    /// The fill's mean error against Step 1's Θ (degrees) over the hair pixels at least
+    /// [`FILL_INSET`] px inside the mask, and how many (0: none that far inside).
+    pub fill_error: (f64, usize),
+    /// How the fill target was met, when one was given.
+    pub fill_target: Option<FillTarget>,
 }
 
 /// How a byte budget was met: λ_B doubled from 1 (or from the given λ_B) until the file fits,
@@ -150,6 +179,13 @@ pub fn analyse(engine: &Engine, inp: &SketchInputs, p: &SketchParams) -> Result<
             "the hair mask has {} pixels, the image {w}x{h}",
             inp.hair.len()
         )));
+    }
+    if let Some(t) = p.fill_target {
+        if !(t.is_finite() && t > 0.0) {
+            return Err(Error::Invalid(format!(
+                "the fill target must be a finite number of degrees > 0, got {t}"
+            )));
+        }
     }
     let hair_px = inp.hair.iter().filter(|&&m| m).count();
     if hair_px == 0 {
@@ -182,58 +218,133 @@ pub fn analyse(engine: &Engine, inp: &SketchInputs, p: &SketchParams) -> Result<
     let region = super::region::outline(inp.hair, w, h, &p.outline);
     lap(&mut seconds, "shading", &mut t);
 
-    // Steps 1 and 2 and the stored sketch, for one λ_B; their times summed over attempts.
-    let times = std::cell::Cell::new([0.0f64; 2]);
-    let attempt = |lambda_b: f32| -> Result<(pursuit::Pursuit, swc::Directed, Sketch)> {
-        // A budget's pursuits are the run's longest stretch: a signal stops it between them.
-        crate::interrupt::check()?;
-        let pp = pursuit::PursuitParams {
-            lambda_b,
-            ..p.pursuit
+    // Steps 1 and 2 and the stored sketch, for one λ_NC and λ_B; their times summed over
+    // attempts.
+    let times = std::cell::Cell::new([0.0f64; 3]);
+    let attempt =
+        |lambda_nc: f32, lambda_b: f32| -> Result<(pursuit::Pursuit, swc::Directed, Sketch)> {
+            // A budget's pursuits are the run's longest stretch: a signal stops it between them.
+            crate::interrupt::check()?;
+            let pp = pursuit::PursuitParams {
+                lambda_nc,
+                lambda_b,
+                ..p.pursuit
+            };
+            let t0 = Instant::now();
+            let pu = pursuit::pursue(engine, &high, inp.hair, &warm.theta, &pp)?;
+            let t1 = Instant::now();
+            let clamps = match inp.strokes {
+                Some(s) => swc::stroke_clamps(&pu.curves, s, inp.hair, w, h),
+                None => Vec::new(),
+            };
+            let directed = swc::directions(
+                &pu.curves, &pu.theta, inp.hair, w, h, &clamps, &p.swc, p.method,
+            )?;
+            let [a, b, c] = times.get();
+            times.set([
+                a + (t1 - t0).as_secs_f64(),
+                b + t1.elapsed().as_secs_f64(),
+                c,
+            ]);
+            // Eq. 12's along/across ratio of the high band under Step 1's Θ.
+            let along_across = super::texture::along_across(&high.data, &pu.theta, inp.hair, w, h);
+            let sketch = format::quantise(&Sketch {
+                width: w,
+                height: h,
+                seed: p.seed,
+                curves: directed.curves.clone(),
+                rho_off: pu.rho_off,
+                shading: shading.clone(),
+                colour: colour.clone(),
+                region: region.clone(),
+                along_across,
+            });
+            Ok((pu, directed, sketch))
+        };
+    // Where the fill's error is read.
+    let inner: Vec<bool> = {
+        let m: Vec<u8> = inp.hair.iter().map(|&v| v as u8).collect();
+        crate::base::mask::erode(&m, w as usize, h as usize, FILL_INSET)
+            .into_iter()
+            .map(|v| v != 0)
+            .collect()
+    };
+    // One λ_NC: the pursuit at the given λ_B, the byte budget, and the fill from the stored
+    // sketch with its error against Step 1's Θ.
+    let run_at = |lambda_nc: f32| -> Result<Run> {
+        let first = attempt(lambda_nc, p.pursuit.lambda_b)?;
+        let ((pu, directed, sketch), budget) = match p.budget.bytes() {
+            Some(max) => {
+                let strict = matches!(p.budget, ByteBudget::Max(_));
+                let (kept, b) = fit_budget(max, strict, p.pursuit.lambda_b, first, |lb| {
+                    attempt(lambda_nc, lb)
+                })?;
+                (kept, Some(b))
+            }
+            None => (first, None),
         };
         let t0 = Instant::now();
-        let pu = pursuit::pursue(engine, &high, inp.hair, &warm.theta, &pp)?;
-        let t1 = Instant::now();
-        let clamps = match inp.strokes {
-            Some(s) => swc::stroke_clamps(&pu.curves, s, inp.hair, w, h),
-            None => Vec::new(),
-        };
-        let directed = swc::directions(
-            &pu.curves, &pu.theta, inp.hair, w, h, &clamps, &p.swc, p.method,
-        )?;
-        let [a, b] = times.get();
-        times.set([a + (t1 - t0).as_secs_f64(), b + t1.elapsed().as_secs_f64()]);
-        // Eq. 12's along/across ratio of the high band under Step 1's Θ.
-        let along_across = super::texture::along_across(&high.data, &pu.theta, inp.hair, w, h);
-        let sketch = format::quantise(&Sketch {
-            width: w,
-            height: h,
-            seed: p.seed,
-            curves: directed.curves.clone(),
-            rho_off: pu.rho_off,
-            shading: shading.clone(),
-            colour: colour.clone(),
-            region: region.clone(),
-            along_across,
-        });
-        Ok((pu, directed, sketch))
+        let painted = super::prim::paint(&sketch.curves, w, h, Some(inp.hair));
+        let field = fill::fill(engine, &painted, inp.hair, &sketch.rho_off, p.seed, &p.fill)?;
+        let [a, b, c] = times.get();
+        times.set([a, b, c + t0.elapsed().as_secs_f64()]);
+        let fill_error =
+            crate::eval::metrics::mean_orient_error_deg(&field.theta, &pu.theta, &inner);
+        Ok(Run {
+            pu,
+            directed,
+            sketch,
+            budget,
+            field,
+            fill_error,
+        })
     };
-    let first = attempt(p.pursuit.lambda_b)?;
-    let ((pu, directed, sketch), budget) = match p.budget.bytes() {
-        Some(max) => {
-            let strict = matches!(p.budget, ByteBudget::Max(_));
-            let (kept, b) = fit_budget(max, strict, p.pursuit.lambda_b, first, attempt)?;
-            (kept, Some(b))
+    let mut kept = run_at(p.pursuit.lambda_nc)?;
+    let fill_target = match p.fill_target {
+        Some(target) => {
+            let mut tries = vec![(
+                p.pursuit.lambda_nc,
+                kept.fill_error.0,
+                format::to_czs(&kept.sketch).len(),
+            )];
+            let mut lambda_kept = p.pursuit.lambda_nc;
+            let missed = |r: &Run| r.fill_error.1 > 0 && r.fill_error.0 > target as f64;
+            let mut lambda = p.pursuit.lambda_nc;
+            while missed(&kept) && 0.5 * lambda >= FILL_MIN_LAMBDA_NC {
+                lambda *= 0.5;
+                log::info!(
+                    "sketch: the fill strays {:.2}° from the dense field, over the {target}° \
+                     target: pursuing again at λ_NC {lambda}",
+                    kept.fill_error.0
+                );
+                let r = run_at(lambda)?;
+                tries.push((lambda, r.fill_error.0, format::to_czs(&r.sketch).len()));
+                // Unmet to the end, the closest fill is kept.
+                if r.fill_error.0 < kept.fill_error.0 {
+                    (kept, lambda_kept) = (r, lambda);
+                }
+            }
+            Some(FillTarget {
+                target_deg: target,
+                met: !missed(&kept),
+                lambda_nc: lambda_kept,
+                tries,
+            })
         }
-        None => (first, None),
+        None => None,
     };
-    let [t_pursuit, t_directions] = times.get();
+    let Run {
+        pu,
+        directed,
+        sketch,
+        budget,
+        field,
+        fill_error,
+    } = kept;
+    let [t_pursuit, t_directions, t_fill] = times.get();
     seconds.push(("pursuit", t_pursuit));
     seconds.push(("directions", t_directions));
-    t = Instant::now();
-    let painted = super::prim::paint(&sketch.curves, w, h, Some(inp.hair));
-    let field = fill::fill(engine, &painted, inp.hair, &sketch.rho_off, p.seed, &p.fill)?;
-    lap(&mut seconds, "fill", &mut t);
+    seconds.push(("fill", t_fill));
 
     Ok(SketchResult {
         sketch,
@@ -249,7 +360,19 @@ pub fn analyse(engine: &Engine, inp: &SketchInputs, p: &SketchParams) -> Result<
         hair: inp.hair.to_vec(),
         seconds,
         budget,
+        fill_error,
+        fill_target,
     })
+}
+
+/// One run of Steps 1 and 2 and the fill at one λ_NC.
+struct Run {
+    pu: pursuit::Pursuit,
+    directed: swc::Directed,
+    sketch: Sketch,
+    budget: Option<Budget>,
+    field: VectorField,
+    fill_error: (f64, usize),
 }
 
 /// Meets a byte budget (see [`Budget`]) from the first attempt's result, calling `attempt`
@@ -417,6 +540,13 @@ pub fn write(
         "seconds": crate::io::seconds(&r.seconds),
         "pursuit": pursuit_report(&r.pursuit),
         "budget": r.budget,
+        "fill": {
+            "error_deg": r.fill_error.0,
+            "pixels": r.fill_error.1,
+            "inset_px": FILL_INSET,
+            "against": "Step 1's dense Θ",
+            "target": r.fill_target,
+        },
     });
     if let (Some(o), Some(e)) = (report.as_object_mut(), extra.as_object()) {
         for (k, v) in e {

@@ -533,8 +533,9 @@ fn a_failing_step_names_the_jobs_folder_not_its_temporary() {
     let tmp = tempfile::tempdir().unwrap();
     let root = tmp.path();
     cases(root, &["whorl"]);
-    // The 128² whorl's sketch has no curves, so synth-hair refuses the sketch step's file.
-    let line = r#"{"id": "w", "image": "../cases/whorl/image.png", "mask": "../cases/whorl/mask.png", "out": "out/w", "steps": ["sketch", "synth-hair"], "sketch": {"sweeps": 100, "bases": 4}}"#;
+    // The 128² whorl's sketch at λ_NC 40 has no curves (the fill target off, which would
+    // lower λ_NC until it has), so synth-hair refuses the sketch step's file.
+    let line = r#"{"id": "w", "image": "../cases/whorl/image.png", "mask": "../cases/whorl/mask.png", "out": "out/w", "steps": ["sketch", "synth-hair"], "sketch": {"sweeps": 100, "bases": 4, "target_fill": 0}}"#;
     let m = write_manifest(&root.join("m"), &[line.to_string()]);
     let o = coif(root)
         .args(["batch", "--backend", "cpu"])

@@ -27,15 +27,15 @@ use std::path::{Path, PathBuf};
 const GOAL: f64 = 0.92;
 
 /// The portraits; the first is the long hair on a busy background.
-const PORTRAITS: [&str; 4] = ["rachel", "ross", "phoebe", "hopper"];
+pub(crate) const PORTRAITS: [&str; 4] = ["rachel", "ross", "phoebe", "hopper"];
 
 fn dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/real")
 }
 
-struct Reference {
-    image: RgbImage,
-    mask: Vec<bool>,
+pub(crate) struct Reference {
+    pub image: RgbImage,
+    pub mask: Vec<bool>,
     what: String,
 }
 
@@ -73,7 +73,7 @@ fn inside(poly: &[[f64; 2]], x: f64, y: f64) -> bool {
     c
 }
 
-fn load(name: &str) -> Reference {
+pub(crate) fn load(name: &str) -> Reference {
     let mpath = dir().join(format!("{name}_mask.json"));
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&mpath).unwrap()).unwrap();

@@ -204,6 +204,13 @@ pub struct SketchArgs {
     /// given whatever the size.
     #[arg(long, default_value_t = coif::sketch::run::DEFAULT_TARGET_BYTES as u64)]
     target_bytes: u64,
+    /// The fill's mean distance from the dense field (degrees, over hair 5 px inside the
+    /// region) the sketch is brought within: where it strays further, the curve penalty is
+    /// halved (to 5 at least) and the analysis run again (the steps tried are in
+    /// report.json); 0 keeps the curve penalty as given.
+    #[arg(long, value_name = "DEG", value_parser = parse_non_negative,
+          default_value_t = coif::sketch::run::DEFAULT_FILL_TARGET_DEG)]
+    target_fill: f32,
     /// How directions are chosen: swc (Swendsen-Wang cuts, CZ06 §4.2), icm, or prior (each
     /// curve by the direction prior alone; the ablation baselines).
     #[arg(long, default_value = "swc")]
@@ -751,6 +758,7 @@ impl Command {
                     a.max_bytes.map(|b| b as usize),
                     Some(a.target_bytes as usize),
                 );
+                params.fill_target = (a.target_fill > 0.0).then_some(a.target_fill);
                 params.method = a.directions.parse()?;
                 params.swc.prior.crown = a.crown.parse()?;
                 params.swc.sweeps = a.sweeps;
