@@ -164,10 +164,15 @@ pub(super) fn run_sketch(engine: &Engine, j: &SketchJob) -> anyhow::Result<Repor
     }
     Ok(Report {
         summary: format!(
-            "sketch: {} curves, {} B (.czs; sketch part {} B) -> {} ({:.1} s on {})",
+            "sketch: {} curves, {} B (.czs; sketch part {} B), fill {} -> {} ({:.1} s on {})",
             r.sketch.curves.len(),
             sizes.total,
             sizes.curves,
+            if r.fill_error.1 > 0 {
+                format!("{:.2}° from the dense field", r.fill_error.0)
+            } else {
+                "unscored (no hair 5 px inside the region)".into()
+            },
             j.out.display(),
             t0.elapsed().as_secs_f64(),
             engine.describe()

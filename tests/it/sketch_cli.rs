@@ -499,8 +499,20 @@ fn a_fill_target_lowers_the_curve_penalty_until_the_fill_follows() {
         serde_json::from_str(&std::fs::read_to_string(d.join(name).join("report.json")).unwrap())
             .unwrap()
     };
-    succeeded(&run("off", &["--target-fill", "0"]));
+    let o = run("off", &["--target-fill", "0"]);
+    succeeded(&o);
     let f = &report("off")["fill"];
+    // The summary line gives the fill's error as the report does.
+    let said = format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let figure = format!(
+        "fill {:.2}° from the dense field",
+        f["error_deg"].as_f64().unwrap()
+    );
+    assert!(said.contains(&figure), "{said}");
     assert!(f["target"].is_null(), "{f}");
     let free = f["error_deg"].as_f64().unwrap();
     assert!(free > 0.0 && f["pixels"].as_u64().unwrap() > 0, "{f}");
