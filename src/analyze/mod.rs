@@ -73,6 +73,14 @@ pub struct Analysis {
     pub timings: Vec<(&'static str, f64)>,
 }
 
+impl Analysis {
+    /// The hair mask as `mask.png` stores it: 255 on hair, 0 elsewhere.
+    pub fn mask_image(&self) -> image::GrayImage {
+        let px = self.mask.iter().map(|&v| 255 * (v != 0) as u8).collect();
+        image::GrayImage::from_raw(self.width, self.height, px).expect("the mask has w*h pixels")
+    }
+}
+
 /// Share of a polyline's points that fall on hair.
 fn share_on_hair(pts: &[[f32; 2]], mask: &[u8], w: u32, h: u32) -> f32 {
     let on = pts

@@ -141,14 +141,7 @@ pub fn write(
     ensure_dir(out)?;
     let (w, h) = (an.width, an.height);
     let shape = [h as usize, w as usize];
-    let mask_img = image::GrayImage::from_fn(w, h, |x, y| {
-        image::Luma([if an.mask[(y * w + x) as usize] != 0 {
-            255
-        } else {
-            0
-        }])
-    });
-    write_png(&out.join("mask.png"), &mask_img)?;
+    write_png(&out.join("mask.png"), &an.mask_image())?;
     write_png(
         &out.join("mask_overlay.png"),
         &vis::mask_overlay(rgb, &an.mask, &an.strokes, &an.background_strokes),
@@ -239,12 +232,7 @@ pub fn write_agreement(
     reference_path: &Path,
 ) -> Result<crate::eval::mask::MaskAgreement> {
     use crate::eval::mask::{agreement, disagreement_picture};
-    let mask = image::GrayImage::from_raw(
-        an.width,
-        an.height,
-        an.mask.iter().map(|&v| 255 * (v != 0) as u8).collect(),
-    )
-    .expect("the mask has the image's size");
+    let mask = an.mask_image();
     let a = agreement(&mask, reference);
     write_png(
         &out.join("mask_vs_reference.png"),

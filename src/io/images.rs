@@ -53,8 +53,7 @@ pub fn load_rgb(path: &Path) -> Result<image::RgbImage> {
 /// have the size of the image at `image_path` (when that reads) and hold some hair.
 pub fn load_reference_mask(path: &Path, image_path: &Path) -> Result<image::GrayImage> {
     let size = image::image_dimensions(image_path).ok();
-    let m = open_mask(path, "reference mask", size, image_path, "score against")?;
-    Ok(m)
+    open_mask(path, "reference mask", size, image_path, "score against")
 }
 
 /// A hair mask of the given size: one byte per pixel, 1 where the mask is > 127.

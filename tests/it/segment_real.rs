@@ -73,6 +73,16 @@ fn inside(poly: &[[f64; 2]], x: f64, y: f64) -> bool {
     c
 }
 
+impl Reference {
+    /// The hand-drawn mask as an image: 255 on hair.
+    pub fn mask_image(&self) -> GrayImage {
+        let (w, h) = self.image.dimensions();
+        GrayImage::from_fn(w, h, |x, y| {
+            image::Luma([255 * self.mask[(y * w + x) as usize] as u8])
+        })
+    }
+}
+
 pub(crate) fn load(name: &str) -> Reference {
     let mpath = dir().join(format!("{name}_mask.json"));
     let v: serde_json::Value =
@@ -139,9 +149,7 @@ fn masks_from_strokes_match_hand_drawn_masks_on_real_portraits() {
             Some((w, h)),
         )
         .unwrap();
-        let reference = GrayImage::from_fn(w, h, |x, y| {
-            image::Luma([255 * r.mask[(y * w + x) as usize] as u8])
-        });
+        let reference = r.mask_image();
         let score = |m: &GrayImage| agreement(m, &reference);
         let got = segment(&r.image, &strokes, &p).unwrap();
         let a = score(&got);
@@ -273,9 +281,7 @@ fn a_stroke_down_the_edge_of_the_face_is_named() {
     let r = load("phoebe");
     r.image.save(&photo).unwrap();
     let (w, h) = r.image.dimensions();
-    let reference = GrayImage::from_fn(w, h, |x, y| {
-        image::Luma([255 * r.mask[(y * w + x) as usize] as u8])
-    });
+    let reference = r.mask_image();
     let ref_path = tmp.path().join("phoebe_reference.png");
     reference.save(&ref_path).unwrap();
     let out = tmp.path().join("an");

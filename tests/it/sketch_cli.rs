@@ -288,9 +288,7 @@ fn web_portraits_stay_small() {
             strokes: None,
         };
         let s = analyse(&Engine::cpu(), &inp, &SketchParams::default()).unwrap();
-        let mask = image::GrayImage::from_fn(w, h, |x, y| {
-            image::Luma([255 * r.mask[(y * w + x) as usize] as u8])
-        });
+        let mask = r.mask_image();
         let (err, n) = mean_err(&s.field.theta, &s.theta, &erode(&mask, 5));
         let sizes = format::czs_sizes(&s.sketch);
         let png = png_bytes_of_hair(&r.image, &r.mask);
