@@ -317,3 +317,40 @@ fn a_stroke_down_the_edge_of_the_face_is_named() {
         "{said:?}"
     );
 }
+
+/// A direction stroke drawn on the backdrop beside the hair (the embedded astronaut's stroke
+/// 4 as it was until 2026-12-06: 3-12 px out, 408 of its 548 brush pixels off the hair)
+/// gives nearly the mask of the stroke drawn on the hair: its off-hair pixels are left to the
+/// colour models. Kept as sure hair, as before, they bring a strip of backdrop in.
+#[test]
+fn a_stroke_on_the_backdrop_does_not_widen_the_mask() {
+    use coif::analyze::segment::{segment_with_warnings, SegmentParams};
+    let img = image::load_from_memory(coif::io::assets::ASTRONAUT_PNG)
+        .unwrap()
+        .to_rgb8();
+    let dims = Some(img.dimensions());
+    let name = Path::new("astronaut_strokes.json");
+    let drawn = Strokes::parse(coif::io::assets::ASTRONAUT_STROKES, name, dims).unwrap();
+    let mut off = drawn.clone();
+    off.strokes[4].points = vec![[178.0, 36.0], [163.0, 48.0], [154.0, 66.0], [151.0, 88.0]];
+    let p = AnalyzeParams::default().segment;
+    let kept = SegmentParams {
+        release_off_hair: false,
+        ..p
+    };
+    let (want, said) = segment_with_warnings(&img, &drawn, &p).unwrap();
+    assert!(said.is_empty(), "{said:?}");
+    let (got, said) = segment_with_warnings(&img, &off, &p).unwrap();
+    assert_eq!(said.len(), 1, "{said:?}");
+    assert!(said[0].starts_with("direction stroke 4: "), "{said:?}");
+    let (got_kept, _) = segment_with_warnings(&img, &off, &kept).unwrap();
+    let a = agreement(&got, &want);
+    let a_kept = agreement(&got_kept, &want);
+    println!(
+        "astronaut, stroke 4 on the backdrop: IoU {:.4} with the mask of the stroke on the \
+         hair ({} px taken, {} missed); {:.4} with the stroke's pixels kept as hair ({} px taken)",
+        a.iou, a.taken, a.missed, a_kept.iou, a_kept.taken
+    );
+    assert!(a.iou >= 0.99, "IoU {:.4}", a.iou);
+    assert!(a_kept.iou < 0.97, "kept: IoU {:.4}", a_kept.iou);
+}

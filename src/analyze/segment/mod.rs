@@ -64,6 +64,12 @@ pub struct SegmentParams {
     /// background, by up to this many times the log-ratio of the two learned histograms
     /// (never toward hair); 0 turns it off.
     pub agreement: f32,
+    /// Pixels of a direction stroke that seems to lie off the hair (see
+    /// [`off_model_strokes`]: over half its brush likelier background than hair) are left
+    /// to the models instead of being sure hair, and kept out of the hair model's first fit.
+    /// False keeps every stroke pixel sure hair, so a stroke drawn along the backdrop puts
+    /// its strip into the mask (the behaviour before 2026-12-06).
+    pub release_off_hair: bool,
 }
 
 impl Default for SegmentParams {
@@ -80,6 +86,7 @@ impl Default for SegmentParams {
             texture: 1.0,
             geodesic: 3.0,
             agreement: 3.0,
+            release_off_hair: true,
         }
     }
 }
@@ -245,7 +252,7 @@ pub fn segment_with_warnings(
                 .into()
         }));
     }
-    let hair_init: Vec<usize> = (0..n).filter(|&i| seed[i] == HAIR).collect();
+    let mut hair_init: Vec<usize> = (0..n).filter(|&i| seed[i] == HAIR).collect();
 
     let mut rng = Rng::new(0x5e6_0001);
     let mut fg = Gmm::fit(&sample(&rgb, &hair_init, &mut rng), p.components, &mut rng);
@@ -257,6 +264,21 @@ pub fn segment_with_warnings(
         2 * p.components,
         &mut rng,
     );
+    // Strokes that seem to lie off the hair, judged before any cut (by the background
+    // samples and the other strokes), so that their off-hair pixels neither seed the hair
+    // model nor are forced into the mask. A user's stroke 3-12 px out on the backdrop
+    // otherwise brings a strip of backdrop along (the embedded astronaut's stroke 4 did).
+    let off = off_model_strokes(&rgb, &owner, strokes, wu, &bg, p.components);
+    let released: Vec<usize> = off.iter().flat_map(|o| o.pixels.iter().copied()).collect();
+    // Never all of them: a mask needs some sure hair to grow from.
+    let release = p.release_off_hair && !released.is_empty() && hair_init.len() > released.len();
+    if release {
+        for &i in &released {
+            seed[i] = FREE;
+        }
+        hair_init = (0..n).filter(|&i| seed[i] == HAIR).collect();
+        fg = Gmm::fit(&sample(&rgb, &hair_init, &mut rng), p.components, &mut rng);
+    }
 
     let (lum, lum_mean) = luminance(&rgb, wu, hu);
     let tex = texture_bins(&lum, &lum_mean, wu, hu);
@@ -337,18 +359,22 @@ pub fn segment_with_warnings(
     }
 
     let mut warnings = Vec::new();
-    for o in off_model_strokes(&rgb, &owner, strokes, wu, &bg, p.components) {
+    for o in off {
         let [x0, y0, x1, y1] = o.bbox;
         // Numbered among the direction strokes, as `analyze`'s own stroke warnings are.
         let k = strokes.strokes[..o.stroke]
             .iter()
             .filter(|s| s.kind == StrokeKind::Direction)
             .count();
+        let fate = if release {
+            "those pixels were left to the colour models instead of being taken as hair"
+        } else {
+            "stroke pixels are always hair here, so that strip is in the mask"
+        };
         warnings.push(format!(
             "direction stroke {}: {} of its {} pixels (within x {x0}-{x1}, y {y0}-{y1}) look \
              like background to the colour models (hair model from the other direction \
-             strokes); stroke pixels are always hair, so a stroke along the edge of the face \
-             or over the backdrop puts that strip in the mask: draw it on the hair",
+             strokes); {fate}: draw it on the hair",
             k, o.off, o.total
         ));
     }
@@ -449,6 +475,8 @@ struct OffStroke {
     total: usize,
     /// Those pixels' bounds, [x0, y0, x1, y1] inclusive.
     bbox: [usize; 4],
+    /// Those pixels (indices into the image).
+    pixels: Vec<usize>,
 }
 
 /// Direction strokes that seem not to lie on hair: over half of the stroke's pixels are
@@ -502,6 +530,7 @@ fn off_model_strokes(
                 off: off.len(),
                 total: by_stroke[s].len(),
                 bbox,
+                pixels: off,
             });
         }
     }
@@ -841,8 +870,8 @@ mod tests {
         assert!(e.contains("not finite"), "{e}");
     }
 
-    /// A direction stroke drawn on the background is allowed (its pixels stay hair) and
-    /// is reported; strokes on the hair are not.
+    /// A direction stroke drawn on the background is allowed and reported (strokes on the
+    /// hair are not); its off-hair pixels are left to the models, or stay hair when asked.
     #[test]
     fn off_model_stroke_is_allowed_and_reported() {
         let img = two_tone();
@@ -863,13 +892,30 @@ mod tests {
             points: vec![[60.0, 4.0], [60.0, 44.0]],
         });
         let m = segment(&img, &with_bg, &SegmentParams::default()).unwrap();
-        assert_eq!(m.get_pixel(50, 22)[0], 255, "stroke pixels are hard hair");
+        assert_eq!(
+            m.get_pixel(50, 22)[0],
+            0,
+            "the off-hair stroke's pixels are released"
+        );
+        let kept = SegmentParams {
+            release_off_hair: false,
+            ..SegmentParams::default()
+        };
+        let m_kept = segment(&img, &with_bg, &kept).unwrap();
+        assert_eq!(
+            m_kept.get_pixel(50, 22)[0],
+            255,
+            "stroke pixels are hard hair"
+        );
+        let (_, said_kept) = segment_with_warnings(&img, &with_bg, &kept).unwrap();
+        assert!(said_kept[0].contains("always hair"), "{said_kept:?}");
         // The warning numbers the stroke among the direction strokes, whatever comes before.
         let mut bg_first = with_bg.clone();
         bg_first.strokes.rotate_right(1);
         let (_, said) = segment_with_warnings(&img, &bg_first, &SegmentParams::default()).unwrap();
         assert_eq!(said.len(), 1, "{said:?}");
         assert!(said[0].starts_with("direction stroke 2: "), "{said:?}");
+        assert!(said[0].contains("left to the colour models"), "{said:?}");
         assert_eq!(m.get_pixel(16, 20)[0], 255);
 
         let mut owner = vec![u32::MAX; 64 * 48];
