@@ -480,12 +480,15 @@ struct OffStroke {
 }
 
 /// Direction strokes that seem not to lie on hair: over half of the stroke's pixels are
-/// likelier under the background model than under a hair model fitted to the other direction
-/// strokes. (The full hair model contains the stroke's own colours, so it cannot tell.) Needs
-/// two or more direction strokes. Half, not all: on the web portraits of
+/// likelier under the background model (`bg`: [`segment_with_warnings`] passes the first
+/// one, fitted to the background samples before any cut) than under a hair model fitted to
+/// the other direction strokes. (The full hair model contains the stroke's own colours, so it
+/// cannot tell.) Needs two or more direction strokes. Half, not all: on the web portraits of
 /// `tests/it/segment_real.rs` a stroke drawn down the edge of a face, 55% of its brush on
 /// skin by the hand-drawn reference, scores 57% here, and the other 14 at most 39% (one with
-/// none of its brush off the reference's hair 35%).
+/// none of its brush off the reference's hair 35%; measured with the model after the last
+/// cut, which this was judged by until 2026-12-06; with the first model the same stroke
+/// scores 748 of 1,322 and no other passes half).
 fn off_model_strokes(
     rgb: &[[f32; 3]],
     owner: &[u32],
