@@ -79,6 +79,8 @@ pub struct AnalyzeOpts {
     pub segment_smoothness: Option<f32>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub segment_luminance: Option<f32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub segment_trust_strokes: Option<bool>,
 }
 
 /// Options of `model`.
@@ -445,6 +447,9 @@ impl BatchJob {
                     set(&mut params.resolve.stroke_weight, o.stroke_weight);
                     set(&mut params.segment.smoothness, o.segment_smoothness);
                     set(&mut params.segment.luminance, o.segment_luminance);
+                    if let Some(trust) = o.segment_trust_strokes {
+                        params.segment.release_off_hair = !trust;
+                    }
                     Job::Analyze(AnalyzeJob {
                         image: image.clone(),
                         strokes: strokes.clone().expect("checked"),
@@ -582,7 +587,7 @@ mod tests {
 
     #[test]
     fn options_reach_the_jobs_and_paths_the_manifest_folder() {
-        let line = r#"{"id": "p", "image": "a.png", "strokes": "s.json", "mask": "/abs/m.png", "reference_mask": "refs/r.png", "out": "o", "steps": ["orient", "analyze", "model", "render", "sketch", "synth-hair"], "orient": {"orientations": 16, "smooth": 0}, "analyze": {"radius": 5, "segment_smoothness": 25, "segment_luminance": 1}, "model": {"seed": 7, "roots": 99, "cells": 20, "refine": 2}, "render": {"yaw": 25, "hue": 30, "seed": 4}, "sketch": {"directions": "icm", "sweeps": 5, "seed": 9}, "synth-hair": {"rounds": 1, "over": true}}"#;
+        let line = r#"{"id": "p", "image": "a.png", "strokes": "s.json", "mask": "/abs/m.png", "reference_mask": "refs/r.png", "out": "o", "steps": ["orient", "analyze", "model", "render", "sketch", "synth-hair"], "orient": {"orientations": 16, "smooth": 0}, "analyze": {"radius": 5, "segment_smoothness": 25, "segment_luminance": 1, "segment_trust_strokes": true}, "model": {"seed": 7, "roots": 99, "cells": 20, "refine": 2}, "render": {"yaw": 25, "hue": 30, "seed": 4}, "sketch": {"directions": "icm", "sweeps": 5, "seed": 9}, "synth-hair": {"rounds": 1, "over": true}}"#;
         let jobs = parse(Path::new("runs/jobs.jsonl"), line).unwrap();
         let j = jobs[0].jobs();
         assert_eq!(j.len(), 6);
@@ -603,6 +608,7 @@ mod tests {
                 assert_eq!(a.params.resolve.radius, 5.0);
                 assert_eq!(a.params.segment.smoothness, 25.0);
                 assert_eq!(a.params.segment.luminance, 1.0);
+                assert!(!a.params.segment.release_off_hair);
                 assert_eq!(a.strokes, base.join("s.json"));
                 assert_eq!(a.reference_mask, Some(base.join("refs/r.png")));
             }

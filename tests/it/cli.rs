@@ -891,6 +891,53 @@ fn analyze_takes_the_segmentation_s_smoothness_and_luminance_weight() {
     assert_eq!(meta["params"]["segment"]["luminance"], 1.0, "{meta}");
 }
 
+/// A direction stroke drawn on the backdrop (the astronaut's stroke 4 as it was until
+/// 2026-12-06): by default its off-hair pixels are left to the colour models and the warning
+/// says so; `--segment-trust-strokes` keeps them sure hair, a wider mask, and says that.
+#[test]
+fn analyze_leaves_an_off_hair_stroke_to_the_models_unless_told() {
+    let c = Case::new();
+    std::fs::write(c.p("photo.png"), coif::io::assets::ASTRONAUT_PNG).unwrap();
+    let mut strokes: serde_json::Value =
+        serde_json::from_str(coif::io::assets::ASTRONAUT_STROKES).unwrap();
+    strokes["strokes"][4]["points"] =
+        serde_json::json!([[178.0, 36.0], [163.0, 48.0], [154.0, 66.0], [151.0, 88.0]]);
+    std::fs::write(c.p("strokes.json"), strokes.to_string()).unwrap();
+    let run = |out: &str, extra: &[&str]| {
+        let (photo, st, out) = (c.s("photo.png"), c.s("strokes.json"), c.s(out));
+        let base = [
+            "analyze",
+            "--image",
+            &photo,
+            "--strokes",
+            &st,
+            "--backend",
+            "cpu",
+            "--out",
+            &out,
+        ];
+        let o = coif(&[&base[..], extra].concat());
+        assert!(o.status.success(), "{}", stderr(&o));
+        stderr(&o)
+    };
+    let said = run("a", &[]);
+    assert!(said.contains("direction stroke 4: "), "{said}");
+    assert!(said.contains("left to the colour models"), "{said}");
+    let said = run("b", &["--segment-trust-strokes"]);
+    assert!(said.contains("always hair"), "{said}");
+    let hair = |d: &str| {
+        let m = image::open(c.p(d).join("mask.png")).unwrap().to_luma8();
+        m.pixels().filter(|p| p[0] > 127).count()
+    };
+    assert!(hair("b") > hair("a") + 300, "{} / {}", hair("a"), hair("b"));
+    let meta: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(c.p("b/analyze.json")).unwrap()).unwrap();
+    assert_eq!(
+        meta["params"]["segment"]["release_off_hair"], false,
+        "{meta}"
+    );
+}
+
 /// `--reference-mask` scores the analysis's mask against a mask drawn by hand: the figures in
 /// mask_agreement.json are those of the mask written beside them (by `analyze` and by
 /// `model`), a mask given as its own reference scores 1, and a reference of another size, an empty one or a missing one is

@@ -691,6 +691,11 @@ pub struct AnalyzeArgs {
     #[arg(long, value_name = "WEIGHT", value_parser = parse_non_negative,
           default_value_t = coif::analyze::segment::SegmentParams::default().luminance)]
     segment_luminance: f32,
+    /// Without --mask: every pixel under a direction stroke is sure hair, even for a stroke
+    /// that seems to lie off the hair (by default the pixels of such a stroke that look like
+    /// background are left to the colour models, and the warning says so).
+    #[arg(long)]
+    segment_trust_strokes: bool,
 }
 
 /// What the command line asks for.
@@ -818,6 +823,7 @@ impl Command {
                 params.parting.line_threshold = a.parting_line;
                 params.segment.smoothness = a.segment_smoothness;
                 params.segment.luminance = a.segment_luminance;
+                params.segment.release_off_hair = !a.segment_trust_strokes;
                 let job = AnalyzeJob {
                     image: a.input.image,
                     strokes: a.input.strokes,
