@@ -81,20 +81,6 @@ impl Analysis {
     }
 }
 
-/// Share of a polyline's points that fall on hair.
-fn share_on_hair(pts: &[[f32; 2]], mask: &[u8], w: u32, h: u32) -> f32 {
-    let on = pts
-        .iter()
-        .filter(|p| {
-            let (x, y) = (p[0].floor(), p[1].floor());
-            x >= 0.0 && y >= 0.0 && x < w as f32 && y < h as f32 && {
-                mask[(y as u32 * w + x as u32) as usize] != 0
-            }
-        })
-        .count();
-    on as f32 / pts.len().max(1) as f32
-}
-
 pub fn analyze(
     engine: &Engine,
     image: &image::RgbImage,
@@ -139,7 +125,7 @@ pub fn analyze(
     }
     let shares: Vec<f32> = dir_strokes
         .iter()
-        .map(|s| share_on_hair(s, &mask, w, h))
+        .map(|s| crate::base::mask::share_on(s, &mask, w, h))
         .collect();
     if shares.iter().all(|&s| s < 0.5) {
         return Err(Error::Invalid(

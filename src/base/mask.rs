@@ -102,6 +102,21 @@ fn square_1d(v: &[u8], w: usize, h: usize, r: usize, along_x: bool, erode: bool)
     out
 }
 
+/// Share of a polyline's points that fall on the mask (W·H bytes, non-zero on it): below ½
+/// a stroke "lies mostly off the hair" for `analyze`'s warning and `mask_overlay.png`.
+pub fn share_on(pts: &[[f32; 2]], mask: &[u8], w: u32, h: u32) -> f32 {
+    let on = pts
+        .iter()
+        .filter(|p| {
+            let (x, y) = (p[0].floor(), p[1].floor());
+            x >= 0.0 && y >= 0.0 && x < w as f32 && y < h as f32 && {
+                mask[(y as u32 * w + x as u32) as usize] != 0
+            }
+        })
+        .count();
+    on as f32 / pts.len().max(1) as f32
+}
+
 /// `mask` (nonzero = set) grown by `r` pixels in a (2r+1)² square (separable). Writes 1 / 0.
 pub fn dilate(mask: &[u8], w: usize, h: usize, r: usize) -> Vec<u8> {
     square_1d(

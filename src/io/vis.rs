@@ -154,11 +154,15 @@ pub fn direction_field(backdrop: &RgbImage, dir: &[f32]) -> RgbImage {
 pub const MASK_EDGE: Rgb<u8> = Rgb([255, 230, 0]);
 /// Colour of background strokes in [`mask_overlay`].
 pub const BACKGROUND_STROKE: Rgb<u8> = Rgb([255, 0, 255]);
+/// Colour of a direction stroke that lies mostly off the mask in [`mask_overlay`] (the
+/// stroke `analyze` warns about).
+pub const OFF_HAIR_STROKE: Rgb<u8> = Rgb([255, 128, 0]);
 
 /// A hair mask over its photo, for a person to check the segmentation at a glance: hair
 /// pixels keep the photo's colours, the rest is dimmed grey, the mask's edge (hair pixels
 /// with a 4-neighbour off the hair) is [`MASK_EDGE`], and the strokes are drawn on top:
-/// direction strokes white edged in black, background strokes [`BACKGROUND_STROKE`].
+/// direction strokes white edged in black ([`OFF_HAIR_STROKE`] where under half of a
+/// stroke's points lie on the mask), background strokes [`BACKGROUND_STROKE`].
 /// `mask` is W·H bytes, non-zero on hair.
 pub fn mask_overlay(
     photo: &RgbImage,
@@ -187,8 +191,13 @@ pub fn mask_overlay(
         }
     });
     for s in direction {
+        let core = if crate::base::mask::share_on(s, mask, w, h) < 0.5 {
+            OFF_HAIR_STROKE
+        } else {
+            Rgb([255, 255, 255])
+        };
         draw_polyline(&mut img, s, 4.0, |_| Rgb([0, 0, 0]));
-        draw_polyline(&mut img, s, 2.0, |_| Rgb([255, 255, 255]));
+        draw_polyline(&mut img, s, 2.0, |_| core);
     }
     for s in background {
         draw_polyline(&mut img, s, 2.0, |_| BACKGROUND_STROKE);
@@ -221,6 +230,12 @@ mod tests {
         assert!(p[0] == p[1] && p[1] == p[2] && p[0] < q[0], "{p:?}");
         // The background stroke down column 16.
         assert_eq!(*img.get_pixel(16, 8), BACKGROUND_STROKE);
+        // Direction strokes: white on the hair, the warning's colour mostly off it.
+        let on = vec![[6.5, 5.0], [6.5, 10.0]];
+        let off = vec![[1.5, 1.0], [1.5, 14.0], [6.0, 14.5]];
+        let img = mask_overlay(&photo, &mask, &[on, off], &[]);
+        assert_eq!(*img.get_pixel(6, 7), Rgb([255, 255, 255]));
+        assert_eq!(*img.get_pixel(1, 4), OFF_HAIR_STROKE);
         // A mask of another size is a caller's bug.
         let r = std::panic::catch_unwind(|| mask_overlay(&photo, &mask[1..], &[], &[]));
         assert!(r.is_err());
