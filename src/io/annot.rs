@@ -55,6 +55,32 @@ impl std::fmt::Display for StrokeKind {
 pub struct Stroke {
     pub kind: StrokeKind,
     pub points: Vec<[f32; 2]>,
+    /// The brush's radius in pixels, for segmentation (the pixels within it of the polyline
+    /// are sure hair or sure background); absent: the segmentation's default (4 px). A thin
+    /// brush lets a corrective stroke fit a narrow strip the mask got wrong.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radius: Option<f32>,
+    /// A direction stroke's pixels are hair as drawn, even where the colour models call
+    /// them background (segmentation otherwise leaves the pixels of a stroke that mostly
+    /// looks like background to the models, taking it for a slip of the hand). For a
+    /// corrective stroke on hair the mask missed, whose colours no other stroke shows.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub sure: bool,
+}
+
+/// The largest brush radius a stroke may carry, px.
+pub const MAX_STROKE_RADIUS: f32 = 64.0;
+
+impl Stroke {
+    /// A stroke with the default brush.
+    pub fn new(kind: StrokeKind, points: Vec<[f32; 2]>) -> Stroke {
+        Stroke {
+            kind,
+            points,
+            radius: None,
+            sure: false,
+        }
+    }
 }
 
 /// Contents of `strokes.json`.
@@ -135,6 +161,15 @@ impl Strokes {
             for (j, p) in s.points.iter().enumerate() {
                 check_point(p, image_size).map_err(|m| format!("stroke {i}, point {j}: {m}"))?;
             }
+            if let Some(r) = s.radius {
+                if !(r.is_finite() && r > 0.0 && r <= MAX_STROKE_RADIUS) {
+                    return Err(format!(
+                        "stroke {i} ({}): radius {r} is not a brush radius (a number of \
+                         pixels above 0 and at most {MAX_STROKE_RADIUS})",
+                        s.kind
+                    ));
+                }
+            }
             // A stroke within one pixel gives no direction on the pixel grid it is drawn on.
             let len: f64 = s
                 .points
@@ -168,9 +203,16 @@ impl Strokes {
         );
         for (i, s) in self.strokes.iter().enumerate() {
             let pts: Vec<String> = s.points.iter().map(|p| fmt_point(*p)).collect();
+            let mut radius = s
+                .radius
+                .map(|r| format!(",\n      \"radius\": {r}"))
+                .unwrap_or_default();
+            if s.sure {
+                radius.push_str(",\n      \"sure\": true");
+            }
             let _ = write!(
                 out,
-                "    {{\n      \"kind\": \"{}\",\n      \"points\": [{}]\n    }}{}\n",
+                "    {{\n      \"kind\": \"{}\",\n      \"points\": [{}]{radius}\n    }}{}\n",
                 s.kind,
                 pts.join(", "),
                 if i + 1 < self.strokes.len() { "," } else { "" }
@@ -394,10 +436,14 @@ mod tests {
             Stroke {
                 kind: StrokeKind::Direction,
                 points: vec![[1.25, 2.0], [3.1, 4.7], [0.1, 1e-3]],
+                radius: None,
+                sure: false,
             },
             Stroke {
                 kind: StrokeKind::Cut,
                 points: vec![[5.0, 6.0], [7.0, 8.0]],
+                radius: None,
+                sure: false,
             },
         ]);
         let p = dir.path().join("strokes.json");
@@ -416,12 +462,56 @@ mod tests {
         assert_eq!(Strokes::load(&p, None).unwrap(), empty);
     }
 
+    /// A stroke's own brush radius and its "sure" mark survive a save and a load; strokes
+    /// without them are written as before, with neither key.
+    #[test]
+    fn radius_and_sure_round_trip_and_are_checked() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut thin = Stroke::new(StrokeKind::Direction, vec![[1.0, 2.0], [3.0, 4.0]]);
+        thin.radius = Some(1.5);
+        thin.sure = true;
+        let plain = Stroke::new(StrokeKind::Background, vec![[5.0, 6.0], [7.0, 8.0]]);
+        let s = Strokes::new(vec![thin, plain]);
+        let p = dir.path().join("strokes.json");
+        s.save(&p).unwrap();
+        let text = std::fs::read_to_string(&p).unwrap();
+        assert_eq!(Strokes::load(&p, None).unwrap(), s, "{text}");
+        assert_eq!(text.matches("\"radius\"").count(), 1, "{text}");
+        assert_eq!(text.matches("\"sure\"").count(), 1, "{text}");
+        let json = serde_json::to_string(&s).unwrap();
+        assert_eq!(
+            Strokes::parse(&json, Path::new("j"), None).unwrap(),
+            s,
+            "{json}"
+        );
+        for bad in ["0", "-2", "65", "1e9"] {
+            let m = strokes_err(
+                &format!(
+                    r#"{{"version":1,"strokes":[{{"kind":"direction","points":[[0,0],[9,9]]}},
+                       {{"kind":"background","points":[[0,0],[9,9]],"radius":{bad}}}]}}"#
+                ),
+                None,
+            );
+            assert!(
+                m.contains("stroke 1 (background): radius") && m.contains("at most 64"),
+                "{bad}: {m}"
+            );
+        }
+        let m = strokes_err(
+            r#"{"version":1,"strokes":[{"kind":"direction","points":[[0,0],[9,9]],"sure":"yes"}]}"#,
+            None,
+        );
+        assert!(m.contains("expected a boolean"), "{m}");
+    }
+
     #[test]
     fn save_refuses_non_finite() {
         let dir = tempfile::tempdir().unwrap();
         let s = Strokes::new(vec![Stroke {
             kind: StrokeKind::Direction,
             points: vec![[1.0, f32::NAN], [3.0, 4.0]],
+            radius: None,
+            sure: false,
         }]);
         let e = s.save(&dir.path().join("x.json")).unwrap_err().to_string();
         assert!(
@@ -570,6 +660,23 @@ mod tests {
             .collect();
         let ours: Vec<&str> = StrokeKind::ALL.iter().map(|k| k.name()).collect();
         assert_eq!(kinds, ours);
+        // Its stroke fields are the ones serde writes, and the radius bound is ours.
+        let props = &s["$defs"]["stroke"]["properties"];
+        let mut keys: Vec<&str> = props
+            .as_object()
+            .unwrap()
+            .keys()
+            .map(|k| k.as_str())
+            .collect();
+        keys.sort_unstable();
+        let mut full = Stroke::new(StrokeKind::Direction, vec![[0.0, 0.0], [1.0, 1.0]]);
+        full.radius = Some(2.0);
+        full.sure = true;
+        let v = serde_json::to_value(&full).unwrap();
+        let mut written: Vec<&str> = v.as_object().unwrap().keys().map(|k| k.as_str()).collect();
+        written.sort_unstable();
+        assert_eq!(keys, written);
+        assert_eq!(props["radius"]["maximum"], MAX_STROKE_RADIUS as f64);
 
         let l = schema(LANDMARKS_SCHEMA);
         let examples = l["examples"].as_array().expect("examples array");

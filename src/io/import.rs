@@ -161,7 +161,12 @@ pub fn labelme_from_str(text: &str, path: &Path) -> Result<Strokes> {
         } else {
             StrokeKind::Direction
         };
-        out.push(Stroke { kind, points });
+        out.push(Stroke {
+            kind,
+            points,
+            radius: None,
+            sure: false,
+        });
     }
     if !skipped.is_empty() {
         log::warn!(
@@ -636,7 +641,12 @@ pub fn svg_strokes_from_str(text: &str, path: &Path) -> Result<Strokes> {
                 }
                 points.push(q);
             }
-            out.push(Stroke { kind, points });
+            out.push(Stroke {
+                kind,
+                points,
+                radius: None,
+                sure: false,
+            });
         }
     }
     if ignored > 0 {

@@ -719,6 +719,8 @@ impl Scene {
             strokes.push(Stroke {
                 kind: StrokeKind::Direction,
                 points: pts,
+                radius: None,
+                sure: false,
             });
         }
         Strokes::new(strokes)

@@ -893,7 +893,8 @@ fn analyze_takes_the_segmentation_s_smoothness_and_luminance_weight() {
 
 /// A direction stroke drawn on the backdrop (the astronaut's stroke 4 as it was until
 /// 2026-12-06): by default its off-hair pixels are left to the colour models and the warning
-/// says so; `--segment-trust-strokes` keeps them sure hair, a wider mask, and says that.
+/// says so; `--segment-trust-strokes` keeps them sure hair, a wider mask, and says that; so
+/// does `"sure": true` on that stroke in the strokes file.
 #[test]
 fn analyze_leaves_an_off_hair_stroke_to_the_models_unless_told() {
     let c = Case::new();
@@ -936,6 +937,14 @@ fn analyze_leaves_an_off_hair_stroke_to_the_models_unless_told() {
         meta["params"]["segment"]["release_off_hair"], false,
         "{meta}"
     );
+    // The stroke marked sure in the file: that stroke alone taken as drawn, the mask of
+    // --segment-trust-strokes, no warning.
+    strokes["strokes"][4]["sure"] = serde_json::json!(true);
+    std::fs::write(c.p("strokes.json"), strokes.to_string()).unwrap();
+    let said = run("c", &[]);
+    assert!(!said.contains("direction stroke 4: "), "{said}");
+    let mask = |d: &str| image::open(c.p(d).join("mask.png")).unwrap().to_luma8();
+    assert_eq!(mask("c"), mask("b"));
 }
 
 /// `--reference-mask` scores the analysis's mask against a mask drawn by hand: the figures in

@@ -73,7 +73,12 @@ fn across(s: &Scene, kind: StrokeKind, fy: f64) -> Strokes {
     let pts = (0..=8)
         .map(|i| [x0 + (x1 - x0) * i as f32 / 8.0, y])
         .collect();
-    Strokes::new(vec![Stroke { kind, points: pts }])
+    Strokes::new(vec![Stroke {
+        kind,
+        points: pts,
+        radius: None,
+        sure: false,
+    }])
 }
 
 /// Nearest point of the stroke polyline (f64): distance and the stroke direction there.
@@ -123,7 +128,12 @@ fn down(s: &Scene, kind: StrokeKind) -> Strokes {
             ]
         })
         .collect();
-    Strokes::new(vec![Stroke { kind, points: pts }])
+    Strokes::new(vec![Stroke {
+        kind,
+        points: pts,
+        radius: None,
+        sure: false,
+    }])
 }
 
 /// Combs `sc` with `strokes` and checks and prints its figures; returns (vertices that end
@@ -412,6 +422,8 @@ fn edit_cli_writes_a_model_and_refuses_bad_input() {
     Strokes::new(vec![Stroke {
         kind: StrokeKind::Comb,
         points: vec![[10.0, 10.0], [500.0, 10.0]],
+        radius: None,
+        sure: false,
     }])
     .save(&t.path().join("off.json"))
     .unwrap();

@@ -354,3 +354,209 @@ fn a_stroke_on_the_backdrop_does_not_widen_the_mask() {
     assert!(a.iou >= 0.99, "IoU {:.4}", a.iou);
     assert!(a_kept.iou < 0.97, "kept: IoU {:.4}", a_kept.iou);
 }
+
+/// The simulated user's next corrective stroke (the protocol of interactive segmentation
+/// benchmarks, Xu et al. 2016): at the error pixel farthest from any pixel the mask gets
+/// right or of the other error kind, a short stroke along the image's local flow, a
+/// background stroke on non-hair taken, a direction stroke (pointing down) on hair missed,
+/// with the widest brush up to the default 4 px that stays inside the error. None when no
+/// error is wide enough for a 1 px brush (every error within ~2 px of a correct pixel).
+fn corrective_stroke(
+    got: &GrayImage,
+    truth: &[bool],
+    gray: &[f32],
+) -> Option<(coif::io::annot::Stroke, f32)> {
+    use coif::io::annot::{Stroke, StrokeKind};
+    let (wu, hu) = (got.width() as usize, got.height() as usize);
+    // +1 hair missed, -1 non-hair taken, 0 right.
+    let err: Vec<i8> = (0..wu * hu)
+        .map(|i| match (got.as_raw()[i] > 127, truth[i]) {
+            (g, t) if g == t => 0,
+            (_, true) => 1,
+            _ => -1,
+        })
+        .collect();
+    // Distance to the nearest pixel of another class (or the image's edge), searched within
+    // 16 px: errors are few, so brute force is quick.
+    const R: i64 = 16;
+    let (mut d, mut at) = (0.0f32, 0);
+    for i in (0..wu * hu).filter(|&i| err[i] != 0) {
+        let (x, y) = ((i % wu) as i64, (i / wu) as i64);
+        let mut d2 = R * R;
+        for dy in -R..=R {
+            for dx in -R..=R {
+                let q2 = dx * dx + dy * dy;
+                if q2 >= d2 {
+                    continue;
+                }
+                let (xx, yy) = (x + dx, y + dy);
+                if xx < 0
+                    || yy < 0
+                    || xx >= wu as i64
+                    || yy >= hu as i64
+                    || err[yy as usize * wu + xx as usize] != err[i]
+                {
+                    d2 = q2;
+                }
+            }
+        }
+        let di = (d2 as f32).sqrt();
+        if di > d {
+            (d, at) = (di, i);
+        }
+    }
+    if d < 2.5 {
+        return None;
+    }
+    // The brush and the stroke's half-length such that every brush pixel is an error pixel:
+    // the line's points lie at least d - l from a correct pixel, so r < d - l.
+    let r = (d - 1.5).floor().clamp(1.0, 4.0);
+    let l = (d - r - 1.0).clamp(1.0, 8.0);
+    let (x, y) = (at % wu, at / wu);
+    // The flow: across the mean gradient direction of a 9x9 structure tensor.
+    let (mut jxx, mut jxy, mut jyy) = (0.0f32, 0.0f32, 0.0f32);
+    for yy in y.saturating_sub(4).max(1)..(y + 5).min(hu - 1) {
+        for xx in x.saturating_sub(4).max(1)..(x + 5).min(wu - 1) {
+            let gx = gray[yy * wu + xx + 1] - gray[yy * wu + xx - 1];
+            let gy = gray[(yy + 1) * wu + xx] - gray[(yy - 1) * wu + xx];
+            jxx += gx * gx;
+            jxy += gx * gy;
+            jyy += gy * gy;
+        }
+    }
+    let th = 0.5 * (2.0 * jxy).atan2(jxx - jyy) + std::f32::consts::FRAC_PI_2;
+    let u = if th.sin() < 0.0 {
+        [-th.cos(), -th.sin()]
+    } else {
+        [th.cos(), th.sin()]
+    };
+    let (cx, cy) = (x as f32 + 0.5, y as f32 + 0.5);
+    let kind = if err[at] > 0 {
+        StrokeKind::Direction
+    } else {
+        StrokeKind::Background
+    };
+    let mut s = Stroke::new(
+        kind,
+        vec![
+            [cx - l * u[0], cy - l * u[1]],
+            [cx + l * u[0], cy + l * u[1]],
+        ],
+    );
+    s.radius = Some(r);
+    // The user knows it is on hair: its pixels are not left to the colour models, which
+    // called them background (that is why the mask missed them).
+    s.sure = kind == StrokeKind::Direction;
+    Some((s, d))
+}
+
+/// How many corrective strokes a user needs (NoC, the interactive-segmentation benchmarks'
+/// figure) for IoU 0.92, the strokes placed by [`corrective_stroke`] one at a time on the
+/// mask of the strokes before. Prints each portrait's IoU after every stroke. Asserts what
+/// a user relies on when correcting: every corrective stroke gets its pixels' label (the
+/// brush, at its own radius, is a hard constraint; hair strokes are marked sure), and the strokes
+/// together take the mask closer to the reference. The count needed is printed, not
+/// asserted: it measures the segmentation, and the issue's figure is for the strokes as
+/// first drawn.
+#[test]
+fn corrective_strokes_take_the_mask_to_the_reference() {
+    use coif::analyze::segment::{brush_pixels, segment_with_warnings};
+    let p = AnalyzeParams::default().segment;
+    const MAX: usize = 40;
+    for name in PORTRAITS {
+        let r = load(name);
+        let (w, h) = r.image.dimensions();
+        let mut strokes =
+            Strokes::load(&dir().join(format!("{name}_strokes.json")), Some((w, h))).unwrap();
+        let drawn = strokes.strokes.len();
+        let reference = r.mask_image();
+        let gray: Vec<f32> = r
+            .image
+            .pixels()
+            .map(|q| 0.299 * q[0] as f32 + 0.587 * q[1] as f32 + 0.114 * q[2] as f32)
+            .collect();
+        let mut ious = Vec::new();
+        let mut noc = None;
+        let mut brushes = [0usize; 4];
+        let stop = loop {
+            let (got, said) = segment_with_warnings(&r.image, &strokes, &p).unwrap();
+            let iou = agreement(&got, &reference).iou;
+            let added = strokes.strokes.len() - drawn;
+            if iou >= GOAL && noc.is_none() {
+                noc = Some(added);
+            }
+            ious.push(iou);
+            // The last corrective stroke holds: its brush, at its own radius, is sure hair
+            // (marked sure, so no warning takes it for a slip of the hand) or sure
+            // background.
+            if added > 0 {
+                use coif::io::annot::StrokeKind::Direction;
+                let s = strokes.strokes.last().unwrap();
+                let hair = s.kind == Direction;
+                if hair {
+                    // Warnings number the direction strokes among themselves.
+                    let k = strokes
+                        .strokes
+                        .iter()
+                        .filter(|t| t.kind == Direction)
+                        .count()
+                        - 1;
+                    let named = format!("direction stroke {k}:");
+                    assert!(
+                        !said.iter().any(|m| m.starts_with(&named)),
+                        "{name}: {said:?}"
+                    );
+                }
+                let brush = brush_pixels(s, p.brush_radius, w, h);
+                assert!(!brush.is_empty());
+                for i in brush {
+                    assert_eq!(
+                        got.as_raw()[i] > 127,
+                        hair,
+                        "{name}: corrective stroke {s:?} does not hold at pixel {i}",
+                    );
+                }
+            }
+            if added == MAX {
+                break format!("stopped after {MAX}");
+            }
+            match corrective_stroke(&got, &r.mask, &gray) {
+                Some((s, _)) => {
+                    brushes[s.radius.unwrap() as usize - 1] += 1;
+                    strokes.strokes.push(s);
+                }
+                None => break "no error wider than a 1 px brush is left".to_string(),
+            }
+        };
+        let n = ious.len() - 1;
+        let at = |k: usize| ious[k.min(n)];
+        println!(
+            "{name:<7} corrective strokes for IoU {GOAL}: {}; IoU {:.4} as drawn, {:.4} / \
+             {:.4} / {:.4} / {:.4} after 1 / 5 / 10 / 20, {:.4} after {n} ({stop}); brushes \
+             of 1 / 2 / 3 / 4 px: {:?}",
+            noc.map_or("not reached".to_string(), |k| k.to_string()),
+            at(0),
+            at(1),
+            at(5),
+            at(10),
+            at(20),
+            ious[n],
+            brushes,
+        );
+        println!(
+            "{name:<7} IoU after each: {}",
+            ious.iter()
+                .map(|v| format!("{v:.4}"))
+                .collect::<Vec<_>>()
+                .join(" ")
+        );
+        if n > 0 {
+            assert!(
+                ious[n] > ious[0] + 0.01,
+                "{name}: {n} corrective strokes took the IoU from {:.4} to {:.4}",
+                ious[0],
+                ious[n]
+            );
+        }
+    }
+}

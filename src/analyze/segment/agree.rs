@@ -147,6 +147,8 @@ mod tests {
         let s = Strokes::new(vec![Stroke {
             kind: StrokeKind::Direction,
             points: vec![[10.0, 5.0], [10.0, 35.0]],
+            radius: None,
+            sure: false,
         }]);
         let (_, blur) = super::super::texture::luminance(&rgb, w, h);
         let b = agreement_bins(&blur, &s, w, h);

@@ -19,7 +19,7 @@ mod texture;
 
 use crate::base::rng::Rng;
 use crate::error::{Error, Result};
-use crate::io::annot::{StrokeKind, Strokes};
+use crate::io::annot::{Stroke, StrokeKind, Strokes};
 use flow::{smoothness_weights, GridFlow};
 use gmm::{data_terms, Gmm};
 use image::{GrayImage, RgbImage};
@@ -198,10 +198,10 @@ pub fn segment_with_warnings(
             StrokeKind::Background => BACK,
             StrokeKind::Comb | StrokeKind::Cut => continue,
         };
-        raster_stroke(&s.points, p.brush_radius, w, h, |i| {
+        for i in brush_pixels(s, p.brush_radius, w, h) {
             seed[i] = lab;
             owner[i] = if lab == HAIR { si as u32 } else { u32::MAX };
-        });
+        }
     }
     if !seed.contains(&HAIR) {
         return Err(Error::Invalid(format!(
@@ -366,15 +366,20 @@ pub fn segment_with_warnings(
             .iter()
             .filter(|s| s.kind == StrokeKind::Direction)
             .count();
+        // Released, the stroke may also be a correction on hair no other stroke shows: say
+        // how to keep it as drawn.
         let fate = if release {
-            "those pixels were left to the colour models instead of being taken as hair"
+            "those pixels were left to the colour models instead of being taken as hair: draw \
+             it on the hair, or, if it is on hair no other stroke shows, mark it \"sure\": true \
+             in the strokes file"
         } else {
-            "stroke pixels are always hair here, so that strip is in the mask"
+            "stroke pixels are always hair here, so that strip is in the mask: draw it on the \
+             hair"
         };
         warnings.push(format!(
             "direction stroke {}: {} of its {} pixels (within x {x0}-{x1}, y {y0}-{y1}) look \
              like background to the colour models (hair model from the other direction \
-             strokes); {fate}: draw it on the hair",
+             strokes); {fate}",
             k, o.off, o.total
         ));
     }
@@ -423,6 +428,16 @@ fn check_share(label: &[bool], seed: &[u8], w: u32, h: u32) -> Result<()> {
 
 /// Calls `mark` for every pixel whose centre is within `r` of the polyline. Thin brushes
 /// still mark a connected line (radius at least half a pixel diagonal).
+/// The pixels (y·w + x) a stroke's brush covers: centres within its radius (`default`
+/// where it has none) of the polyline. Segmentation makes them sure hair or background.
+pub fn brush_pixels(s: &Stroke, default: f32, w: u32, h: u32) -> Vec<usize> {
+    let mut out = Vec::new();
+    raster_stroke(&s.points, s.radius.unwrap_or(default), w, h, |i| {
+        out.push(i)
+    });
+    out
+}
+
 fn raster_stroke(pts: &[[f32; 2]], r: f32, w: u32, h: u32, mut mark: impl FnMut(usize)) {
     let r = r.max(std::f32::consts::FRAC_1_SQRT_2);
     for seg in pts.windows(2) {
@@ -510,7 +525,7 @@ fn off_model_strokes(
         return Vec::new();
     }
     let mut out = Vec::new();
-    for &s in &used {
+    for &s in used.iter().filter(|&&s| !strokes.strokes[s].sure) {
         let others: Vec<usize> = used
             .iter()
             .filter(|&&o| o != s)
@@ -666,6 +681,8 @@ mod tests {
             strokes.strokes.push(Stroke {
                 kind: StrokeKind::Background,
                 points: pts,
+                radius: None,
+                sure: false,
             });
         }
         // The strokes must actually lie off the hair for the test to mean anything.
@@ -750,6 +767,8 @@ mod tests {
         strokes.strokes.push(Stroke {
             kind: StrokeKind::Background,
             points: vec![[40.0, 60.0], [80.0, 60.0]],
+            radius: None,
+            sure: false,
         });
         let with = segment(&img, &strokes, &p).unwrap();
         let v = iou(&with, &case.mask);
@@ -830,6 +849,8 @@ mod tests {
         let s = Strokes::new(vec![Stroke {
             kind: StrokeKind::Direction,
             points: vec![[16.0, 10.0], [16.0, 38.0]],
+            radius: None,
+            sure: false,
         }]);
         let m = segment(&img, &s, &SegmentParams::default()).unwrap();
         for (x, _, v) in m.enumerate_pixels() {
@@ -844,18 +865,24 @@ mod tests {
         let bg_only = Strokes::new(vec![Stroke {
             kind: StrokeKind::Background,
             points: vec![[40.0, 10.0], [50.0, 30.0]],
+            radius: None,
+            sure: false,
         }]);
         let e = segment(&img, &bg_only, &p).unwrap_err().to_string();
         assert!(e.contains("at least one direction stroke"), "{e}");
         let off = Strokes::new(vec![Stroke {
             kind: StrokeKind::Direction,
             points: vec![[500.0, 500.0], [600.0, 600.0]],
+            radius: None,
+            sure: false,
         }]);
         let e = segment(&img, &off, &p).unwrap_err().to_string();
         assert!(e.contains("outside"), "{e}");
         let dir = Strokes::new(vec![Stroke {
             kind: StrokeKind::Direction,
             points: vec![[16.0, 10.0], [16.0, 38.0]],
+            radius: None,
+            sure: false,
         }]);
         let e = segment(&img, &dir, &SegmentParams { border: 0, ..p })
             .unwrap_err()
@@ -868,6 +895,8 @@ mod tests {
         let nan = Strokes::new(vec![Stroke {
             kind: StrokeKind::Direction,
             points: vec![[f32::NAN, 10.0], [16.0, 38.0]],
+            radius: None,
+            sure: false,
         }]);
         let e = segment(&img, &nan, &p).unwrap_err().to_string();
         assert!(e.contains("not finite"), "{e}");
@@ -881,6 +910,8 @@ mod tests {
         let line = |x: f32, y0: f32, y1: f32| Stroke {
             kind: StrokeKind::Direction,
             points: vec![[x, y0], [x, y1]],
+            radius: None,
+            sure: false,
         };
         let s = Strokes::new(vec![
             line(10.0, 8.0, 20.0),
@@ -893,6 +924,8 @@ mod tests {
         with_bg.strokes.push(Stroke {
             kind: StrokeKind::Background,
             points: vec![[60.0, 4.0], [60.0, 44.0]],
+            radius: None,
+            sure: false,
         });
         let m = segment(&img, &with_bg, &SegmentParams::default()).unwrap();
         assert_eq!(
@@ -920,6 +953,14 @@ mod tests {
         assert!(said[0].starts_with("direction stroke 2: "), "{said:?}");
         assert!(said[0].contains("left to the colour models"), "{said:?}");
         assert_eq!(m.get_pixel(16, 20)[0], 255);
+
+        // Marked sure (a correction on hair no other stroke shows), the same stroke is taken
+        // as drawn, with no warning.
+        let mut sure = with_bg.clone();
+        sure.strokes[2].sure = true;
+        let (m_sure, said) = segment_with_warnings(&img, &sure, &SegmentParams::default()).unwrap();
+        assert!(said.is_empty(), "{said:?}");
+        assert_eq!(m_sure.get_pixel(50, 22)[0], 255, "a sure stroke is hair");
 
         let mut owner = vec![u32::MAX; 64 * 48];
         for (si, st) in s.strokes.iter().enumerate() {
@@ -957,6 +998,39 @@ mod tests {
         assert!(o.off * 2 > o.total && o.off < o.total, "{o:?}");
         assert_eq!(o.bbox[0], 32, "{o:?}");
         assert!(o.bbox[1] >= 26 && o.bbox[3] <= 47, "{o:?}");
+    }
+
+    /// A stroke's own radius, where it has one, sets its brush: a thin background stroke
+    /// across the hair takes a thin strip out of it, the default brush a wider one.
+    #[test]
+    fn a_strokes_radius_sets_its_brush() {
+        let img = two_tone();
+        let dir = Stroke::new(StrokeKind::Direction, vec![[16.0, 6.0], [16.0, 42.0]]);
+        let mut across = Stroke::new(StrokeKind::Background, vec![[2.0, 24.0], [30.0, 24.0]]);
+        let bg = Stroke::new(StrokeKind::Background, vec![[56.0, 4.0], [56.0, 44.0]]);
+        let p = SegmentParams::default();
+        let hair_in_row =
+            |m: &GrayImage, y: u32| (0..32).filter(|&x| m.get_pixel(x, y)[0] > 0).count();
+        let mut thin = across.clone();
+        thin.radius = Some(1.0);
+        across.radius = None;
+        let wide = segment(
+            &img,
+            &Strokes::new(vec![dir.clone(), across, bg.clone()]),
+            &p,
+        )
+        .unwrap();
+        let thin_m = segment(&img, &Strokes::new(vec![dir, thin.clone(), bg]), &p).unwrap();
+        // Rows 3 px from the stroke: outside a 1 px brush, inside the default 4 px one
+        // (the direction stroke's own pixels stay hair where the two cross).
+        for y in [21, 27] {
+            assert_eq!(hair_in_row(&wide, y), 0, "row {y}, default brush");
+            assert!(hair_in_row(&thin_m, y) > 20, "row {y}, 1 px brush");
+        }
+        // Centres within 1 px of y = 24 from x = 2 to 30: rows 23 and 24, columns 1-30.
+        assert_eq!(brush_pixels(&thin, 4.0, 64, 48).len(), 60);
+        thin.radius = None;
+        assert!(brush_pixels(&thin, 4.0, 64, 48).len() > 4 * 60);
     }
 
     #[test]

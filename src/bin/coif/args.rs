@@ -693,7 +693,8 @@ pub struct AnalyzeArgs {
     segment_luminance: f32,
     /// Without --mask: every pixel under a direction stroke is sure hair, even for a stroke
     /// that seems to lie off the hair (by default the pixels of such a stroke that look like
-    /// background are left to the colour models, and the warning says so).
+    /// background are left to the colour models, and the warning says so; `"sure": true` on
+    /// a stroke in the strokes file does this for that stroke alone).
     #[arg(long)]
     segment_trust_strokes: bool,
 }

@@ -221,6 +221,8 @@ pub(super) fn make_strokes(
             .map(|points| Stroke {
                 kind: StrokeKind::Direction,
                 points,
+                radius: None,
+                sure: false,
             })
             .collect(),
     )
