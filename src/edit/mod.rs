@@ -97,6 +97,31 @@ pub fn load_strokes(scene: &Scene, path: &Path, kind: StrokeKind) -> Result<Stro
     Ok(s)
 }
 
+/// A warning when a stroke of `kind` carries a segmentation brush (`radius`, `sure`): an
+/// edit's reach is the job's radius for every stroke, so the field does nothing here.
+pub fn unused_brush(
+    strokes: &Strokes,
+    kind: StrokeKind,
+    path: &Path,
+    radius: f32,
+) -> Option<String> {
+    let which: Vec<String> = strokes
+        .strokes
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| s.kind == kind && (s.radius.is_some() || s.sure))
+        .map(|(i, _)| i.to_string())
+        .collect();
+    (!which.is_empty()).then(|| {
+        format!(
+            "{}: stroke(s) {} carry \"radius\" or \"sure\", which are for segmentation; \
+             the {kind} reaches {radius} px (--radius) from every stroke",
+            path.display(),
+            which.join(", ")
+        )
+    })
+}
+
 /// The polylines of `kind`, or an error when there are none.
 fn polylines(strokes: &Strokes, kind: StrokeKind) -> Result<Vec<Vec<[f32; 2]>>> {
     let v: Vec<Vec<[f32; 2]>> = strokes
@@ -431,4 +456,28 @@ pub fn cut(
         backend: engine.describe(),
     };
     Ok((out, report))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::io::annot::Stroke;
+
+    #[test]
+    fn a_segmentation_brush_on_an_edit_stroke_is_named() {
+        let line = |k| Stroke::new(k, vec![[1.0, 1.0], [9.0, 9.0]]);
+        let mut thin = line(StrokeKind::Comb);
+        thin.radius = Some(2.0);
+        let mut sure = line(StrokeKind::Direction);
+        sure.sure = true;
+        let s = Strokes::new(vec![line(StrokeKind::Comb), thin, sure]);
+        let p = Path::new("comb.json");
+        let w = unused_brush(&s, StrokeKind::Comb, p, 32.0).unwrap();
+        assert!(w.starts_with("comb.json: stroke(s) 1 carry"), "{w}");
+        assert!(w.contains("reaches 32 px"), "{w}");
+        // The direction stroke's mark is not the comb's business, nor a cut's.
+        assert_eq!(unused_brush(&s, StrokeKind::Cut, p, 32.0), None);
+        let plain = Strokes::new(vec![line(StrokeKind::Comb)]);
+        assert_eq!(unused_brush(&plain, StrokeKind::Comb, p, 32.0), None);
+    }
 }

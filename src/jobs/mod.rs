@@ -771,11 +771,13 @@ fn run_edit(engine: &Engine, j: &EditJob) -> anyhow::Result<Report> {
         },
         None => full.clone(),
     };
+    let mut warnings = Vec::new();
     // Everything is read, checked and computed before the first file is written.
     let (strands, meta, summary, details) = match &j.tool {
         EditTool::Comb { strokes } => {
             let _s = stage("comb");
             let s = edit::load_strokes(&scene, strokes, StrokeKind::Comb)?;
+            warnings.extend(edit::unused_brush(&s, StrokeKind::Comb, strokes, j.radius));
             let (out, r) = edit::comb(engine, &scene, &s, j.radius)?;
             let details = vec![
                 format!("strands changed  {} of {}", r.strands_changed, r.strands),
@@ -800,6 +802,7 @@ fn run_edit(engine: &Engine, j: &EditJob) -> anyhow::Result<Report> {
         EditTool::Cut { strokes, seed } => {
             let _s = stage("cut");
             let s = edit::load_strokes(&scene, strokes, StrokeKind::Cut)?;
+            warnings.extend(edit::unused_brush(&s, StrokeKind::Cut, strokes, j.radius));
             let (out, r) = edit::cut(engine, &scene, &s, j.radius, *seed)?;
             let mut details = vec![
                 format!("strands cut      {} of {}", r.strands_cut, r.strands),
@@ -823,7 +826,6 @@ fn run_edit(engine: &Engine, j: &EditJob) -> anyhow::Result<Report> {
             (out, meta, summary, details)
         }
     };
-    let mut warnings = Vec::new();
     if scene.animation.is_some() {
         warnings.push(
             "the model's animation is not carried over: the edit changes its rest strands"
