@@ -153,6 +153,10 @@ pub struct SketchOpts {
     /// (default 12; 0: off).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub target_fill: Option<f32>,
+    /// The size the sketch part (the curves) is brought under where the file and the fill
+    /// stay within their targets, bytes (default 600; 0: off).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub target_sketch_bytes: Option<usize>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub directions: Option<String>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -515,6 +519,9 @@ impl BatchJob {
                         crate::sketch::run::ByteBudget::from_options(o.max_bytes, o.target_bytes);
                     if let Some(t) = o.target_fill {
                         params.fill_target = (t > 0.0).then_some(t);
+                    }
+                    if let Some(t) = o.target_sketch_bytes {
+                        params.sketch_target = (t > 0).then_some(t);
                     }
                     if let Some(d) = &o.directions {
                         params.method = d.parse().expect("checked");

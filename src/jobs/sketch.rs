@@ -162,6 +162,23 @@ pub(super) fn run_sketch(engine: &Engine, j: &SketchJob) -> anyhow::Result<Repor
             ));
         }
     }
+    if let Some(t) = &r.sketch_target {
+        if t.met && t.tries.len() > 1 {
+            details.push(format!(
+                "primitive penalty raised to {} to bring the sketch part within {} B ({} more \
+                 pursuits)",
+                t.lambda_b,
+                t.target_bytes,
+                t.tries.len() - 1
+            ));
+        } else if !t.met {
+            details.push(format!(
+                "sketch part {} B, over the {} B target: a larger primitive penalty takes the \
+                 file or the fill past its target (tries in report.json)",
+                sizes.curves, t.target_bytes
+            ));
+        }
+    }
     Ok(Report {
         summary: format!(
             "sketch: {} curves, {} B (.czs; sketch part {} B), fill {} -> {} ({:.1} s on {})",

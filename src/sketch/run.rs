@@ -39,6 +39,26 @@ pub struct SketchParams {
     /// mask) that the sketch is held to: where it strays further, λ_NC is halved (down to
     /// [`FILL_MIN_LAMBDA_NC`]) and the analysis run again (see [`FillTarget`]); None: off.
     pub fill_target: Option<f32>,
+    /// What the sketch part of `hair.czs` (its curves) is held to, bytes, where that keeps
+    /// the byte and fill targets met: λ_B is raised until the curves fit (see
+    /// [`SketchTarget`]); None: off.
+    pub sketch_target: Option<usize>,
+}
+
+/// Issue 16's bound on the sketch part of `hair.czs`, the default sketch target (bytes).
+pub const DEFAULT_SKETCH_TARGET_BYTES: usize = 600;
+
+/// How the sketch target was met: every (λ_B, curve bytes, `.czs` bytes, fill error in
+/// degrees) tried after the byte and fill targets, in order, and the kept λ_B. A try is
+/// kept only if its curves fit and its file and fill stay within their targets; the
+/// search stops at the first try whose fill strays past its target (a larger λ_B only
+/// coarsens the fill further).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct SketchTarget {
+    pub target_bytes: usize,
+    pub met: bool,
+    pub lambda_b: f32,
+    pub tries: Vec<(f32, usize, usize, f64)>,
 }
 
 /// Issue 16's bound on the fill against the dense field on real hair photos, the default
@@ -111,6 +131,7 @@ impl Default for SketchParams {
             seed: 1,
             budget: ByteBudget::Target(DEFAULT_TARGET_BYTES),
             fill_target: Some(DEFAULT_FILL_TARGET_DEG),
+            sketch_target: Some(DEFAULT_SKETCH_TARGET_BYTES),
         }
     }
 }
@@ -149,6 +170,8 @@ pub struct SketchResult {
     pub fill_error: (f64, usize),
     /// How the fill target was met, when one was given.
     pub fill_target: Option<FillTarget>,
+    /// How the sketch target was met, when one was given and the curves were over it.
+    pub sketch_target: Option<SketchTarget>,
 }
 
 /// How a byte budget was met: λ_B doubled from 1 (or from the given λ_B) until the file fits,
@@ -271,18 +294,9 @@ pub fn analyse(engine: &Engine, inp: &SketchInputs, p: &SketchParams) -> Result<
     };
     // One λ_NC: the pursuit at the given λ_B, the byte budget, and the fill from the stored
     // sketch with its error against Step 1's Θ.
-    let run_at = |lambda_nc: f32| -> Result<Run> {
-        let first = attempt(lambda_nc, p.pursuit.lambda_b)?;
-        let ((pu, directed, sketch), budget) = match p.budget.bytes() {
-            Some(max) => {
-                let strict = matches!(p.budget, ByteBudget::Max(_));
-                let (kept, b) = fit_budget(max, strict, p.pursuit.lambda_b, first, |lb| {
-                    attempt(lambda_nc, lb)
-                })?;
-                (kept, Some(b))
-            }
-            None => (first, None),
-        };
+    let finish = |(pu, directed, sketch): (pursuit::Pursuit, swc::Directed, Sketch),
+                  budget: Option<Budget>|
+     -> Result<Run> {
         let t0 = Instant::now();
         let painted = super::prim::paint(&sketch.curves, w, h, Some(inp.hair));
         let field = fill::fill(engine, &painted, inp.hair, &sketch.rho_off, p.seed, &p.fill)?;
@@ -298,6 +312,20 @@ pub fn analyse(engine: &Engine, inp: &SketchInputs, p: &SketchParams) -> Result<
             field,
             fill_error,
         })
+    };
+    let run_at = |lambda_nc: f32| -> Result<Run> {
+        let first = attempt(lambda_nc, p.pursuit.lambda_b)?;
+        let (kept, budget) = match p.budget.bytes() {
+            Some(max) => {
+                let strict = matches!(p.budget, ByteBudget::Max(_));
+                let (kept, b) = fit_budget(max, strict, p.pursuit.lambda_b, first, |lb| {
+                    attempt(lambda_nc, lb)
+                })?;
+                (kept, Some(b))
+            }
+            None => (first, None),
+        };
+        finish(kept, budget)
     };
     let mut kept = run_at(p.pursuit.lambda_nc)?;
     let fill_target = match p.fill_target {
@@ -333,6 +361,23 @@ pub fn analyse(engine: &Engine, inp: &SketchInputs, p: &SketchParams) -> Result<
         }
         None => None,
     };
+    let sketch_target = match p.sketch_target {
+        Some(target) => {
+            let lambda_nc = fill_target
+                .as_ref()
+                .map_or(p.pursuit.lambda_nc, |f| f.lambda_nc);
+            let lambda_b0 = kept
+                .budget
+                .as_ref()
+                .map_or(p.pursuit.lambda_b, |b| b.lambda_b);
+            let (t, tries) = fit_sketch_target(target, lambda_b0, kept, p, |lb, budget| {
+                finish(attempt(lambda_nc, lb)?, budget)
+            })?;
+            kept = t;
+            Some(tries)
+        }
+        None => None,
+    };
     let Run {
         pu,
         directed,
@@ -362,7 +407,77 @@ pub fn analyse(engine: &Engine, inp: &SketchInputs, p: &SketchParams) -> Result<
         budget,
         fill_error,
         fill_target,
+        sketch_target,
     })
+}
+
+/// The sketch target's first λ_B: a primitive's ~5 bits in the file as nats (5 ln 2), the
+/// penalty minimum description length gives a primitive (see the README's `coif sketch`).
+const SKETCH_TARGET_FIRST_LAMBDA_B: f32 = 3.5;
+
+/// Brings the curves of `kept` (already within the byte and fill targets) under `target`
+/// bytes by raising λ_B: from [`SKETCH_TARGET_FIRST_LAMBDA_B`] (or twice `lambda_b0`),
+/// doubled until they fit, then the interval halved once; a try counts only with its file and fill
+/// within their targets, and the first whose are not ends the search (a larger λ_B only
+/// coarsens them). Where nothing fits, `kept` is returned as it was.
+fn fit_sketch_target(
+    target: usize,
+    lambda_b0: f32,
+    kept: Run,
+    p: &SketchParams,
+    attempt: impl Fn(f32, Option<Budget>) -> Result<Run>,
+) -> Result<(Run, SketchTarget)> {
+    let curves = |r: &Run| format::czs_sizes(&r.sketch).curves;
+    let total = |r: &Run| format::to_czs(&r.sketch).len();
+    let within = |r: &Run| {
+        p.budget.bytes().is_none_or(|m| total(r) <= m)
+            && p.fill_target
+                .is_none_or(|t| r.fill_error.1 == 0 || r.fill_error.0 <= t as f64)
+    };
+    let row = |lb: f32, r: &Run| (lb, curves(r), total(r), r.fill_error.0);
+    let mut tries = vec![row(lambda_b0, &kept)];
+    let done = |met: bool, lambda_b: f32, tries: Vec<(f32, usize, usize, f64)>| SketchTarget {
+        target_bytes: target,
+        met,
+        lambda_b,
+        tries,
+    };
+    if tries[0].1 <= target || !within(&kept) {
+        let met = tries[0].1 <= target;
+        return Ok((kept, done(met, lambda_b0, tries)));
+    }
+    let (mut lo, mut hi) = (lambda_b0, None);
+    let mut next = (2.0 * lo).max(SKETCH_TARGET_FIRST_LAMBDA_B);
+    while hi.is_none() && next <= BUDGET_MAX_LAMBDA_B {
+        log::info!(
+            "sketch: the curves take {} B at λ_B {lo}, over the {target} B sketch target: \
+             pursuing again at λ_B {next}",
+            tries.last().map_or(0, |t| t.1)
+        );
+        let r = attempt(next, kept.budget.clone())?;
+        tries.push(row(next, &r));
+        if !within(&r) {
+            log::info!("sketch: at λ_B {next} the file or the fill is past its target: kept λ_B {lambda_b0}");
+            return Ok((kept, done(false, lambda_b0, tries)));
+        }
+        if curves(&r) <= target {
+            hi = Some((next, r));
+        } else {
+            lo = next;
+            next *= 2.0;
+        }
+    }
+    let Some((best, best_run)) = hi else {
+        return Ok((kept, done(false, lambda_b0, tries)));
+    };
+    // One halving of the interval: each try is a whole pursuit.
+    let mid = 0.5 * (lo + best);
+    let r = attempt(mid, kept.budget.clone())?;
+    tries.push(row(mid, &r));
+    if curves(&r) <= target && within(&r) {
+        return Ok((r, done(true, mid, tries)));
+    }
+    Ok((best_run, done(true, best, tries)))
 }
 
 /// One run of Steps 1 and 2 and the fill at one λ_NC.
@@ -547,6 +662,7 @@ pub fn write(
             "against": "Step 1's dense Θ",
             "target": r.fill_target,
         },
+        "sketch_target": r.sketch_target,
     });
     if let (Some(o), Some(e)) = (report.as_object_mut(), extra.as_object()) {
         for (k, v) in e {

@@ -211,6 +211,11 @@ pub struct SketchArgs {
     #[arg(long, value_name = "DEG", value_parser = parse_non_negative,
           default_value_t = coif::sketch::run::DEFAULT_FILL_TARGET_DEG)]
     target_fill: f32,
+    /// The size the sketch part of hair.czs (its curves) is brought under, bytes, where the
+    /// file and the fill stay within their targets: the primitive penalty is raised (from
+    /// 3.5, the steps tried are in report.json under sketch_target); 0 keeps it as given.
+    #[arg(long, default_value_t = coif::sketch::run::DEFAULT_SKETCH_TARGET_BYTES as u64)]
+    target_sketch_bytes: u64,
     /// How directions are chosen: swc (Swendsen-Wang cuts, CZ06 §4.2), icm, or prior (each
     /// curve by the direction prior alone; the ablation baselines).
     #[arg(long, default_value = "swc")]
@@ -765,6 +770,8 @@ impl Command {
                     Some(a.target_bytes as usize),
                 );
                 params.fill_target = (a.target_fill > 0.0).then_some(a.target_fill);
+                params.sketch_target =
+                    (a.target_sketch_bytes > 0).then_some(a.target_sketch_bytes as usize);
                 params.method = a.directions.parse()?;
                 params.swc.prior.crown = a.crown.parse()?;
                 params.swc.sweeps = a.sweeps;
