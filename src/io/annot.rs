@@ -203,16 +203,17 @@ impl Strokes {
         );
         for (i, s) in self.strokes.iter().enumerate() {
             let pts: Vec<String> = s.points.iter().map(|p| fmt_point(*p)).collect();
-            let mut radius = s
+            // The optional fields, only where set: files without them stay as they were.
+            let mut extra = s
                 .radius
                 .map(|r| format!(",\n      \"radius\": {r}"))
                 .unwrap_or_default();
             if s.sure {
-                radius.push_str(",\n      \"sure\": true");
+                extra.push_str(",\n      \"sure\": true");
             }
             let _ = write!(
                 out,
-                "    {{\n      \"kind\": \"{}\",\n      \"points\": [{}]{radius}\n    }}{}\n",
+                "    {{\n      \"kind\": \"{}\",\n      \"points\": [{}]{extra}\n    }}{}\n",
                 s.kind,
                 pts.join(", "),
                 if i + 1 < self.strokes.len() { "," } else { "" }

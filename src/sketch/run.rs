@@ -5,7 +5,8 @@
 //! the region's outline → sketch pursuit (Step 1: Θ and the undirected curves) →
 //! directions by Swendsen-Wang cuts (Step 2) → the sketch quantised to what the files store
 //! (again with a larger λ_B while over a byte budget) → V filled in from that sketch alone
-//! (what synthesis will see) → files.
+//! (what synthesis will see; again with a smaller λ_NC while it strays past the fill target,
+//! then with a larger λ_B while the curves are over the sketch target) → files.
 
 use super::{bands, fill, format, pursuit, shading, swc, vis};
 use super::{Sketch, VectorField};
@@ -49,9 +50,10 @@ pub struct SketchParams {
 pub const DEFAULT_SKETCH_TARGET_BYTES: usize = 600;
 
 /// How the sketch target was met: every (λ_B, curve bytes, `.czs` bytes, fill error in
-/// degrees) tried after the byte and fill targets, in order, and the kept λ_B. A try is
-/// kept only if its curves fit and its file and fill stay within their targets; the
-/// search stops at the first try whose fill strays past its target (a larger λ_B only
+/// degrees) tried after the byte and fill targets, in order, and the kept λ_B (which
+/// supersedes the byte target's [`Budget::lambda_b`]: the sketch kept was pursued with it).
+/// A try is kept only if its curves fit and its file and fill stay within their targets;
+/// the search stops at the first try whose file or fill does not (a larger λ_B only
 /// coarsens the fill further).
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct SketchTarget {

@@ -68,7 +68,8 @@ pub struct SegmentParams {
     /// [`off_model_strokes`]: over half its brush likelier background than hair) are left
     /// to the models instead of being sure hair, and kept out of the hair model's first fit.
     /// False keeps every stroke pixel sure hair, so a stroke drawn along the backdrop puts
-    /// its strip into the mask (the behaviour before 2026-12-06).
+    /// its strip into the mask (the behaviour before 2026-12-06). A stroke marked `sure` is
+    /// never released.
     pub release_off_hair: bool,
 }
 
@@ -426,10 +427,9 @@ fn check_share(label: &[bool], seed: &[u8], w: u32, h: u32) -> Result<()> {
     Ok(())
 }
 
-/// Calls `mark` for every pixel whose centre is within `r` of the polyline. Thin brushes
-/// still mark a connected line (radius at least half a pixel diagonal).
 /// The pixels (y·w + x) a stroke's brush covers: centres within its radius (`default`
-/// where it has none) of the polyline. Segmentation makes them sure hair or background.
+/// where it has none; at least half a pixel diagonal) of the polyline. Segmentation makes
+/// them sure hair or background.
 pub fn brush_pixels(s: &Stroke, default: f32, w: u32, h: u32) -> Vec<usize> {
     let mut out = Vec::new();
     raster_stroke(&s.points, s.radius.unwrap_or(default), w, h, |i| {
@@ -438,6 +438,8 @@ pub fn brush_pixels(s: &Stroke, default: f32, w: u32, h: u32) -> Vec<usize> {
     out
 }
 
+/// Calls `mark` for every pixel whose centre is within `r` of the polyline. Thin brushes
+/// still mark a connected line (radius at least half a pixel diagonal).
 fn raster_stroke(pts: &[[f32; 2]], r: f32, w: u32, h: u32, mut mark: impl FnMut(usize)) {
     let r = r.max(std::f32::consts::FRAC_1_SQRT_2);
     for seg in pts.windows(2) {
@@ -494,7 +496,7 @@ struct OffStroke {
     pixels: Vec<usize>,
 }
 
-/// Direction strokes that seem not to lie on hair: over half of the stroke's pixels are
+/// Direction strokes not marked `sure` that seem not to lie on hair: over half of the stroke's pixels are
 /// likelier under the background model (`bg`: [`segment_with_warnings`] passes the first
 /// one, fitted to the background samples before any cut) than under a hair model fitted to
 /// the other direction strokes. (The full hair model contains the stroke's own colours, so it
