@@ -465,10 +465,7 @@ fn a_byte_target_out_of_reach_keeps_the_sketch_and_warns() {
     let run = |name: &str, extra: &[&str]| sketch_case(d, name, extra);
     let off = run("off", &["--target-bytes", "0"]);
     succeeded(&off);
-    let report = |name: &str| -> serde_json::Value {
-        serde_json::from_str(&std::fs::read_to_string(d.join(name).join("report.json")).unwrap())
-            .unwrap()
-    };
+    let report = |name: &str| report_in(&d.join(name));
     assert!(report("off")["budget"].is_null());
     let out = run("tiny", &["--target-bytes", "16"]);
     succeeded(&out);
@@ -504,19 +501,12 @@ fn a_fill_target_lowers_the_curve_penalty_until_the_fill_follows() {
     let d = tmp.path();
     write_case(&d.join("case"));
     let run = |name: &str, extra: &[&str]| sketch_case(d, name, extra);
-    let report = |name: &str| -> serde_json::Value {
-        serde_json::from_str(&std::fs::read_to_string(d.join(name).join("report.json")).unwrap())
-            .unwrap()
-    };
+    let report = |name: &str| report_in(&d.join(name));
     let o = run("off", &["--target-fill", "0"]);
     succeeded(&o);
     let f = &report("off")["fill"];
     // The summary line gives the fill's error as the report does.
-    let said = format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    );
+    let said = printed(&o);
     let figure = format!(
         "fill {:.2}° from the dense field",
         f["error_deg"].as_f64().unwrap()
@@ -554,16 +544,7 @@ fn a_fill_target_lowers_the_curve_penalty_until_the_fill_follows() {
         .fold(f64::INFINITY, f64::min);
     assert_eq!(f["error_deg"].as_f64().unwrap(), best, "{f}");
     assert!(best <= free, "{best} > {free}");
-    for bad in ["-1", "nan", "x"] {
-        let o = run("bad", &[&format!("--target-fill={bad}")]);
-        assert_eq!(
-            o.status.code(),
-            Some(64),
-            "{bad}: {}",
-            String::from_utf8_lossy(&o.stderr)
-        );
-    }
-    assert!(!d.join("bad").exists());
+    refused(d, "--target-fill", &["-1", "nan", "x"]);
 }
 
 /// The sketch target (issue 16's 600 B for the sketch part): off, it leaves the sketch as
@@ -576,10 +557,7 @@ fn a_sketch_target_raises_the_primitive_penalty_until_the_curves_fit() {
     let d = tmp.path();
     write_case(&d.join("case"));
     let run = |name: &str, extra: &[&str]| sketch_case(d, name, extra);
-    let report = |name: &str| -> serde_json::Value {
-        serde_json::from_str(&std::fs::read_to_string(d.join(name).join("report.json")).unwrap())
-            .unwrap()
-    };
+    let report = |name: &str| report_in(&d.join(name));
     let czs = |name: &str| std::fs::read(d.join(name).join("hair.czs")).unwrap();
     succeeded(&run("off", &["--target-sketch-bytes", "0"]));
     assert!(report("off")["sketch_target"].is_null());
@@ -595,7 +573,7 @@ fn a_sketch_target_raises_the_primitive_penalty_until_the_curves_fit() {
     let target = c0 * 4 / 5;
     let o = run("tight", &["--target-sketch-bytes", &format!("{target}")]);
     succeeded(&o);
-    let said = String::from_utf8_lossy(&o.stdout).to_string() + &String::from_utf8_lossy(&o.stderr);
+    let said = printed(&o);
     let t = &report("tight")["sketch_target"];
     assert_eq!(t["met"], true, "{t}");
     assert!(curves("tight") <= target, "{} > {target}", curves("tight"));
@@ -613,23 +591,42 @@ fn a_sketch_target_raises_the_primitive_penalty_until_the_curves_fit() {
     // Out of reach: no penalty leaves curves in 1 B with the fill within 12°.
     let o = run("hard", &["--target-sketch-bytes", "1"]);
     succeeded(&o);
-    let said = String::from_utf8_lossy(&o.stdout).to_string() + &String::from_utf8_lossy(&o.stderr);
+    let said = printed(&o);
     let t = &report("hard")["sketch_target"];
     assert_eq!(t["met"], false, "{t}");
     assert_eq!(czs("hard"), czs("off"));
     let last = t["tries"].as_array().unwrap().last().unwrap().clone();
     assert!(last[3].as_f64().unwrap() > 12.0, "{t}");
     assert!(said.contains("over the 1 B target"), "{said}");
-    for bad in ["-1", "x"] {
-        let o = run("bad", &[&format!("--target-sketch-bytes={bad}")]);
+    refused(d, "--target-sketch-bytes", &["-1", "x"]);
+}
+
+/// Each of `values` for `flag` is refused (exit 64) with nothing written.
+fn refused(d: &Path, flag: &str, values: &[&str]) {
+    for v in values {
+        let o = sketch_case(d, "bad", &[format!("{flag}={v}")]);
         assert_eq!(
             o.status.code(),
             Some(64),
-            "{bad}: {}",
+            "{flag}={v}: {}",
             String::from_utf8_lossy(&o.stderr)
         );
     }
     assert!(!d.join("bad").exists());
+}
+
+/// The `report.json` in `dir`.
+fn report_in(dir: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).unwrap()).unwrap()
+}
+
+/// What a run printed, stdout then stderr.
+fn printed(o: &std::process::Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
 }
 
 /// `coif sketch` on the case [`write_case`] wrote under `d`, into `d/name`.
