@@ -434,18 +434,11 @@ mod tests {
     fn save_load_round_trip() {
         let dir = tempfile::tempdir().unwrap();
         let s = Strokes::new(vec![
-            Stroke {
-                kind: StrokeKind::Direction,
-                points: vec![[1.25, 2.0], [3.1, 4.7], [0.1, 1e-3]],
-                radius: None,
-                sure: false,
-            },
-            Stroke {
-                kind: StrokeKind::Cut,
-                points: vec![[5.0, 6.0], [7.0, 8.0]],
-                radius: None,
-                sure: false,
-            },
+            Stroke::new(
+                StrokeKind::Direction,
+                vec![[1.25, 2.0], [3.1, 4.7], [0.1, 1e-3]],
+            ),
+            Stroke::new(StrokeKind::Cut, vec![[5.0, 6.0], [7.0, 8.0]]),
         ]);
         let p = dir.path().join("strokes.json");
         s.save(&p).unwrap();
@@ -508,12 +501,10 @@ mod tests {
     #[test]
     fn save_refuses_non_finite() {
         let dir = tempfile::tempdir().unwrap();
-        let s = Strokes::new(vec![Stroke {
-            kind: StrokeKind::Direction,
-            points: vec![[1.0, f32::NAN], [3.0, 4.0]],
-            radius: None,
-            sure: false,
-        }]);
+        let s = Strokes::new(vec![Stroke::new(
+            StrokeKind::Direction,
+            vec![[1.0, f32::NAN], [3.0, 4.0]],
+        )]);
         let e = s.save(&dir.path().join("x.json")).unwrap_err().to_string();
         assert!(
             e.contains("stroke 0, point 0") && e.contains("not finite"),

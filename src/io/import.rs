@@ -161,12 +161,7 @@ pub fn labelme_from_str(text: &str, path: &Path) -> Result<Strokes> {
         } else {
             StrokeKind::Direction
         };
-        out.push(Stroke {
-            kind,
-            points,
-            radius: None,
-            sure: false,
-        });
+        out.push(Stroke::new(kind, points));
     }
     if !skipped.is_empty() {
         log::warn!(
@@ -641,12 +636,7 @@ pub fn svg_strokes_from_str(text: &str, path: &Path) -> Result<Strokes> {
                 }
                 points.push(q);
             }
-            out.push(Stroke {
-                kind,
-                points,
-                radius: None,
-                sure: false,
-            });
+            out.push(Stroke::new(kind, points));
         }
     }
     if ignored > 0 {

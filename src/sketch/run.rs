@@ -429,14 +429,17 @@ fn fit_sketch_target(
     p: &SketchParams,
     attempt: impl Fn(f32, Option<Budget>) -> Result<Run>,
 ) -> Result<(Run, SketchTarget)> {
-    let curves = |r: &Run| format::czs_sizes(&r.sketch).curves;
-    let total = |r: &Run| format::to_czs(&r.sketch).len();
-    let within = |r: &Run| {
-        p.budget.bytes().is_none_or(|m| total(r) <= m)
-            && p.fill_target
-                .is_none_or(|t| r.fill_error.1 == 0 || r.fill_error.0 <= t as f64)
+    // A try's (λ_B, curve bytes, file bytes, fill error), the sketch encoded once.
+    let row = |lb: f32, r: &Run| {
+        let sizes = format::czs_sizes(&r.sketch);
+        (lb, sizes.curves, sizes.total, r.fill_error.0)
     };
-    let row = |lb: f32, r: &Run| (lb, curves(r), total(r), r.fill_error.0);
+    // Its file and fill within their targets (an unscored fill counts as within).
+    let within = |t: &(f32, usize, usize, f64), r: &Run| {
+        p.budget.bytes().is_none_or(|m| t.2 <= m)
+            && p.fill_target
+                .is_none_or(|f| r.fill_error.1 == 0 || t.3 <= f as f64)
+    };
     let mut tries = vec![row(lambda_b0, &kept)];
     let done = |met: bool, lambda_b: f32, tries: Vec<(f32, usize, usize, f64)>| SketchTarget {
         target_bytes: target,
@@ -444,7 +447,7 @@ fn fit_sketch_target(
         lambda_b,
         tries,
     };
-    if tries[0].1 <= target || !within(&kept) {
+    if tries[0].1 <= target || !within(&tries[0], &kept) {
         let met = tries[0].1 <= target;
         return Ok((kept, done(met, lambda_b0, tries)));
     }
@@ -457,12 +460,16 @@ fn fit_sketch_target(
             tries.last().map_or(0, |t| t.1)
         );
         let r = attempt(next, kept.budget.clone())?;
-        tries.push(row(next, &r));
-        if !within(&r) {
-            log::info!("sketch: at λ_B {next} the file or the fill is past its target: kept λ_B {lambda_b0}");
+        let t = row(next, &r);
+        tries.push(t);
+        if !within(&t, &r) {
+            log::info!(
+                "sketch: at λ_B {next} the file or the fill is past its target: kept λ_B \
+                 {lambda_b0}"
+            );
             return Ok((kept, done(false, lambda_b0, tries)));
         }
-        if curves(&r) <= target {
+        if t.1 <= target {
             hi = Some((next, r));
         } else {
             lo = next;
@@ -475,8 +482,9 @@ fn fit_sketch_target(
     // One halving of the interval: each try is a whole pursuit.
     let mid = 0.5 * (lo + best);
     let r = attempt(mid, kept.budget.clone())?;
-    tries.push(row(mid, &r));
-    if curves(&r) <= target && within(&r) {
+    let t = row(mid, &r);
+    tries.push(t);
+    if t.1 <= target && within(&t, &r) {
         return Ok((r, done(true, mid, tries)));
     }
     Ok((best_run, done(true, best, tries)))

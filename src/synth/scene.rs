@@ -716,12 +716,7 @@ impl Scene {
                 }
             }
             used.extend(pts.iter().copied());
-            strokes.push(Stroke {
-                kind: StrokeKind::Direction,
-                points: pts,
-                radius: None,
-                sure: false,
-            });
+            strokes.push(Stroke::new(StrokeKind::Direction, pts));
         }
         Strokes::new(strokes)
     }

@@ -73,12 +73,7 @@ fn across(s: &Scene, kind: StrokeKind, fy: f64) -> Strokes {
     let pts = (0..=8)
         .map(|i| [x0 + (x1 - x0) * i as f32 / 8.0, y])
         .collect();
-    Strokes::new(vec![Stroke {
-        kind,
-        points: pts,
-        radius: None,
-        sure: false,
-    }])
+    Strokes::new(vec![Stroke::new(kind, pts)])
 }
 
 /// Nearest point of the stroke polyline (f64): distance and the stroke direction there.
@@ -128,12 +123,7 @@ fn down(s: &Scene, kind: StrokeKind) -> Strokes {
             ]
         })
         .collect();
-    Strokes::new(vec![Stroke {
-        kind,
-        points: pts,
-        radius: None,
-        sure: false,
-    }])
+    Strokes::new(vec![Stroke::new(kind, pts)])
 }
 
 /// Combs `sc` with `strokes` and checks and prints its figures; returns (vertices that end
@@ -419,12 +409,10 @@ fn edit_cli_writes_a_model_and_refuses_bad_input() {
     across(&sc, StrokeKind::Cut, 0.0)
         .save(&t.path().join("top.json"))
         .unwrap();
-    Strokes::new(vec![Stroke {
-        kind: StrokeKind::Comb,
-        points: vec![[10.0, 10.0], [500.0, 10.0]],
-        radius: None,
-        sure: false,
-    }])
+    Strokes::new(vec![Stroke::new(
+        StrokeKind::Comb,
+        vec![[10.0, 10.0], [500.0, 10.0]],
+    )])
     .save(&t.path().join("off.json"))
     .unwrap();
     // A degenerate stroke: `Strokes::save` refuses it, so it is written by hand.

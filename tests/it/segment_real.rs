@@ -376,31 +376,23 @@ fn corrective_stroke(
             _ => -1,
         })
         .collect();
-    // Distance to the nearest pixel of another class (or the image's edge), searched within
-    // 16 px: errors are few, so brute force is quick.
-    const R: i64 = 16;
+    // Distance to the nearest pixel of another class or off the image: the exact transform
+    // on the image framed by a ring of "other" pixels, one per error kind.
+    let (pw, ph) = (wu + 2, hu + 2);
+    let to_other = |kind: i8| {
+        let set: Vec<bool> = (0..pw * ph)
+            .map(|j| {
+                let (x, y) = (j % pw, j / pw);
+                x == 0 || y == 0 || x == pw - 1 || y == ph - 1 || err[(y - 1) * wu + x - 1] != kind
+            })
+            .collect();
+        coif::synth::distance_to(&set, pw, ph)
+    };
+    let (missed, taken) = (to_other(1), to_other(-1));
     let (mut d, mut at) = (0.0f32, 0);
     for i in (0..wu * hu).filter(|&i| err[i] != 0) {
-        let (x, y) = ((i % wu) as i64, (i / wu) as i64);
-        let mut d2 = R * R;
-        for dy in -R..=R {
-            for dx in -R..=R {
-                let q2 = dx * dx + dy * dy;
-                if q2 >= d2 {
-                    continue;
-                }
-                let (xx, yy) = (x + dx, y + dy);
-                if xx < 0
-                    || yy < 0
-                    || xx >= wu as i64
-                    || yy >= hu as i64
-                    || err[yy as usize * wu + xx as usize] != err[i]
-                {
-                    d2 = q2;
-                }
-            }
-        }
-        let di = (d2 as f32).sqrt();
+        let j = (i / wu + 1) * pw + i % wu + 1;
+        let di = if err[i] > 0 { missed[j] } else { taken[j] };
         if di > d {
             (d, at) = (di, i);
         }

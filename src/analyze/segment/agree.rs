@@ -144,12 +144,10 @@ mod tests {
                 [v, v, v]
             })
             .collect();
-        let s = Strokes::new(vec![Stroke {
-            kind: StrokeKind::Direction,
-            points: vec![[10.0, 5.0], [10.0, 35.0]],
-            radius: None,
-            sure: false,
-        }]);
+        let s = Strokes::new(vec![Stroke::new(
+            StrokeKind::Direction,
+            vec![[10.0, 5.0], [10.0, 35.0]],
+        )]);
         let (_, blur) = super::super::texture::luminance(&rgb, w, h);
         let b = agreement_bins(&blur, &s, w, h);
         let (along, across) = (b[20 * w + 8], b[20 * w + 30]);

@@ -15,14 +15,19 @@ mod agree;
 mod flow;
 mod geodesic;
 mod gmm;
+mod strokes;
 mod texture;
 
 use crate::base::rng::Rng;
 use crate::error::{Error, Result};
-use crate::io::annot::{Stroke, StrokeKind, Strokes};
+use crate::io::annot::{StrokeKind, Strokes};
 use flow::{smoothness_weights, GridFlow};
 use gmm::{data_terms, Gmm};
 use image::{GrayImage, RgbImage};
+pub use strokes::brush_pixels;
+use strokes::off_model_strokes;
+#[cfg(test)]
+use strokes::raster_stroke;
 use texture::{bin_nll, luminance, texture_bins};
 
 /// Tuning of [`segment`].
@@ -427,49 +432,6 @@ fn check_share(label: &[bool], seed: &[u8], w: u32, h: u32) -> Result<()> {
     Ok(())
 }
 
-/// The pixels (y·w + x) a stroke's brush covers: centres within its radius (`default`
-/// where it has none; at least half a pixel diagonal) of the polyline. Segmentation makes
-/// them sure hair or background.
-pub fn brush_pixels(s: &Stroke, default: f32, w: u32, h: u32) -> Vec<usize> {
-    let mut out = Vec::new();
-    raster_stroke(&s.points, s.radius.unwrap_or(default), w, h, |i| {
-        out.push(i)
-    });
-    out
-}
-
-/// Calls `mark` for every pixel whose centre is within `r` of the polyline. Thin brushes
-/// still mark a connected line (radius at least half a pixel diagonal).
-fn raster_stroke(pts: &[[f32; 2]], r: f32, w: u32, h: u32, mut mark: impl FnMut(usize)) {
-    let r = r.max(std::f32::consts::FRAC_1_SQRT_2);
-    for seg in pts.windows(2) {
-        let (a, b) = (seg[0], seg[1]);
-        let x0 = (a[0].min(b[0]) - r - 0.5).floor().max(0.0);
-        let x1 = (a[0].max(b[0]) + r - 0.5).ceil().min(w as f32 - 1.0);
-        let y0 = (a[1].min(b[1]) - r - 0.5).floor().max(0.0);
-        let y1 = (a[1].max(b[1]) + r - 0.5).ceil().min(h as f32 - 1.0);
-        if x0 > x1 || y0 > y1 {
-            continue;
-        }
-        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-        let len2 = dx * dx + dy * dy;
-        for y in y0 as u32..=y1 as u32 {
-            for x in x0 as u32..=x1 as u32 {
-                let (px, py) = (x as f32 + 0.5, y as f32 + 0.5);
-                let t = if len2 > 0.0 {
-                    (((px - a[0]) * dx + (py - a[1]) * dy) / len2).clamp(0.0, 1.0)
-                } else {
-                    0.0
-                };
-                let (ex, ey) = (px - a[0] - t * dx, py - a[1] - t * dy);
-                if ex * ex + ey * ey <= r * r {
-                    mark(y as usize * w as usize + x as usize);
-                }
-            }
-        }
-    }
-}
-
 /// Colour samples for fitting, at most `MAX_SAMPLES` drawn uniformly so that large regions
 /// do not make fitting slow.
 const MAX_SAMPLES: usize = 20_000;
@@ -481,80 +443,6 @@ fn sample(rgb: &[[f32; 3]], idx: &[usize], rng: &mut Rng) -> Vec<[f32; 3]> {
     (0..MAX_SAMPLES)
         .map(|_| rgb[idx[rng.below(idx.len() as u32) as usize]])
         .collect()
-}
-
-/// A direction stroke that seems not to lie (all) on hair.
-#[derive(Debug)]
-struct OffStroke {
-    stroke: usize,
-    /// Its pixels likelier background than hair, of `total` under its brush.
-    off: usize,
-    total: usize,
-    /// Those pixels' bounds, [x0, y0, x1, y1] inclusive.
-    bbox: [usize; 4],
-    /// Those pixels (indices into the image).
-    pixels: Vec<usize>,
-}
-
-/// Direction strokes not marked `sure` that seem not to lie on hair: over half of the stroke's pixels are
-/// likelier under the background model (`bg`: [`segment_with_warnings`] passes the first
-/// one, fitted to the background samples before any cut) than under a hair model fitted to
-/// the other direction strokes. (The full hair model contains the stroke's own colours, so it
-/// cannot tell.) Needs two or more direction strokes. Half, not all: on the web portraits of
-/// `tests/it/segment_real.rs` a stroke drawn down the edge of a face, 55% of its brush on
-/// skin by the hand-drawn reference, scores 57% here, and the other 14 at most 39% (one with
-/// none of its brush off the reference's hair 35%; measured with the model after the last
-/// cut, which this was judged by until 2026-12-06; with the first model the same stroke
-/// scores 748 of 1,322 and no other passes half).
-fn off_model_strokes(
-    rgb: &[[f32; 3]],
-    owner: &[u32],
-    strokes: &Strokes,
-    w: usize,
-    bg: &Gmm,
-    components: usize,
-) -> Vec<OffStroke> {
-    let mut by_stroke: Vec<Vec<usize>> = vec![Vec::new(); strokes.strokes.len()];
-    for (i, &o) in owner.iter().enumerate() {
-        if o != u32::MAX {
-            by_stroke[o as usize].push(i);
-        }
-    }
-    let used: Vec<usize> = (0..by_stroke.len())
-        .filter(|&s| !by_stroke[s].is_empty())
-        .collect();
-    if used.len() < 2 {
-        return Vec::new();
-    }
-    let mut out = Vec::new();
-    for &s in used.iter().filter(|&&s| !strokes.strokes[s].sure) {
-        let others: Vec<usize> = used
-            .iter()
-            .filter(|&&o| o != s)
-            .flat_map(|&o| by_stroke[o].iter().copied())
-            .collect();
-        let mut rng = Rng::new(0x5e6_0002 + s as u64);
-        let fg = Gmm::fit(&sample(rgb, &others, &mut rng), components, &mut rng);
-        let off: Vec<usize> = by_stroke[s]
-            .iter()
-            .copied()
-            .filter(|&i| bg.nll(rgb[i]) < fg.nll(rgb[i]))
-            .collect();
-        if off.len() * 2 > by_stroke[s].len() {
-            let bbox = off.iter().fold([usize::MAX, usize::MAX, 0, 0], |b, &i| {
-                let (x, y) = (i % w, i / w);
-                [b[0].min(x), b[1].min(y), b[2].max(x), b[3].max(y)]
-            });
-            out.push(OffStroke {
-                stroke: s,
-                off: off.len(),
-                total: by_stroke[s].len(),
-                bbox,
-                pixels: off,
-            });
-        }
-    }
-    out
 }
 
 // ----------------------------------------------------------------------------------------
@@ -680,12 +568,9 @@ mod tests {
             vec![[w * 0.45, h * 0.55], [w * 0.55, h * 0.6]],
             vec![[w * 0.3, h - 10.0], [w * 0.7, h - 10.0]],
         ] {
-            strokes.strokes.push(Stroke {
-                kind: StrokeKind::Background,
-                points: pts,
-                radius: None,
-                sure: false,
-            });
+            strokes
+                .strokes
+                .push(Stroke::new(StrokeKind::Background, pts));
         }
         // The strokes must actually lie off the hair for the test to mean anything.
         for s in &strokes.strokes[strokes.strokes.len() - 4..] {
@@ -766,12 +651,10 @@ mod tests {
             frac(&without)
         );
         assert!(frac(&without) > 0.8, "{}", frac(&without));
-        strokes.strokes.push(Stroke {
-            kind: StrokeKind::Background,
-            points: vec![[40.0, 60.0], [80.0, 60.0]],
-            radius: None,
-            sure: false,
-        });
+        strokes.strokes.push(Stroke::new(
+            StrokeKind::Background,
+            vec![[40.0, 60.0], [80.0, 60.0]],
+        ));
         let with = segment(&img, &strokes, &p).unwrap();
         let v = iou(&with, &case.mask);
         println!(
@@ -848,12 +731,10 @@ mod tests {
     #[test]
     fn two_tone_image_splits_at_the_edge() {
         let img = two_tone();
-        let s = Strokes::new(vec![Stroke {
-            kind: StrokeKind::Direction,
-            points: vec![[16.0, 10.0], [16.0, 38.0]],
-            radius: None,
-            sure: false,
-        }]);
+        let s = Strokes::new(vec![Stroke::new(
+            StrokeKind::Direction,
+            vec![[16.0, 10.0], [16.0, 38.0]],
+        )]);
         let m = segment(&img, &s, &SegmentParams::default()).unwrap();
         for (x, _, v) in m.enumerate_pixels() {
             assert_eq!(v[0] == 255, x < 32, "pixel column {x}");
@@ -864,28 +745,22 @@ mod tests {
     fn errors_are_clear() {
         let img = two_tone();
         let p = SegmentParams::default();
-        let bg_only = Strokes::new(vec![Stroke {
-            kind: StrokeKind::Background,
-            points: vec![[40.0, 10.0], [50.0, 30.0]],
-            radius: None,
-            sure: false,
-        }]);
+        let bg_only = Strokes::new(vec![Stroke::new(
+            StrokeKind::Background,
+            vec![[40.0, 10.0], [50.0, 30.0]],
+        )]);
         let e = segment(&img, &bg_only, &p).unwrap_err().to_string();
         assert!(e.contains("at least one direction stroke"), "{e}");
-        let off = Strokes::new(vec![Stroke {
-            kind: StrokeKind::Direction,
-            points: vec![[500.0, 500.0], [600.0, 600.0]],
-            radius: None,
-            sure: false,
-        }]);
+        let off = Strokes::new(vec![Stroke::new(
+            StrokeKind::Direction,
+            vec![[500.0, 500.0], [600.0, 600.0]],
+        )]);
         let e = segment(&img, &off, &p).unwrap_err().to_string();
         assert!(e.contains("outside"), "{e}");
-        let dir = Strokes::new(vec![Stroke {
-            kind: StrokeKind::Direction,
-            points: vec![[16.0, 10.0], [16.0, 38.0]],
-            radius: None,
-            sure: false,
-        }]);
+        let dir = Strokes::new(vec![Stroke::new(
+            StrokeKind::Direction,
+            vec![[16.0, 10.0], [16.0, 38.0]],
+        )]);
         let e = segment(&img, &dir, &SegmentParams { border: 0, ..p })
             .unwrap_err()
             .to_string();
@@ -894,12 +769,10 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("components"), "{e}");
-        let nan = Strokes::new(vec![Stroke {
-            kind: StrokeKind::Direction,
-            points: vec![[f32::NAN, 10.0], [16.0, 38.0]],
-            radius: None,
-            sure: false,
-        }]);
+        let nan = Strokes::new(vec![Stroke::new(
+            StrokeKind::Direction,
+            vec![[f32::NAN, 10.0], [16.0, 38.0]],
+        )]);
         let e = segment(&img, &nan, &p).unwrap_err().to_string();
         assert!(e.contains("not finite"), "{e}");
     }
@@ -909,12 +782,8 @@ mod tests {
     #[test]
     fn off_model_stroke_is_allowed_and_reported() {
         let img = two_tone();
-        let line = |x: f32, y0: f32, y1: f32| Stroke {
-            kind: StrokeKind::Direction,
-            points: vec![[x, y0], [x, y1]],
-            radius: None,
-            sure: false,
-        };
+        let line =
+            |x: f32, y0: f32, y1: f32| Stroke::new(StrokeKind::Direction, vec![[x, y0], [x, y1]]);
         let s = Strokes::new(vec![
             line(10.0, 8.0, 20.0),
             line(20.0, 26.0, 40.0),
@@ -923,12 +792,10 @@ mod tests {
         // With hair strokes on both colours and nothing marked background, all of the image
         // would be hair, which `segment` refuses: a background stroke keeps part of it out.
         let mut with_bg = s.clone();
-        with_bg.strokes.push(Stroke {
-            kind: StrokeKind::Background,
-            points: vec![[60.0, 4.0], [60.0, 44.0]],
-            radius: None,
-            sure: false,
-        });
+        with_bg.strokes.push(Stroke::new(
+            StrokeKind::Background,
+            vec![[60.0, 4.0], [60.0, 44.0]],
+        ));
         let m = segment(&img, &with_bg, &SegmentParams::default()).unwrap();
         assert_eq!(
             m.get_pixel(50, 22)[0],

@@ -218,12 +218,7 @@ pub(super) fn make_strokes(
     Strokes::new(
         chosen
             .into_iter()
-            .map(|points| Stroke {
-                kind: StrokeKind::Direction,
-                points,
-                radius: None,
-                sure: false,
-            })
+            .map(|points| Stroke::new(StrokeKind::Direction, points))
             .collect(),
     )
 }
