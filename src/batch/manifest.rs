@@ -161,6 +161,9 @@ pub struct SketchOpts {
     pub directions: Option<String>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub crown: Option<String>,
+    /// κ, the direction prior's weight against the curves' compatibility (default 0.2).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub prior_weight: Option<f32>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sweeps: Option<usize>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -382,6 +385,13 @@ fn check(e: &Entry) -> Result<(), String> {
         c.parse::<crate::sketch::swc::Crown>()
             .map_err(|err| format!("key `sketch.crown`: {err}"))?;
     }
+    if let Some(k) = e.sketch.as_ref().and_then(|o| o.prior_weight) {
+        if !(k.is_finite() && k > 0.0) {
+            return Err(format!(
+                "key `sketch.prior_weight`: must be a finite number > 0, got {k}"
+            ));
+        }
+    }
     Ok(())
 }
 
@@ -529,6 +539,7 @@ impl BatchJob {
                     if let Some(c) = &o.crown {
                         params.swc.prior.crown = c.parse().expect("checked");
                     }
+                    set(&mut params.swc.prior.kappa, o.prior_weight);
                     set(&mut params.swc.sweeps, o.sweeps);
                     set(&mut params.bases, o.bases);
                     set(&mut params.sigma_l, o.sigma_low);
@@ -693,6 +704,10 @@ mod tests {
             (
                 r#"{"id": "a", "image": "a.png", "out": "o", "steps": ["sketch"], "sketch": {"whole": true, "crown": "top"}}"#.into(),
                 "line 1: key `sketch.crown`",
+            ),
+            (
+                r#"{"id": "a", "image": "a.png", "out": "o", "steps": ["sketch"], "sketch": {"whole": true, "prior_weight": -1}}"#.into(),
+                "line 1: key `sketch.prior_weight`: must be a finite number > 0, got -1",
             ),
             (
                 r#"{"id": "", "image": "a.png", "out": "o", "steps": ["orient"]}"#.into(),

@@ -20,7 +20,7 @@ fn schema_accepts(line: &str) -> bool {
 
 #[test]
 fn schema_and_parser_agree() {
-    let full = r#"{"id": "p", "image": "a.png", "strokes": "s.json", "mask": "m.png", "landmarks": "l.json", "reference_mask": "r.png", "out": "o", "steps": ["orient", "analyze", "model", "render", "sketch", "synth-hair"], "orient": {"orientations": 16, "sigma_x": 1, "sigma_y": 2, "lambda": 4, "ksize": 17, "dog_fine": 0.5, "dog_coarse": 3, "refine": 1, "smooth": 0}, "analyze": {"radius": 5, "stroke_weight": 2, "segment_smoothness": 25, "segment_luminance": 1, "segment_trust_strokes": true}, "model": {"seed": 7, "roots": 99, "cells": 20, "refine": 2}, "render": {"yaw": 25, "pitch": -5, "roll": 1, "scale": 0.5, "hue": 30, "saturation": 1.2, "value": 0.9, "highlight": 0.6, "width": 1.5, "seed": 4}, "sketch": {"whole": true, "curve_penalty": 2, "primitive_penalty": 1, "dictionary_sides": true, "bit_cost": 0.5, "rate_contrast": true, "max_bytes": 900, "target_bytes": 0, "target_fill": 10, "target_sketch_bytes": 500, "directions": "icm", "crown": "centroid", "sweeps": 5, "bases": 3, "sigma_low": 6, "seed": 9}, "synth-hair": {"seed": 1, "rounds": 1, "half_length": 8, "grain": false, "over": true}}"#;
+    let full = r#"{"id": "p", "image": "a.png", "strokes": "s.json", "mask": "m.png", "landmarks": "l.json", "reference_mask": "r.png", "out": "o", "steps": ["orient", "analyze", "model", "render", "sketch", "synth-hair"], "orient": {"orientations": 16, "sigma_x": 1, "sigma_y": 2, "lambda": 4, "ksize": 17, "dog_fine": 0.5, "dog_coarse": 3, "refine": 1, "smooth": 0}, "analyze": {"radius": 5, "stroke_weight": 2, "segment_smoothness": 25, "segment_luminance": 1, "segment_trust_strokes": true}, "model": {"seed": 7, "roots": 99, "cells": 20, "refine": 2}, "render": {"yaw": 25, "pitch": -5, "roll": 1, "scale": 0.5, "hue": 30, "saturation": 1.2, "value": 0.9, "highlight": 0.6, "width": 1.5, "seed": 4}, "sketch": {"whole": true, "curve_penalty": 2, "primitive_penalty": 1, "dictionary_sides": true, "bit_cost": 0.5, "rate_contrast": true, "max_bytes": 900, "target_bytes": 0, "target_fill": 10, "target_sketch_bytes": 500, "directions": "icm", "crown": "parting", "prior_weight": 0.5, "sweeps": 5, "bases": 3, "sigma_low": 6, "seed": 9}, "synth-hair": {"seed": 1, "rounds": 1, "half_length": 8, "grain": false, "over": true}}"#;
     let good = [
         full,
         r#"{"id": "p001", "image": "a.png", "strokes": "a.json", "landmarks": "a_lm.json", "mask": "m.png", "out": "out/p001", "steps": ["model", "render"], "render": {"yaw": 25}}"#,
@@ -36,9 +36,9 @@ fn schema_and_parser_agree() {
     let again = serde_json::to_value(&jobs[0].entry).unwrap();
     let orig: serde_json::Value = serde_json::from_str(full).unwrap();
     assert_eq!(keys(&again, ""), keys(&orig, ""));
-    // 14 keys of the line; options: orient 9, analyze 5, model 4, render 10, sketch 16,
+    // 14 keys of the line; options: orient 9, analyze 5, model 4, render 10, sketch 17,
     // synth-hair 5.
-    assert_eq!(keys(&orig, "").len(), 14 + 9 + 5 + 4 + 10 + 16 + 5);
+    assert_eq!(keys(&orig, "").len(), 14 + 9 + 5 + 4 + 10 + 17 + 5);
     let bad = [
         r#"{"id": "a", "image": "a.png", "out": "o", "steps": ["paint"]}"#,
         r#"{"id": "a", "image": "a.png", "out": "o", "steps": ["orient"], "colour": 1}"#,
@@ -50,6 +50,7 @@ fn schema_and_parser_agree() {
         r#"{"id": "a", "image": "a.png", "out": "o", "steps": ["sketch"], "sketch": {"whole": true, "directions": "best"}}"#,
         r#"{"id": "a", "image": "a.png", "out": "o", "steps": ["sketch"], "sketch": {"whole": true, "crown": "top"}}"#,
         r#"{"id": "a", "image": "a.png", "out": "o", "steps": ["sketch"], "sketch": {"whole": true, "target_fill": -1}}"#,
+        r#"{"id": "a", "image": "a.png", "out": "o", "steps": ["sketch"], "sketch": {"whole": true, "prior_weight": 0}}"#,
         r#"{"id": "a", "image": "a.png", "out": "o", "steps": ["analyze"], "strokes": "s", "analyze": {"segment_trust_strokes": 1}}"#,
         r#"{"id": "", "image": "a.png", "out": "o", "steps": ["orient"]}"#,
         r#"{"id": "a", "image": 3, "out": "o", "steps": ["orient"]}"#,

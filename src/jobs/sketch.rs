@@ -116,6 +116,7 @@ pub(super) fn run_sketch(engine: &Engine, j: &SketchJob) -> anyhow::Result<Repor
         "hair_pixels": hair.iter().filter(|&&m| m).count(),
         "method": j.params.method.name(),
         "crown": j.params.swc.prior.crown.name(),
+        "prior_weight": j.params.swc.prior.kappa,
         "seed": j.params.seed,
     });
     record_all(&r.seconds);

@@ -220,11 +220,17 @@ pub struct SketchArgs {
     /// curve by the direction prior alone; the ablation baselines).
     #[arg(long, default_value = "swc")]
     directions: String,
-    /// Where the direction prior's crown sits across the hair: parting (over the parting
-    /// the orientation field shows, else the mask's centroid) or centroid (CZ06's generic
-    /// prior: a side parting is left to the sketch and the curves' compatibility).
-    #[arg(long, default_value = "parting")]
+    /// Where the direction prior's crown sits across the hair: centroid (CZ06's generic
+    /// prior: a side parting is left to the sketch and the curves' compatibility) or
+    /// parting (over the parting the orientation field shows, else the mask's centroid).
+    #[arg(long, default_value = "centroid")]
     crown: String,
+    /// κ, the direction prior's weight per sketch pixel against the curves' compatibility
+    /// (one per border pixel pair): larger trusts the prior (outward from the crown, bent
+    /// down) more than the neighbouring curves.
+    #[arg(long, default_value_t = coif::sketch::swc::DEFAULT_PRIOR_WEIGHT,
+          value_parser = positive_f32)]
+    prior_weight: f32,
     /// Swendsen-Wang proposals.
     #[arg(long, default_value_t = coif::sketch::swc::SwcParams::default().sweeps)]
     sweeps: usize,
@@ -353,6 +359,13 @@ fn parse_non_negative(s: &str) -> Result<f32, String> {
     match s.parse::<f32>() {
         Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
         _ => Err(format!("expected a finite number ≥ 0, got {s:?}")),
+    }
+}
+
+fn positive_f32(s: &str) -> Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("expected a finite number > 0, got {s:?}")),
     }
 }
 
@@ -774,6 +787,7 @@ impl Command {
                     (a.target_sketch_bytes > 0).then_some(a.target_sketch_bytes as usize);
                 params.method = a.directions.parse()?;
                 params.swc.prior.crown = a.crown.parse()?;
+                params.swc.prior.kappa = a.prior_weight;
                 params.swc.sweeps = a.sweeps;
                 params.bases = a.bases;
                 params.sigma_l = a.sigma_low;
