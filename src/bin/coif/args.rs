@@ -229,7 +229,7 @@ pub struct SketchArgs {
     /// (one per border pixel pair): larger trusts the prior (outward from the crown, bent
     /// down) more than the neighbouring curves.
     #[arg(long, default_value_t = coif::sketch::swc::DEFAULT_PRIOR_WEIGHT,
-          value_parser = positive_f32)]
+          value_parser = parse_positive)]
     prior_weight: f32,
     /// Swendsen-Wang proposals.
     #[arg(long, default_value_t = coif::sketch::swc::SwcParams::default().sweeps)]
@@ -362,7 +362,7 @@ fn parse_non_negative(s: &str) -> Result<f32, String> {
     }
 }
 
-fn positive_f32(s: &str) -> Result<f32, String> {
+fn parse_positive(s: &str) -> Result<f32, String> {
     match s.parse::<f32>() {
         Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
         _ => Err(format!("expected a finite number > 0, got {s:?}")),
