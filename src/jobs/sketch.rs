@@ -164,18 +164,23 @@ pub(super) fn run_sketch(engine: &Engine, j: &SketchJob) -> anyhow::Result<Repor
         }
     }
     if let Some(t) = &r.sketch_target {
-        if t.met && t.tries.len() > 1 {
+        if t.curves_kept < t.curves_pursued {
             details.push(format!(
-                "primitive penalty raised to {} to bring the sketch part within {} B ({} more \
-                 pursuits)",
-                t.lambda_b,
+                "{} of {} curves kept, the ones the fill needs most, to bring the sketch part \
+                 within {} B{}",
+                t.curves_kept,
+                t.curves_pursued,
                 t.target_bytes,
-                t.tries.len() - 1
+                if t.met {
+                    ""
+                } else {
+                    " (not reached: the fill would pass its target)"
+                }
             ));
         } else if !t.met {
             details.push(format!(
-                "sketch part {} B, over the {} B target: a larger primitive penalty takes the \
-                 file or the fill past its target (tries in report.json)",
+                "sketch part {} B, over the {} B target: no curve can go without the fill \
+                 passing its target (rounds in report.json)",
                 sizes.curves, t.target_bytes
             ));
         }

@@ -33,6 +33,7 @@ pub mod format;
 pub mod oracle;
 pub mod pairwise;
 pub mod prim;
+pub mod prune;
 pub mod pursuit;
 pub mod region;
 pub mod rho;

@@ -41,26 +41,28 @@ pub struct SketchParams {
     /// [`FILL_MIN_LAMBDA_NC`]) and the analysis run again (see [`FillTarget`]); None: off.
     pub fill_target: Option<f32>,
     /// What the sketch part of `hair.czs` (its curves) is held to, bytes, where that keeps
-    /// the byte and fill targets met: λ_B is raised until the curves fit (see
-    /// [`SketchTarget`]); None: off.
+    /// the byte and fill targets met: the curves the fill can best do without are dropped
+    /// until it fits (see [`SketchTarget`]); None: off.
     pub sketch_target: Option<usize>,
+    /// Tuning of that pruning.
+    pub prune: super::prune::PruneParams,
 }
 
 /// Issue 16's bound on the sketch part of `hair.czs`, the default sketch target (bytes).
 pub const DEFAULT_SKETCH_TARGET_BYTES: usize = 600;
 
-/// How the sketch target was met: every (λ_B, curve bytes, `.czs` bytes, fill error in
-/// degrees) tried after the byte and fill targets, in order, and the kept λ_B (which
-/// supersedes the byte target's [`Budget::lambda_b`]: the sketch kept was pursued with it).
-/// A try is kept only if its curves fit and its file and fill stay within their targets;
-/// the search stops at the first try whose file or fill does not (a larger λ_B only
-/// coarsens the fill further).
+/// How the sketch target was met: by pruning (`super::prune`), after the byte and fill
+/// targets, the curves the fill can best do without, with the fill kept within its target.
+/// `rounds` holds (curves, sketch part bytes, `.czs` bytes, fill error in degrees), the
+/// first row the sketch as pursued; where any curve went, Θ and the directions were then
+/// solved again for the curves kept, and the last row is that final sketch.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct SketchTarget {
     pub target_bytes: usize,
     pub met: bool,
-    pub lambda_b: f32,
-    pub tries: Vec<(f32, usize, usize, f64)>,
+    pub curves_pursued: usize,
+    pub curves_kept: usize,
+    pub rounds: Vec<super::prune::Round>,
 }
 
 /// Issue 16's bound on the fill against the dense field on real hair photos, the default
@@ -134,6 +136,7 @@ impl Default for SketchParams {
             budget: ByteBudget::Target(DEFAULT_TARGET_BYTES),
             fill_target: Some(DEFAULT_FILL_TARGET_DEG),
             sketch_target: Some(DEFAULT_SKETCH_TARGET_BYTES),
+            prune: Default::default(),
         }
     }
 }
@@ -246,6 +249,32 @@ pub fn analyse(engine: &Engine, inp: &SketchInputs, p: &SketchParams) -> Result<
     // Steps 1 and 2 and the stored sketch, for one λ_NC and λ_B; their times summed over
     // attempts.
     let times = std::cell::Cell::new([0.0f64; 3]);
+    // Step 2 on a pursuit's curves, the strokes clamping the curves they run along.
+    let direct = |pu: &pursuit::Pursuit| -> Result<swc::Directed> {
+        let clamps = match inp.strokes {
+            Some(s) => swc::stroke_clamps(&pu.curves, s, inp.hair, w, h),
+            None => Vec::new(),
+        };
+        swc::directions(
+            &pu.curves, &pu.theta, inp.hair, w, h, &clamps, &p.swc, p.method,
+        )
+    };
+    // The sketch as the files store it.
+    let stored = |pu: &pursuit::Pursuit, directed: &swc::Directed| {
+        // Eq. 12's along/across ratio of the high band under Step 1's Θ.
+        let along_across = super::texture::along_across(&high.data, &pu.theta, inp.hair, w, h);
+        format::quantise(&Sketch {
+            width: w,
+            height: h,
+            seed: p.seed,
+            curves: directed.curves.clone(),
+            rho_off: pu.rho_off,
+            shading: shading.clone(),
+            colour: colour.clone(),
+            region: region.clone(),
+            along_across,
+        })
+    };
     let attempt =
         |lambda_nc: f32, lambda_b: f32| -> Result<(pursuit::Pursuit, swc::Directed, Sketch)> {
             // A budget's pursuits are the run's longest stretch: a signal stops it between them.
@@ -258,32 +287,14 @@ pub fn analyse(engine: &Engine, inp: &SketchInputs, p: &SketchParams) -> Result<
             let t0 = Instant::now();
             let pu = pursuit::pursue(engine, &high, inp.hair, &warm.theta, &pp)?;
             let t1 = Instant::now();
-            let clamps = match inp.strokes {
-                Some(s) => swc::stroke_clamps(&pu.curves, s, inp.hair, w, h),
-                None => Vec::new(),
-            };
-            let directed = swc::directions(
-                &pu.curves, &pu.theta, inp.hair, w, h, &clamps, &p.swc, p.method,
-            )?;
+            let directed = direct(&pu)?;
             let [a, b, c] = times.get();
             times.set([
                 a + (t1 - t0).as_secs_f64(),
                 b + t1.elapsed().as_secs_f64(),
                 c,
             ]);
-            // Eq. 12's along/across ratio of the high band under Step 1's Θ.
-            let along_across = super::texture::along_across(&high.data, &pu.theta, inp.hair, w, h);
-            let sketch = format::quantise(&Sketch {
-                width: w,
-                height: h,
-                seed: p.seed,
-                curves: directed.curves.clone(),
-                rho_off: pu.rho_off,
-                shading: shading.clone(),
-                colour: colour.clone(),
-                region: region.clone(),
-                along_across,
-            });
+            let sketch = stored(&pu, &directed);
             Ok((pu, directed, sketch))
         };
     // Where the fill's error is read.
@@ -363,20 +374,46 @@ pub fn analyse(engine: &Engine, inp: &SketchInputs, p: &SketchParams) -> Result<
         }
         None => None,
     };
+    let t_prune = Instant::now();
     let sketch_target = match p.sketch_target {
         Some(target) => {
-            let lambda_nc = fill_target
-                .as_ref()
-                .map_or(p.pursuit.lambda_nc, |f| f.lambda_nc);
-            let lambda_b0 = kept
-                .budget
-                .as_ref()
-                .map_or(p.pursuit.lambda_b, |b| b.lambda_b);
-            let (t, tries) = fit_sketch_target(target, lambda_b0, kept, p, |lb, budget| {
-                finish(attempt(lambda_nc, lb)?, budget)
-            })?;
+            let (t, st) =
+                meet_sketch_target(target, kept, p, (engine, inp.hair, &inner), |run, keep| {
+                    // The curves kept, with Θ solved again under them (the dropped curves no
+                    // longer clamp it) and their directions taken again on that Θ.
+                    let Run { mut pu, budget, .. } = run;
+                    let undirected: Vec<_> = pu
+                        .curves
+                        .iter()
+                        .zip(keep)
+                        .filter(|(_, &k)| k)
+                        .map(|(c, _)| c.clone())
+                        .collect();
+                    let painted = super::prim::paint(&undirected, w, h, Some(inp.hair));
+                    let tp = super::theta::ThetaParams {
+                        sigma2: Some(pu.sigma2),
+                        ..p.pursuit.theta
+                    };
+                    let theta = super::theta::diffuse(
+                        engine,
+                        &high,
+                        inp.hair,
+                        Some(&painted),
+                        &pu.theta,
+                        &tp,
+                    )?;
+                    let (gx, gy) = super::theta::gradients(&high.data, w, h, inp.hair);
+                    pu.rho = super::rho::rho_field(&gx, &gy, &theta);
+                    (pu.theta, pu.curves) = (theta, undirected);
+                    let t1 = Instant::now();
+                    let directed = direct(&pu)?;
+                    let [a, b, c] = times.get();
+                    times.set([a, b + t1.elapsed().as_secs_f64(), c]);
+                    let sketch = stored(&pu, &directed);
+                    finish((pu, directed, sketch), budget)
+                })?;
             kept = t;
-            Some(tries)
+            Some(st)
         }
         None => None,
     };
@@ -392,6 +429,10 @@ pub fn analyse(engine: &Engine, inp: &SketchInputs, p: &SketchParams) -> Result<
     seconds.push(("pursuit", t_pursuit));
     seconds.push(("directions", t_directions));
     seconds.push(("fill", t_fill));
+    // The pruning's own fills and the rebuild (Θ, directions, fill) of what it kept.
+    if sketch_target.as_ref().is_some_and(|t| t.rounds.len() > 1) {
+        seconds.push(("prune", t_prune.elapsed().as_secs_f64()));
+    }
 
     Ok(SketchResult {
         sketch,
@@ -413,81 +454,65 @@ pub fn analyse(engine: &Engine, inp: &SketchInputs, p: &SketchParams) -> Result<
     })
 }
 
-/// The sketch target's first λ_B: a primitive's ~5 bits in the file as nats (5 ln 2), the
-/// penalty minimum description length gives a primitive (see the README's `coif sketch`).
-const SKETCH_TARGET_FIRST_LAMBDA_B: f32 = 3.5;
-
 /// Brings the curves of `kept` (already within the byte and fill targets) under `target`
-/// bytes by raising λ_B: from [`SKETCH_TARGET_FIRST_LAMBDA_B`] (or twice `lambda_b0`),
-/// doubled until they fit, then the interval halved once; a try counts only with its file and fill
-/// within their targets, and the first whose are not ends the search (a larger λ_B only
-/// coarsens them). Where nothing fits, `kept` is returned as it was.
-fn fit_sketch_target(
+/// bytes by pruning them (`super::prune`), the fill held within its target; `rebuild`
+/// makes the run of the curves kept. A sketch whose fill already misses its target is kept
+/// as it is, and so is one from which no curve could go.
+fn meet_sketch_target(
     target: usize,
-    lambda_b0: f32,
     kept: Run,
     p: &SketchParams,
-    attempt: impl Fn(f32, Option<Budget>) -> Result<Run>,
+    check: (&Engine, &[bool], &[bool]),
+    rebuild: impl FnOnce(Run, &[bool]) -> Result<Run>,
 ) -> Result<(Run, SketchTarget)> {
-    // A try's (λ_B, curve bytes, file bytes, fill error), the sketch encoded once.
-    let row = |lb: f32, r: &Run| {
-        let sizes = format::czs_sizes(&r.sketch);
-        (lb, sizes.curves, sizes.total, r.fill_error.0)
-    };
-    // Its file and fill within their targets (an unscored fill counts as within).
-    let within = |t: &(f32, usize, usize, f64), r: &Run| {
-        p.budget.bytes().is_none_or(|m| t.2 <= m)
-            && p.fill_target
-                .is_none_or(|f| r.fill_error.1 == 0 || t.3 <= f as f64)
-    };
-    let mut tries = vec![row(lambda_b0, &kept)];
-    let done = |met: bool, lambda_b: f32, tries: Vec<(f32, usize, usize, f64)>| SketchTarget {
+    let sizes = format::czs_sizes(&kept.sketch);
+    let first = (
+        kept.sketch.curves.len(),
+        sizes.curves,
+        sizes.total,
+        kept.fill_error.0,
+    );
+    let fill_max = p.fill_target.map(|f| f as f64);
+    let done = |met: bool, rounds: Vec<super::prune::Round>| SketchTarget {
         target_bytes: target,
         met,
-        lambda_b,
-        tries,
+        curves_pursued: first.0,
+        curves_kept: rounds.last().map_or(first.0, |r| r.0),
+        rounds,
     };
-    if tries[0].1 <= target || !within(&tries[0], &kept) {
-        let met = tries[0].1 <= target;
-        return Ok((kept, done(met, lambda_b0, tries)));
+    let over_fill = kept.fill_error.1 > 0 && fill_max.is_some_and(|f| first.3 > f);
+    if sizes.curves <= target || over_fill {
+        return Ok((kept, done(sizes.curves <= target, vec![first])));
     }
-    let (mut lo, mut hi) = (lambda_b0, None);
-    let mut next = (2.0 * lo).max(SKETCH_TARGET_FIRST_LAMBDA_B);
-    while hi.is_none() && next <= BUDGET_MAX_LAMBDA_B {
-        log::info!(
-            "sketch: the curves take {} B at λ_B {lo}, over the {target} B sketch target: \
-             pursuing again at λ_B {next}",
-            tries.last().map_or(0, |t| t.1)
-        );
-        let r = attempt(next, kept.budget.clone())?;
-        let t = row(next, &r);
-        tries.push(t);
-        if !within(&t, &r) {
-            log::info!(
-                "sketch: at λ_B {next} the file or the fill is past its target: kept λ_B \
-                 {lambda_b0}"
-            );
-            return Ok((kept, done(false, lambda_b0, tries)));
-        }
-        if t.1 <= target {
-            hi = Some((next, r));
-        } else {
-            lo = next;
-            next *= 2.0;
-        }
+    let (engine, hair, inner) = check;
+    let pruned = super::prune::prune(
+        &kept.sketch,
+        &kept.directed.curves,
+        target,
+        fill_max,
+        &super::prune::FillCheck {
+            engine,
+            hair,
+            inner,
+            theta: &kept.pu.theta,
+            fill: &p.fill,
+            seed: p.seed,
+        },
+        &p.prune,
+    )?;
+    if pruned.keep.iter().all(|&k| k) {
+        return Ok((kept, done(false, pruned.rounds)));
     }
-    let Some((best, best_run)) = hi else {
-        return Ok((kept, done(false, lambda_b0, tries)));
-    };
-    // One halving of the interval: each try is a whole pursuit.
-    let mid = 0.5 * (lo + best);
-    let r = attempt(mid, kept.budget.clone())?;
-    let t = row(mid, &r);
-    tries.push(t);
-    if t.1 <= target && within(&t, &r) {
-        return Ok((r, done(true, mid, tries)));
-    }
-    Ok((best_run, done(true, best, tries)))
+    let r = rebuild(kept, &pruned.keep)?;
+    let sizes = format::czs_sizes(&r.sketch);
+    let mut rounds = pruned.rounds;
+    rounds.push((
+        r.sketch.curves.len(),
+        sizes.curves,
+        sizes.total,
+        r.fill_error.0,
+    ));
+    Ok((r, done(sizes.curves <= target, rounds)))
 }
 
 /// One run of Steps 1 and 2 and the fill at one λ_NC.

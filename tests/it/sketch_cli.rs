@@ -271,19 +271,21 @@ fn real_photos_stay_small_and_the_fill_follows_the_dense_field() {
         }
         if let Some(t) = &r.sketch_target {
             println!(
-                "{:<10} sketch target: {} B, met {}, λ_B {} (tries: λ_B, curve B, file B, fill°: \
-                 {:?})",
-                img.name, t.target_bytes, t.met, t.lambda_b, t.tries
+                "{:<10} sketch target: {} B, met {}, {} of {} curves kept (rounds: curves, curve \
+                 B, file B, fill°: {:?})",
+                img.name, t.target_bytes, t.met, t.curves_kept, t.curves_pursued, t.rounds
             );
         }
-        rows.push((img.name, sizes.total, err));
+        rows.push((img.name, sizes.total, sizes.curves, err));
     }
     // Every file within the issue's 1 KiB, the raccoon crop (all partings and tufts, 171
-    // curves and 1225 B at λ_B 0) by the default target raising λ_B; every fill within the
+    // curves and 1225 B at λ_B 0) by the default target raising λ_B; every sketch part
+    // within its 600 B, the raccoon's by the sketch target's pruning; every fill within the
     // issue's 12° (the astronaut's since the orientation stage's guide power).
-    for (name, bytes, err) in rows {
+    for (name, bytes, curves, err) in rows {
         assert!(err <= 12.0, "{name}: fill vs dense Θ {err:.2}°");
         assert!(bytes <= 1024, "{name}: {bytes} B");
+        assert!(curves <= 600, "{name}: sketch part {curves} B");
     }
 }
 
@@ -560,11 +562,11 @@ fn a_fill_target_lowers_the_curve_penalty_until_the_fill_follows() {
 }
 
 /// The sketch target (issue 16's 600 B for the sketch part): off, it leaves the sketch as
-/// pursued; a target under the sketch's curves raises the primitive penalty until they fit
-/// and says so; one that no penalty reaches with the fill within its target keeps the
-/// sketch as pursued, with every try in the report.
+/// pursued; a target under the sketch's curves drops the curves the fill needs least until
+/// they fit and says so; one out of reach prunes only as far as the fill target allows,
+/// with every round in the report.
 #[test]
-fn a_sketch_target_raises_the_primitive_penalty_until_the_curves_fit() {
+fn a_sketch_target_prunes_the_curves_the_fill_needs_least() {
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
     write_case(&d.join("case"));
@@ -574,14 +576,15 @@ fn a_sketch_target_raises_the_primitive_penalty_until_the_curves_fit() {
     succeeded(&run("off", &["--target-sketch-bytes", "0"]));
     assert!(report("off")["sketch_target"].is_null());
     let curves = |name: &str| report(name)["bytes"]["curves"].as_u64().unwrap();
+    let fill = |name: &str| report(name)["fill"]["error_deg"].as_f64().unwrap();
     let c0 = curves("off");
     // Within reach at once: the same sketch.
     succeeded(&run("easy", &["--target-sketch-bytes", &format!("{c0}")]));
     let t = &report("easy")["sketch_target"];
     assert_eq!(t["met"], true, "{t}");
-    assert_eq!(t["tries"].as_array().unwrap().len(), 1, "{t}");
+    assert_eq!(t["rounds"].as_array().unwrap().len(), 1, "{t}");
     assert_eq!(czs("easy"), czs("off"));
-    // A fifth under: λ_B from 3.5 until the curves fit.
+    // A fifth under: curves dropped until the sketch part fits, the fill within 12°.
     let target = c0 * 4 / 5;
     let o = run("tight", &["--target-sketch-bytes", &format!("{target}")]);
     succeeded(&o);
@@ -589,27 +592,33 @@ fn a_sketch_target_raises_the_primitive_penalty_until_the_curves_fit() {
     let t = &report("tight")["sketch_target"];
     assert_eq!(t["met"], true, "{t}");
     assert!(curves("tight") <= target, "{} > {target}", curves("tight"));
-    let tries = t["tries"].as_array().unwrap();
-    assert_eq!(tries[0][1].as_u64().unwrap(), c0, "{t}");
-    assert_eq!(tries[1][0].as_f64().unwrap(), 3.5, "{t}");
-    let kept = t["lambda_b"].as_f64().unwrap();
-    assert!(kept > 0.0, "{t}");
+    let rounds = t["rounds"].as_array().unwrap();
+    assert_eq!(rounds[0][1].as_u64().unwrap(), c0, "{t}");
+    let (pursued, kept) = (
+        t["curves_pursued"].as_u64().unwrap(),
+        t["curves_kept"].as_u64().unwrap(),
+    );
+    assert!(kept < pursued, "{t}");
+    assert_eq!(report("tight")["curves"].as_u64().unwrap(), kept, "{t}");
+    assert!(fill("tight") <= 12.0, "{}", fill("tight"));
     assert!(
         said.contains(&format!(
-            "primitive penalty raised to {kept} to bring the sketch part within {target} B"
+            "{kept} of {pursued} curves kept, the ones the fill needs most, to bring the sketch \
+             part within {target} B"
         )),
         "{said}"
     );
-    // Out of reach: no penalty leaves curves in 1 B with the fill within 12°.
+    // Out of reach: pruned only as far as the fill's 12° allows.
     let o = run("hard", &["--target-sketch-bytes", "1"]);
     succeeded(&o);
     let said = printed(&o);
     let t = &report("hard")["sketch_target"];
     assert_eq!(t["met"], false, "{t}");
-    assert_eq!(czs("hard"), czs("off"));
-    let last = t["tries"].as_array().unwrap().last().unwrap().clone();
-    assert!(last[3].as_f64().unwrap() > 12.0, "{t}");
-    assert!(said.contains("over the 1 B target"), "{said}");
+    assert!(curves("hard") < curves("tight"), "{t}");
+    for r in t["rounds"].as_array().unwrap() {
+        assert!(r[3].as_f64().unwrap() <= 12.0, "{t}");
+    }
+    assert!(said.contains("(not reached"), "{said}");
     refused(d, "--target-sketch-bytes", &["-1", "x"]);
 }
 

@@ -212,8 +212,8 @@ pub struct SketchArgs {
           default_value_t = coif::sketch::run::DEFAULT_FILL_TARGET_DEG)]
     target_fill: f32,
     /// The size the sketch part of hair.czs (its curves) is brought under, bytes, where the
-    /// file and the fill stay within their targets: the primitive penalty is raised (from
-    /// 3.5, the steps tried are in report.json under sketch_target); 0 keeps it as given.
+    /// fill stays within its target: the curves the fill needs least are dropped (the rounds
+    /// are in report.json under sketch_target); 0 keeps every curve.
     #[arg(long, default_value_t = coif::sketch::run::DEFAULT_SKETCH_TARGET_BYTES as u64)]
     target_sketch_bytes: u64,
     /// How directions are chosen: swc (Swendsen-Wang cuts, CZ06 §4.2), icm, or prior (each
