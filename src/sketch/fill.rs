@@ -563,7 +563,7 @@ pub fn fill(
 mod tests {
     use super::*;
     use crate::sketch::prim::paint;
-    use crate::sketch::{Curve, Kind, Primitive};
+    use crate::sketch::Curve;
 
     fn prior() -> RhoPrior {
         RhoPrior {
@@ -574,19 +574,7 @@ mod tests {
     }
 
     fn stream(y: f32, axis: f32, dir: i8, x0: f32, n: usize) -> Curve {
-        Curve {
-            kind: Kind::Stream,
-            prims: (0..n)
-                .map(|i| Primitive {
-                    x: x0 + 5.0 * i as f32 * axis.cos(),
-                    y: y + 5.0 * i as f32 * axis.sin(),
-                    axis,
-                    rho: 20.0,
-                    side: [0.0; 2],
-                })
-                .collect(),
-            dirs: [dir, dir],
-        }
+        Curve::straight(x0, y, axis, n, 5.0, 20.0, dir)
     }
 
     #[test]

@@ -175,6 +175,36 @@ pub struct Curve {
     pub dirs: [i8; 2],
 }
 
+impl Curve {
+    /// A straight stream line of `n` primitives `step` px apart along `axis` from (x, y),
+    /// contrast `rho`, both labels `dir`, sides along the axis (the tests' curve).
+    #[cfg(test)]
+    pub(crate) fn straight(
+        x: f32,
+        y: f32,
+        axis: f32,
+        n: usize,
+        step: f32,
+        rho: f32,
+        dir: i8,
+    ) -> Curve {
+        let (c, s) = (axis.cos(), axis.sin());
+        Curve {
+            kind: Kind::Stream,
+            prims: (0..n)
+                .map(|k| Primitive {
+                    x: x + step * k as f32 * c,
+                    y: y + step * k as f32 * s,
+                    axis,
+                    rho,
+                    side: [0.0; 2],
+                })
+                .collect(),
+            dirs: [dir, dir],
+        }
+    }
+}
+
 /// One shading base of Eq. 1: α·G(x − x_i, y − y_i; θ_i, σx_i, σy_i), G unnormalised
 /// (peak 1), α > 0 a highlight, < 0 a shadow.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]

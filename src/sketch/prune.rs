@@ -265,24 +265,7 @@ pub fn prune(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sketch::{ColourMap, Kind, Primitive, RhoPrior};
-
-    /// A stream line of `n` primitives along `axis` from (x0, y), its flow along the axis.
-    fn stream(x0: f32, y: f32, axis: f32, n: usize) -> Curve {
-        Curve {
-            kind: Kind::Stream,
-            prims: (0..n)
-                .map(|i| Primitive {
-                    x: x0 + 5.0 * i as f32 * axis.cos(),
-                    y: y + 5.0 * i as f32 * axis.sin(),
-                    axis,
-                    rho: 8.0,
-                    side: [0.0; 2],
-                })
-                .collect(),
-            dirs: [1, 1],
-        }
-    }
+    use crate::sketch::{ColourMap, RhoPrior};
 
     /// Hair flowing level above row 40 and at 30° below it. Five level streams (one every
     /// 8 px) and one at 30°: the level ones stand in for each other, the tilted one for
@@ -298,9 +281,9 @@ mod tests {
             .map(|i| if i / w as usize >= 40 { tilt } else { 0.0 })
             .collect();
         let mut curves: Vec<Curve> = (0..5)
-            .map(|k| stream(6.0, 4.0 + 8.0 * k as f32, 0.0, 10))
+            .map(|k| Curve::straight(6.0, 4.0 + 8.0 * k as f32, 0.0, 10, 5.0, 8.0, 1))
             .collect();
-        curves.push(stream(6.0, 44.0, tilt, 10));
+        curves.push(Curve::straight(6.0, 44.0, tilt, 10, 5.0, 8.0, 1));
         let base = Sketch {
             width: w,
             height: h,

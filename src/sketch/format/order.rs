@@ -190,23 +190,9 @@ impl Ranks {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sketch::{Kind, Primitive};
 
     fn curve(x: f32, y: f32, axis: f32, n: usize) -> Curve {
-        let (c, s) = (axis.cos(), axis.sin());
-        Curve {
-            kind: Kind::Stream,
-            prims: (0..n)
-                .map(|k| Primitive {
-                    x: x + 6.0 * k as f32 * c,
-                    y: y + 6.0 * k as f32 * s,
-                    axis,
-                    rho: 8.0,
-                    side: [0.0; 2],
-                })
-                .collect(),
-            dirs: [1, 1],
-        }
+        Curve::straight(x, y, axis, n, 6.0, 8.0, 1)
     }
 
     /// Crossing curves keep their relative order, separate ones move to start order, and
