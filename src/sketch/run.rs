@@ -96,7 +96,9 @@ pub enum ByteBudget {
     /// Brought under this many bytes where a sketch with curves can be; where not even the
     /// region, shading and colour map fit, the λ_B-as-given sketch is kept and the report says
     /// the target was missed. The default, at [`DEFAULT_TARGET_BYTES`]: CZ06's sketch is the
-    /// small part a user keeps, so a file over it is what a user would not expect.
+    /// small part a user keeps, so a file over it is what a user would not expect. With a
+    /// sketch target it is met by that target's pruning first (the curves the fill needs
+    /// least dropped, after the fill target), and λ_B raised only where pruning stops short.
     Target(usize),
     /// Met, or the analysis is refused (a user's explicit budget).
     Max(usize),
@@ -193,6 +195,9 @@ pub struct Budget {
     pub lambda_b: f32,
     /// Every (λ_B, `.czs` bytes) tried, in order.
     pub tries: Vec<(f32, usize)>,
+    /// Met by the sketch target's pruning (its rounds under [`SketchTarget`]) rather than by
+    /// raising λ_B: with a sketch target, the default byte target is met that way first.
+    pub pruned: bool,
 }
 
 /// Largest λ_B the budget search tries before giving up.
@@ -326,9 +331,13 @@ pub fn analyse(engine: &Engine, inp: &SketchInputs, p: &SketchParams) -> Result<
             fill_error,
         })
     };
-    let run_at = |lambda_nc: f32| -> Result<Run> {
+    // With a sketch target, the byte target (not a user's budget) is met by the same
+    // pruning, after the fill target, rather than by pursuing again with a larger λ_B; λ_B
+    // is raised only where pruning stops short of it.
+    let defer = matches!(p.budget, ByteBudget::Target(_)) && p.sketch_target.is_some();
+    let run_at = |lambda_nc: f32, budgeted: bool| -> Result<Run> {
         let first = attempt(lambda_nc, p.pursuit.lambda_b)?;
-        let (kept, budget) = match p.budget.bytes() {
+        let (kept, budget) = match p.budget.bytes().filter(|_| budgeted) {
             Some(max) => {
                 let strict = matches!(p.budget, ByteBudget::Max(_));
                 let (kept, b) = fit_budget(max, strict, p.pursuit.lambda_b, first, |lb| {
@@ -340,7 +349,7 @@ pub fn analyse(engine: &Engine, inp: &SketchInputs, p: &SketchParams) -> Result<
         };
         finish(kept, budget)
     };
-    let mut kept = run_at(p.pursuit.lambda_nc)?;
+    let mut kept = run_at(p.pursuit.lambda_nc, !defer)?;
     let fill_target = match p.fill_target {
         Some(target) => {
             let mut tries = vec![(
@@ -358,7 +367,7 @@ pub fn analyse(engine: &Engine, inp: &SketchInputs, p: &SketchParams) -> Result<
                      target: pursuing again at λ_NC {lambda}",
                     kept.fill_error.0
                 );
-                let r = run_at(lambda)?;
+                let r = run_at(lambda, !defer)?;
                 tries.push((lambda, r.fill_error.0, format::to_czs(&r.sketch).len()));
                 // Unmet to the end, the closest fill is kept.
                 if r.fill_error.0 < kept.fill_error.0 {
@@ -375,45 +384,94 @@ pub fn analyse(engine: &Engine, inp: &SketchInputs, p: &SketchParams) -> Result<
         None => None,
     };
     let t_prune = Instant::now();
+    // The curves kept, with Θ solved again under them (the dropped curves no longer clamp
+    // it) and their directions taken again on that Θ.
+    let rebuild = |run: &Run, keep: &[bool]| -> Result<Run> {
+        let (mut pu, budget) = (run.pu.clone(), run.budget.clone());
+        let undirected: Vec<_> = pu
+            .curves
+            .iter()
+            .zip(keep)
+            .filter(|(_, &k)| k)
+            .map(|(c, _)| c.clone())
+            .collect();
+        let painted = super::prim::paint(&undirected, w, h, Some(inp.hair));
+        let tp = super::theta::ThetaParams {
+            sigma2: Some(pu.sigma2),
+            ..p.pursuit.theta
+        };
+        let theta = super::theta::diffuse(engine, &high, inp.hair, Some(&painted), &pu.theta, &tp)?;
+        let (gx, gy) = super::theta::gradients(&high.data, w, h, inp.hair);
+        pu.rho = super::rho::rho_field(&gx, &gy, &theta);
+        (pu.theta, pu.curves) = (theta, undirected);
+        let t1 = Instant::now();
+        let directed = direct(&pu)?;
+        let [a, b, c] = times.get();
+        times.set([a, b + t1.elapsed().as_secs_f64(), c]);
+        let sketch = stored(&pu, &directed);
+        finish((pu, directed, sketch), budget)
+    };
+    let check = (engine, inp.hair, inner.as_slice());
     let sketch_target = match p.sketch_target {
         Some(target) => {
-            let (t, st) =
-                meet_sketch_target(target, kept, p, (engine, inp.hair, &inner), |run, keep| {
-                    // The curves kept, with Θ solved again under them (the dropped curves no
-                    // longer clamp it) and their directions taken again on that Θ.
-                    let Run { mut pu, budget, .. } = run;
-                    let undirected: Vec<_> = pu
-                        .curves
-                        .iter()
-                        .zip(keep)
-                        .filter(|(_, &k)| k)
-                        .map(|(c, _)| c.clone())
-                        .collect();
-                    let painted = super::prim::paint(&undirected, w, h, Some(inp.hair));
-                    let tp = super::theta::ThetaParams {
-                        sigma2: Some(pu.sigma2),
-                        ..p.pursuit.theta
-                    };
-                    let theta = super::theta::diffuse(
-                        engine,
-                        &high,
-                        inp.hair,
-                        Some(&painted),
-                        &pu.theta,
-                        &tp,
-                    )?;
-                    let (gx, gy) = super::theta::gradients(&high.data, w, h, inp.hair);
-                    pu.rho = super::rho::rho_field(&gx, &gy, &theta);
-                    (pu.theta, pu.curves) = (theta, undirected);
-                    let t1 = Instant::now();
-                    let directed = direct(&pu)?;
-                    let [a, b, c] = times.get();
-                    times.set([a, b + t1.elapsed().as_secs_f64(), c]);
-                    let sketch = stored(&pu, &directed);
-                    finish((pu, directed, sketch), budget)
-                })?;
-            kept = t;
-            Some(st)
+            let mut met_both = None;
+            if let (true, Some(max)) = (defer, p.budget.bytes()) {
+                // The curves' share of the byte target, where the rest leaves them one.
+                let z = format::czs_sizes(&kept.sketch);
+                let rest = z.total - z.curves;
+                let pruned = if rest < max {
+                    Some(meet_sketch_target(
+                        target.min(max - rest),
+                        &kept,
+                        p,
+                        check,
+                        rebuild,
+                    )?)
+                } else {
+                    None
+                };
+                match pruned {
+                    Some((r, mut st))
+                        if r.as_ref()
+                            .map_or(z.total, |r| format::to_czs(&r.sketch).len())
+                            <= max =>
+                    {
+                        let mut r = r.unwrap_or(kept);
+                        st.target_bytes = target;
+                        st.met = format::czs_sizes(&r.sketch).curves <= target;
+                        r.budget = Some(Budget {
+                            kind: "target",
+                            max_bytes: max,
+                            met: true,
+                            lambda_b: p.pursuit.lambda_b,
+                            tries: vec![(p.pursuit.lambda_b, z.total)],
+                            pruned: st.curves_kept < st.curves_pursued,
+                        });
+                        kept = r;
+                        met_both = Some(st);
+                    }
+                    _ => {
+                        let lambda_nc = fill_target
+                            .as_ref()
+                            .map_or(p.pursuit.lambda_nc, |f| f.lambda_nc);
+                        log::info!(
+                            "sketch: pruning leaves the file over the {max} B target: pursuing \
+                             again with a larger primitive penalty"
+                        );
+                        kept = run_at(lambda_nc, true)?;
+                    }
+                }
+            }
+            Some(match met_both {
+                Some(st) => st,
+                None => {
+                    let (r, st) = meet_sketch_target(target, &kept, p, check, rebuild)?;
+                    if let Some(r) = r {
+                        kept = r;
+                    }
+                    st
+                }
+            })
         }
         None => None,
     };
@@ -460,11 +518,11 @@ pub fn analyse(engine: &Engine, inp: &SketchInputs, p: &SketchParams) -> Result<
 /// as it is, and so is one from which no curve could go.
 fn meet_sketch_target(
     target: usize,
-    kept: Run,
+    kept: &Run,
     p: &SketchParams,
     check: (&Engine, &[bool], &[bool]),
-    rebuild: impl FnOnce(Run, &[bool]) -> Result<Run>,
-) -> Result<(Run, SketchTarget)> {
+    rebuild: impl FnOnce(&Run, &[bool]) -> Result<Run>,
+) -> Result<(Option<Run>, SketchTarget)> {
     let sizes = format::czs_sizes(&kept.sketch);
     let first = (
         kept.sketch.curves.len(),
@@ -482,7 +540,7 @@ fn meet_sketch_target(
     };
     let over_fill = kept.fill_error.1 > 0 && fill_max.is_some_and(|f| first.3 > f);
     if sizes.curves <= target || over_fill {
-        return Ok((kept, done(sizes.curves <= target, vec![first])));
+        return Ok((None, done(sizes.curves <= target, vec![first])));
     }
     let (engine, hair, inner) = check;
     let pruned = super::prune::prune(
@@ -501,7 +559,7 @@ fn meet_sketch_target(
         &p.prune,
     )?;
     if pruned.keep.iter().all(|&k| k) {
-        return Ok((kept, done(false, pruned.rounds)));
+        return Ok((None, done(false, pruned.rounds)));
     }
     let r = rebuild(kept, &pruned.keep)?;
     let sizes = format::czs_sizes(&r.sketch);
@@ -512,7 +570,8 @@ fn meet_sketch_target(
         sizes.total,
         r.fill_error.0,
     ));
-    Ok((r, done(sizes.curves <= target, rounds)))
+    let met = sizes.curves <= target;
+    Ok((Some(r), done(met, rounds)))
 }
 
 /// One run of Steps 1 and 2 and the fill at one λ_NC.
@@ -552,6 +611,7 @@ fn fit_budget<T>(
     if met || (!strict && bare > max) {
         let b = Budget {
             kind,
+            pruned: false,
             max_bytes: max,
             met,
             lambda_b: lambda0,
@@ -587,6 +647,7 @@ fn fit_budget<T>(
         if !strict {
             let b = Budget {
                 kind,
+                pruned: false,
                 max_bytes: max,
                 met: false,
                 lambda_b: lambda0,
@@ -613,6 +674,7 @@ fn fit_budget<T>(
     }
     let b = Budget {
         kind,
+        pruned: false,
         max_bytes: max,
         met: true,
         lambda_b: best,

@@ -278,10 +278,10 @@ fn real_photos_stay_small_and_the_fill_follows_the_dense_field() {
         }
         rows.push((img.name, sizes.total, sizes.curves, err));
     }
-    // Every file within the 1 KiB, the raccoon crop (all partings and tufts, 171
-    // curves and 1225 B at λ_B 0) by the default target raising λ_B; every sketch part
-    // within its 600 B, the raccoon's by the sketch target's pruning; every fill within the
-    // issue's 12° (the astronaut's since the orientation stage's guide power).
+    // Every file within the 1 KiB and every sketch part within its 600 B, the
+    // raccoon crop's (all partings and tufts, 171 curves and 1226 B as pursued) by the sketch
+    // target's pruning; every fill within the 12° (the astronaut's since the
+    // orientation stage's guide power).
     for (name, bytes, curves, err) in rows {
         assert!(err <= 12.0, "{name}: fill vs dense Θ {err:.2}°");
         assert!(bytes <= 1024, "{name}: {bytes} B");
@@ -468,9 +468,10 @@ fn a_byte_budget_is_met_or_refused() {
     assert_eq!(run("zero", Some(0)).status.code(), Some(64));
 }
 
-/// The default target (`--target-bytes`, 1024) raises λ_B as `--max-bytes` does, but one
-/// that not even a sketch without curves meets keeps the sketch as pursued, with a warning
-/// and `met: false` in `report.json`, where `--max-bytes` refuses; 0 turns it off.
+/// The default target (`--target-bytes`, 1024) is met (by the sketch target's pruning, or
+/// λ_B where that stops short), but one that not even a sketch without curves meets keeps
+/// the sketch as pursued, with a warning and `met: false` in `report.json`, where
+/// `--max-bytes` refuses; 0 turns it off.
 #[test]
 fn a_byte_target_out_of_reach_keeps_the_sketch_and_warns() {
     let tmp = tempfile::tempdir().unwrap();
