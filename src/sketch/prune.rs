@@ -172,6 +172,10 @@ pub fn prune(
             (b[2].max(0.0) as usize).min(w - 1),
             (b[3].max(0.0) as usize).min(h - 1),
         );
+        if x0 > x1 || y0 > y1 {
+            // A box wholly off the image (no primitive of the curve on it).
+            return 0.0;
+        }
         let mut s = 0f64;
         for y in y0..=y1 {
             s += v[y * w + x0..=y * w + x1]
