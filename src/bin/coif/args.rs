@@ -199,9 +199,9 @@ pub struct SketchArgs {
     /// 64) where not even a sketch without curves fits. Replaces --target-bytes.
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
     max_bytes: Option<u64>,
-    /// The size hair.czs is brought under as --max-bytes does, where a sketch with curves can
-    /// be (else it is kept as pursued, with a warning); 0 keeps the primitive penalty as
-    /// given whatever the size.
+    /// The size hair.czs is brought under, where a sketch with curves can be (else it is kept
+    /// as pursued, with a warning): by the sketch target's pruning, or as --max-bytes does
+    /// where that stops short or is off; 0 leaves the size as it comes.
     #[arg(long, default_value_t = coif::sketch::run::DEFAULT_TARGET_BYTES as u64)]
     target_bytes: u64,
     /// The fill's mean distance from the dense field (degrees, over hair 5 px inside the
