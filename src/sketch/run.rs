@@ -430,15 +430,13 @@ pub fn analyse(engine: &Engine, inp: &SketchInputs, p: &SketchParams) -> Result<
                 } else {
                     None
                 };
+                // The last round is the sketch kept (the first, where none went).
+                let last = |st: &SketchTarget| st.rounds[st.rounds.len() - 1];
                 match pruned {
-                    Some((r, mut st))
-                        if r.as_ref()
-                            .map_or(z.total, |r| format::to_czs(&r.sketch).len())
-                            <= max =>
-                    {
+                    Some((r, mut st)) if last(&st).2 <= max => {
                         let mut r = r.unwrap_or(kept);
                         st.target_bytes = target;
-                        st.met = format::czs_sizes(&r.sketch).curves <= target;
+                        st.met = last(&st).1 <= target;
                         r.budget = Some(Budget {
                             kind: "target",
                             max_bytes: max,
