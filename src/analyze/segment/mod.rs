@@ -171,6 +171,43 @@ pub fn segment_with_warnings(
     strokes: &Strokes,
     p: &SegmentParams,
 ) -> Result<(GrayImage, Vec<String>)> {
+    run(image, strokes, p, None)
+}
+
+/// The same graph cut with every model (colour mixtures, texture and flow-agreement
+/// histograms) fitted to `mask` (255 = hair) and kept fixed, cut once. Given the true hair
+/// mask it is an oracle: what these models can do at best when nothing about them is left
+/// to estimate (`segment_real::…ceiling…` measures it on the real portraits).
+pub fn segment_with_models_from(
+    image: &RgbImage,
+    strokes: &Strokes,
+    p: &SegmentParams,
+    mask: &GrayImage,
+) -> Result<GrayImage> {
+    if mask.dimensions() != image.dimensions() {
+        return Err(Error::Invalid(format!(
+            "the mask to fit the models to is {}x{}, the image {}x{}",
+            mask.width(),
+            mask.height(),
+            image.width(),
+            image.height()
+        )));
+    }
+    let hair = mask.as_raw().iter().filter(|&&v| v > 127).count();
+    if hair == 0 || hair == mask.as_raw().len() {
+        return Err(Error::Invalid(
+            "the mask to fit the models to needs both hair and other pixels".into(),
+        ));
+    }
+    Ok(run(image, strokes, p, Some(mask))?.0)
+}
+
+fn run(
+    image: &RgbImage,
+    strokes: &Strokes,
+    p: &SegmentParams,
+    fit_to: Option<&GrayImage>,
+) -> Result<(GrayImage, Vec<String>)> {
     p.validate()?;
     let (w, h) = image.dimensions();
     if w == 0 || h == 0 {
@@ -321,10 +358,24 @@ pub fn segment_with_warnings(
         vec![0.0; n]
     };
 
+    if let Some(m) = fit_to {
+        let (hair_px, back_px): (Vec<usize>, Vec<usize>) =
+            (0..n).partition(|&i| m.as_raw()[i] > 127);
+        fg = Gmm::fit(&sample(&rgb, &hair_px, &mut rng), p.components, &mut rng);
+        bg = Gmm::fit(
+            &sample(&rgb, &back_px, &mut rng),
+            2 * p.components,
+            &mut rng,
+        );
+        (tex_fg, tex_bg) = (bin_nll(&tex, &hair_px), bin_nll(&tex, &back_px));
+        (agr_fg, agr_bg) = (bin_nll(&agr, &hair_px), bin_nll(&agr, &back_px));
+    }
     let smooth = smoothness_weights(&rgb, wu, hu, p.smoothness, p.luminance);
     let mut flow = GridFlow::new(wu, hu);
     let mut label = vec![false; n];
-    for round in 0..=p.iterations {
+    // Models fitted to a given mask stay as they are: one cut.
+    let rounds = if fit_to.is_some() { 0 } else { p.iterations };
+    for round in 0..=rounds {
         if round > 0 {
             // Re-fit to the labelling, warm-starting from the current mixtures.
             let hair_px: Vec<usize> = (0..n).filter(|&i| label[i]).collect();
