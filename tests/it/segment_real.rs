@@ -119,6 +119,12 @@ pub(crate) fn load(name: &str) -> Reference {
     }
 }
 
+/// A portrait's strokes, checked against its crop's size.
+fn strokes_for(name: &str, r: &Reference) -> Strokes {
+    let size = r.image.dimensions();
+    Strokes::load(&dir().join(format!("{name}_strokes.json")), Some(size)).unwrap()
+}
+
 #[test]
 fn masks_from_strokes_match_hand_drawn_masks_on_real_portraits() {
     let p = AnalyzeParams::default().segment;
@@ -226,7 +232,7 @@ fn masks_from_strokes_match_hand_drawn_masks_on_real_portraits() {
 /// The ceiling of this segmentation: the same cut with every model (colour mixtures,
 /// texture and flow-agreement histograms) fitted to the reference mask itself, an oracle no
 /// user can give, over the smoothness γ and the mixtures' size. On the long and the blond
-/// hair it stays near 0.87, short of issue 19's 0.92 (README, "The ceiling of this kind of
+/// hair it stays at 0.87-0.89, short of issue 19's 0.92 (README, "The ceiling of this kind of
 /// segmentation"). Asserted: on every portrait the oracle's best does at least as well as
 /// the models learnt from the strokes, and models fitted to the reference's complement do
 /// worse than either (so the fitted models are what the figure measures).
@@ -236,9 +242,7 @@ fn models_fitted_to_the_reference_masks_show_the_ceiling() {
     let d = AnalyzeParams::default().segment;
     for name in PORTRAITS {
         let r = load(name);
-        let (w, h) = r.image.dimensions();
-        let strokes =
-            Strokes::load(&dir().join(format!("{name}_strokes.json")), Some((w, h))).unwrap();
+        let strokes = strokes_for(name, &r);
         let reference = r.mask_image();
         let own = agreement(&segment(&r.image, &strokes, &d).unwrap(), &reference).iou;
         let mut figures = Vec::new();
