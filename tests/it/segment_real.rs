@@ -291,7 +291,7 @@ fn models_fitted_to_the_reference_masks_show_the_ceiling() {
     // A mask of another size is refused, naming both sizes.
     let r = load("ross");
     let small = GrayImage::new(3, 3);
-    let strokes = Strokes::load(&dir().join("ross_strokes.json"), None).unwrap();
+    let strokes = strokes_for("ross", &r);
     let e = segment_with_models_from(&r.image, &strokes, &d, &small).unwrap_err();
     assert!(e.to_string().contains("3x3"), "{e}");
     // So is a mask with nothing to fit one of the two models to.
