@@ -165,8 +165,9 @@ impl StrandCanvas {
         }
     }
 
-    /// Rasterises a polyline (root -> tip) of the given width, tapering at both ends.
-    pub(super) fn draw(&mut self, pts: &[[f32; 2]], width: f32, s: f32) {
+    /// Rasterises a polyline (root -> tip) of the given width, tapering at both ends but
+    /// those `cut` ([root, tip]: hidden there by an occluding layer, so drawn at full width).
+    pub(super) fn draw(&mut self, pts: &[[f32; 2]], width: f32, s: f32, cut: [bool; 2]) {
         self.id += 1;
         self.touched.clear();
         let mut arc = Vec::with_capacity(pts.len());
@@ -179,8 +180,16 @@ impl StrandCanvas {
         let total = acc;
         // Short fades: longer ones leave more of the hair as flat base fill, which costs more
         // orientation signal than the strand ends do.
-        let tip_taper = (4.0 * s).min(0.4 * total).max(1e-3);
-        let root_taper = (2.0 * s).min(0.35 * total).max(1e-3);
+        let tip_taper = if cut[1] {
+            1e-3
+        } else {
+            (4.0 * s).min(0.4 * total).max(1e-3)
+        };
+        let root_taper = if cut[0] {
+            1e-3
+        } else {
+            (2.0 * s).min(0.35 * total).max(1e-3)
+        };
         let half = 0.5 * width;
         for (i, q) in pts.windows(2).enumerate() {
             let (a, b) = (q[0], q[1]);
@@ -379,6 +388,25 @@ mod tests {
         let img = to_image(&[[-0.5, 0.5, 2.0], [0.2, 0.0, 1.0]], 2, 1);
         assert_eq!(img.get_pixel(0, 0).0, [0, 128, 255]);
         assert_eq!(img.get_pixel(1, 0).0, [51, 0, 255]);
+    }
+
+    /// A strand hidden at its tip by an occluding layer ends at full width; a free tip fades.
+    #[test]
+    fn a_cut_end_is_drawn_at_full_width_and_a_free_end_tapers() {
+        // 20 px along y = 10.5 from x = 4 to x = 24.
+        let pts: Vec<[f32; 2]> = (0..=40).map(|i| [4.0 + 0.5 * i as f32, 10.5]).collect();
+        let cov = |cut: [bool; 2]| {
+            let mut c = StrandCanvas::new(32, 21);
+            c.draw(&pts, 1.2, 1.0, cut);
+            // Half a pixel inside the tip, and the middle.
+            (c.cov[10 * 32 + 23], c.cov[10 * 32 + 14])
+        };
+        let (free_tip, mid) = cov([false, false]);
+        let (cut_tip, mid_cut) = cov([false, true]);
+        assert_eq!(mid, mid_cut);
+        assert!(mid > 0.9, "{mid}");
+        assert!(cut_tip >= 0.9 * mid, "cut tip {cut_tip} against {mid}");
+        assert!(free_tip < 0.5 * mid, "free tip {free_tip} against {mid}");
     }
 
     #[test]

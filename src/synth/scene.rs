@@ -449,6 +449,19 @@ impl Scene {
     /// RK4 steps of `h`, stopping at the hair boundary and where the field jumps (a part) or
     /// turns too fast (the whorl centre). Returns the points after `start`.
     fn trace(&self, start: [f32; 2], sign: f32, len: f32, h: f32, keep_in: f32) -> Vec<[f32; 2]> {
+        self.trace_cut(start, sign, len, h, keep_in).0
+    }
+
+    /// [`Self::trace`], and whether the strand was cut by the fringe's seam (stopped at the
+    /// discontinuity there).
+    pub(super) fn trace_cut(
+        &self,
+        start: [f32; 2],
+        sign: f32,
+        len: f32,
+        h: f32,
+        keep_in: f32,
+    ) -> (Vec<[f32; 2]>, bool) {
         let f = |p: [f32; 2]| {
             let d = self.field.dir(p[0], p[1]);
             [sign * d[0], sign * d[1]]
@@ -462,10 +475,17 @@ impl Scene {
             let k1 = f(p);
             let k2 = f([p[0] + 0.5 * h * k1[0], p[1] + 0.5 * h * k1[1]]);
             let k3 = f([p[0] + 0.5 * h * k2[0], p[1] + 0.5 * h * k2[1]]);
-            let k4 = f([p[0] + h * k3[0], p[1] + h * k3[1]]);
+            let ahead = [p[0] + h * k3[0], p[1] + h * k3[1]];
+            let k4 = f(ahead);
             // Stages that disagree mean a discontinuity within the step: stop before it.
+            // Where it is the fringe's seam the strand is cut there, not ended: the side
+            // hair passes under the fringe, and the fringe's edge hides where its own strands
+            // go on, so that end is drawn at full width, as an occluding edge is in a photo
+            // (tapered, both layers faded into the seam and the image hardly showed it).
             if dot(k1, k2) < 0.8 || dot(k1, k3) < 0.8 || dot(k1, k4) < 0.8 || dot(k1, prev) < 0.8 {
-                break;
+                let seam =
+                    self.field.in_fringe(p[0], p[1]) != self.field.in_fringe(ahead[0], ahead[1]);
+                return (out, seam);
             }
             let d = [
                 (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0]) / 6.0,
@@ -485,7 +505,7 @@ impl Scene {
             p = q;
             prev = k1;
         }
-        out
+        (out, false)
     }
 
     /// Draws the strands over `rgb`: seeds at random over the hair, each accepted only where
@@ -521,10 +541,11 @@ impl Scene {
             }
             let len = rng.range_f32(self.strand_len.0, self.strand_len.1);
             let back = len * rng.next_f32();
-            let mut pts = self.trace(seed, -1.0, back, step, 0.0);
+            let (mut pts, cut_root) = self.trace_cut(seed, -1.0, back, step, 0.0);
             pts.reverse();
             pts.push(seed);
-            pts.extend(self.trace(seed, 1.0, len - back, step, 0.0));
+            let (fwd, cut_tip) = self.trace_cut(seed, 1.0, len - back, step, 0.0);
+            pts.extend(fwd);
 
             // Keep the strand's neighbourhood from seeding parallel copies of it.
             mark_disk(&mut occ, w, h, seed, r_occ);
@@ -551,7 +572,7 @@ impl Scene {
             ];
             let width = rng.range_f32(1.0, 1.5) * self.s.clamp(0.75, 1.5) * self.width_scale;
             let alpha = rng.range_f32(0.6, 0.95) * self.contrast;
-            canvas.draw(&pts, width, self.s);
+            canvas.draw(&pts, width, self.s, [cut_root, cut_tip]);
             canvas.composite(rgb, |x, y| {
                 let sd = self.hair_sdf(x, y);
                 (scale3(col, self.hair_shade(x, y, sd)), alpha)

@@ -481,6 +481,54 @@ fn fringe_has_a_seam_with_a_large_jump() {
     assert!(seam(&SynthParams::new(Style::Long, 1)).is_none());
 }
 
+/// The strands are cut by the fringe's seam, not ended there (`Scene::trace_cut`): a strand
+/// stopped by the discontinuity ends within a step of the seam and is drawn untapered there;
+/// one that ends by its length or at the hair's edge is not cut.
+#[test]
+fn fringe_strands_are_cut_at_the_seam_only() {
+    let p = SynthParams::new(Style::Fringe, 1);
+    let [mut geo_rng, mut look_rng, ..] = streams(&p, style_salt(p.style));
+    let scene = scene::Scene::new(&p, &Texture::default(), &mut geo_rng, &mut look_rng);
+    let sm = seam(&p).expect("the fringe has a seam");
+    let (w, h) = (p.width as usize, p.height as usize);
+    let (mut cut, mut free) = (0, 0);
+    for y in (4..h).step_by(8) {
+        for x in (4..w).step_by(8) {
+            let start = [x as f32 + 0.5, y as f32 + 0.5];
+            if scene.hair_sdf(start[0], start[1]) >= -1.0 {
+                continue;
+            }
+            for sign in [-1.0, 1.0] {
+                let (pts, is_cut) = scene.trace_cut(start, sign, 60.0, 0.5, 0.0);
+                let end = *pts.last().unwrap_or(&start);
+                let k = end[1] as usize * w + end[0] as usize;
+                if is_cut {
+                    cut += 1;
+                    assert!(
+                        sm.distance[k] <= 1.5,
+                        "cut {:.1} px from the seam",
+                        sm.distance[k]
+                    );
+                } else {
+                    free += 1;
+                    let travelled: f32 = pts
+                        .windows(2)
+                        .map(|q| (q[1][0] - q[0][0]).hypot(q[1][1] - q[0][1]))
+                        .sum();
+                    let at_edge = scene.hair_sdf(end[0], end[1]) > -1.0;
+                    assert!(
+                        at_edge || travelled >= 58.0 || sm.distance[k] > 1.5,
+                        "a strand stopped {:.1} px from the seam after {travelled:.1} px, not cut",
+                        sm.distance[k]
+                    );
+                }
+            }
+        }
+    }
+    println!("fringe seed 1: {cut} traces cut at the seam, {free} not");
+    assert!(cut >= 50 && free >= 300, "{cut} cut, {free} free");
+}
+
 #[test]
 fn distance_to_matches_brute_force() {
     let (w, h) = (23, 17);
