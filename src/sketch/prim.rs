@@ -64,6 +64,27 @@ pub fn window(kind: Kind, p: &Primitive, w: u32, h: u32, mut f: impl FnMut(usize
     }
 }
 
+/// Calls `f(pixel index, side index)` for every pixel centre beside `p`'s axis: within the
+/// window's length along it ([`ALONG`]) and `near` to `far` px across it, on the left (0) or
+/// the right (1). Unlike [`window`], whatever the kind and ownership: it is where a side's
+/// flow is read, not what the primitive paints.
+pub fn beside(p: &Primitive, w: u32, h: u32, near: f32, far: f32, mut f: impl FnMut(usize, usize)) {
+    let r = (0.5 * ALONG).hypot(far).ceil() as i64 + 1;
+    let t = p.tangent();
+    let n = p.left_normal();
+    let (cx, cy) = (p.x.floor() as i64, p.y.floor() as i64);
+    for j in (cy - r).max(0)..=(cy + r).min(h as i64 - 1) {
+        for i in (cx - r).max(0)..=(cx + r).min(w as i64 - 1) {
+            let d = [i as f32 + 0.5 - p.x, j as f32 + 0.5 - p.y];
+            let a = d[0] * t[0] + d[1] * t[1];
+            let c = d[0] * n[0] + d[1] * n[1];
+            if a.abs() < 0.5 * ALONG - EDGE_EPS && c.abs() >= near && c.abs() < far {
+                f(j as usize * w as usize + i as usize, (c < 0.0) as usize);
+            }
+        }
+    }
+}
+
 /// Where a pixel centre at offset `d` from a primitive's centre falls in its window, given
 /// the axis's unit tangent `t` and left normal `n` (None: outside). The one rule for the
 /// windows, shared with the pursuit's window sums: pixel centres strictly inside the
@@ -161,6 +182,23 @@ mod tests {
             axis,
             rho: 10.0,
             side,
+        }
+    }
+
+    /// The band beside a primitive: pixel centres `near` to `far` px from the axis within
+    /// the window's length, left (the normal's side) 0 and right 1.
+    #[test]
+    fn beside_visits_the_band_on_both_sides() {
+        // Along +x at y = 10: the left normal (sin a, −cos a) points to −y.
+        let p = prim(10.5, 10.5, 0.0, [0.0; 2]);
+        let mut seen = Vec::new();
+        beside(&p, 21, 21, 1.0, 2.5, |k, s| seen.push((k % 21, k / 21, s)));
+        // Columns 7..=13 (|a| < 3.5), rows 8 and 9 on the left, 11 and 12 on the right.
+        assert_eq!(seen.len(), 7 * 4);
+        for &(x, y, s) in &seen {
+            assert!((7..=13).contains(&x), "{x}");
+            assert_eq!(s, if y < 10 { 0 } else { 1 }, "({x}, {y})");
+            assert!([8, 9, 11, 12].contains(&y), "{y}");
         }
     }
 

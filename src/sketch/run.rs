@@ -510,16 +510,21 @@ pub fn analyse(engine: &Engine, inp: &SketchInputs, p: &SketchParams) -> Result<
     })
 }
 
+/// Rebuilds that may follow a pruning whose rebuilt sketch came out over the target (Step 2
+/// taken again can cost a few bytes more than the pruning counted).
+const PRUNE_AGAIN: usize = 2;
+
 /// Brings the curves of `kept` (already within the byte and fill targets) under `target`
 /// bytes by pruning them (`super::prune`), the fill held within its target; `rebuild`
 /// makes the run of the curves kept. A sketch whose fill already misses its target is kept
-/// as it is, and so is one from which no curve could go.
+/// as it is, and so is one from which no curve could go. Where the rebuilt sketch is still
+/// over the target, it is pruned again from there, at most [`PRUNE_AGAIN`] times.
 fn meet_sketch_target(
     target: usize,
     kept: &Run,
     p: &SketchParams,
     check: (&Engine, &[bool], &[bool]),
-    rebuild: impl FnOnce(&Run, &[bool]) -> Result<Run>,
+    rebuild: impl Fn(&Run, &[bool]) -> Result<Run>,
 ) -> Result<(Option<Run>, SketchTarget)> {
     let sizes = format::czs_sizes(&kept.sketch);
     let first = (
@@ -541,34 +546,54 @@ fn meet_sketch_target(
         return Ok((None, done(sizes.curves <= target, vec![first])));
     }
     let (engine, hair, inner) = check;
-    let pruned = super::prune::prune(
-        &kept.sketch,
-        &kept.directed.curves,
-        target,
-        fill_max,
-        &super::prune::FillCheck {
-            engine,
-            hair,
-            inner,
-            theta: &kept.pu.theta,
-            fill: &p.fill,
-            seed: p.seed,
-        },
-        &p.prune,
-    )?;
+    let prune = |from: &Run| {
+        super::prune::prune(
+            &from.sketch,
+            &from.directed.curves,
+            target,
+            fill_max,
+            &super::prune::FillCheck {
+                engine,
+                hair,
+                inner,
+                theta: &from.pu.theta,
+                fill: &p.fill,
+                seed: p.seed,
+            },
+            &p.prune,
+        )
+    };
+    let pruned = prune(kept)?;
     if pruned.keep.iter().all(|&k| k) {
         return Ok((None, done(false, pruned.rounds)));
     }
-    let r = rebuild(kept, &pruned.keep)?;
-    let sizes = format::czs_sizes(&r.sketch);
     let mut rounds = pruned.rounds;
-    rounds.push((
-        r.sketch.curves.len(),
-        sizes.curves,
-        sizes.total,
-        r.fill_error.0,
-    ));
-    let met = sizes.curves <= target;
+    let mut r = rebuild(kept, &pruned.keep)?;
+    for again in 0..=PRUNE_AGAIN {
+        let sizes = format::czs_sizes(&r.sketch);
+        rounds.push((
+            r.sketch.curves.len(),
+            sizes.curves,
+            sizes.total,
+            r.fill_error.0,
+        ));
+        let over_fill = fill_max.is_some_and(|f| r.fill_error.0 > f);
+        if sizes.curves <= target || over_fill || again == PRUNE_AGAIN {
+            break;
+        }
+        log::info!(
+            "sketch: the rebuilt sketch part is {} B, over the {target} B target: pruning again",
+            sizes.curves
+        );
+        let more = prune(&r)?;
+        if more.keep.iter().all(|&k| k) {
+            break;
+        }
+        // The new pruning's first round is the rebuilt sketch, already counted.
+        rounds.extend(more.rounds.into_iter().skip(1));
+        r = rebuild(&r, &more.keep)?;
+    }
+    let met = rounds.last().is_some_and(|x| x.1 <= target);
     Ok((Some(r), done(met, rounds)))
 }
 
