@@ -49,17 +49,24 @@ pub fn window(kind: Kind, p: &Primitive, w: u32, h: u32, mut f: impl FnMut(usize
     } else {
         ACROSS
     };
-    let r = ((0.5 * ALONG).hypot(0.5 * across)).ceil() as i64 + 1;
-    let t = p.tangent();
-    let n = p.left_normal();
+    let (t, n) = (p.tangent(), p.left_normal());
+    around(p, 0.5 * across, w, h, |k, d| {
+        if let Some(side) = classify(kind == Kind::Dividing, t, n, d) {
+            f(k, side);
+        }
+    });
+}
+
+/// Calls `f(pixel index, offset of its centre from p's centre)` for every pixel of the w×h
+/// image within the square that holds a rectangle [`ALONG`] long and 2·`half_across` wide
+/// around `p`, whatever its axis: the scan [`window`] and [`beside`] pick their pixels from.
+fn around(p: &Primitive, half_across: f32, w: u32, h: u32, mut f: impl FnMut(usize, [f32; 2])) {
+    let r = ((0.5 * ALONG).hypot(half_across)).ceil() as i64 + 1;
     let (cx, cy) = (p.x.floor() as i64, p.y.floor() as i64);
     for j in (cy - r).max(0)..=(cy + r).min(h as i64 - 1) {
         for i in (cx - r).max(0)..=(cx + r).min(w as i64 - 1) {
             let d = [i as f32 + 0.5 - p.x, j as f32 + 0.5 - p.y];
-            let Some(side) = classify(kind == Kind::Dividing, t, n, d) else {
-                continue;
-            };
-            f(j as usize * w as usize + i as usize, side);
+            f(j as usize * w as usize + i as usize, d);
         }
     }
 }
@@ -69,20 +76,14 @@ pub fn window(kind: Kind, p: &Primitive, w: u32, h: u32, mut f: impl FnMut(usize
 /// the right (1). Unlike [`window`], whatever the kind and ownership: it is where a side's
 /// flow is read, not what the primitive paints.
 pub fn beside(p: &Primitive, w: u32, h: u32, near: f32, far: f32, mut f: impl FnMut(usize, usize)) {
-    let r = (0.5 * ALONG).hypot(far).ceil() as i64 + 1;
-    let t = p.tangent();
-    let n = p.left_normal();
-    let (cx, cy) = (p.x.floor() as i64, p.y.floor() as i64);
-    for j in (cy - r).max(0)..=(cy + r).min(h as i64 - 1) {
-        for i in (cx - r).max(0)..=(cx + r).min(w as i64 - 1) {
-            let d = [i as f32 + 0.5 - p.x, j as f32 + 0.5 - p.y];
-            let a = d[0] * t[0] + d[1] * t[1];
-            let c = d[0] * n[0] + d[1] * n[1];
-            if a.abs() < 0.5 * ALONG - EDGE_EPS && c.abs() >= near && c.abs() < far {
-                f(j as usize * w as usize + i as usize, (c < 0.0) as usize);
-            }
+    let (t, n) = (p.tangent(), p.left_normal());
+    around(p, far, w, h, |k, d| {
+        let a = d[0] * t[0] + d[1] * t[1];
+        let c = d[0] * n[0] + d[1] * n[1];
+        if a.abs() < 0.5 * ALONG - EDGE_EPS && c.abs() >= near && c.abs() < far {
+            f(k, (c < 0.0) as usize);
         }
-    }
+    });
 }
 
 /// Where a pixel centre at offset `d` from a primitive's centre falls in its window, given
