@@ -485,6 +485,7 @@ pub fn curve_from_points(
     let mut worst = (start[0] - pts[0][0]).hypot(start[1] - pts[0][1]);
     let mut prims = Vec::with_capacity(n);
     let prim = |c: [f32; 2], k: i64| Primitive {
+        shift: 0.0,
         x: c[0],
         y: c[1],
         axis: k.rem_euclid(steps) as f32 * AXIS_QUANTUM,
@@ -709,6 +710,7 @@ fn json_curve(c: JsonCurve, drawn: &Drawn<'_>) -> std::result::Result<(Curve, f3
                     y += STEP * a.sin();
                 }
                 out.push(Primitive {
+                    shift: 0.0,
                     x,
                     y,
                     axis: a,

@@ -138,6 +138,11 @@ pub struct Primitive {
     /// refinement within ±π/6, so possibly slightly negative; see the module docs. A side
     /// without hair (the right of a and b) is 0 and ignored.
     pub side: [f32; 2],
+    /// How far the centre lies off its curve's chain across the axis, px, to the left: an
+    /// occluding line placed to a quarter pixel (`pursuit::place`); 0 for other kinds. The
+    /// centre (x, y) is where the primitive is painted, shift included.
+    #[serde(default)]
+    pub shift: f32,
 }
 
 impl Primitive {
@@ -193,6 +198,7 @@ impl Curve {
             kind: Kind::Stream,
             prims: (0..n)
                 .map(|k| Primitive {
+                    shift: 0.0,
                     x: x + step * k as f32 * c,
                     y: y + step * k as f32 * s,
                     axis,
@@ -312,6 +318,7 @@ mod tests {
         // A dividing line along +x with sides π/2: left flow points to the left normal
         // (up on screen, −y), right flow down (+y).
         let p = Primitive {
+            shift: 0.0,
             x: 0.0,
             y: 0.0,
             axis: 0.0,

@@ -322,6 +322,7 @@ impl<'a> Oracle<'a> {
             }
             if let Some((_, side, _)) = cl {
                 run.push(Primitive {
+                    shift: 0.0,
                     x: c[0],
                     y: c[1],
                     axis: axis_of(k),
@@ -664,6 +665,7 @@ impl<'a> Oracle<'a> {
                     .iter()
                     .map(|&(c, k)| {
                         let mut p = Primitive {
+                            shift: 0.0,
                             x: c[0],
                             y: c[1],
                             axis: axis_of(k),

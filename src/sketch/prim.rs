@@ -76,12 +76,23 @@ fn around(p: &Primitive, half_across: f32, w: u32, h: u32, mut f: impl FnMut(usi
 /// the right (1). Unlike [`window`], whatever the kind and ownership: it is where a side's
 /// flow is read, not what the primitive paints.
 pub fn beside(p: &Primitive, w: u32, h: u32, near: f32, far: f32, mut f: impl FnMut(usize, usize)) {
+    across(p, w, h, far, |k, c| {
+        if c.abs() >= near {
+            f(k, (c < 0.0) as usize);
+        }
+    });
+}
+
+/// Calls `f(pixel index, signed offset of its centre across the axis, + left)` for every
+/// pixel centre within the window's length along `p`'s axis ([`ALONG`]) and less than `far`
+/// px across it.
+pub fn across(p: &Primitive, w: u32, h: u32, far: f32, mut f: impl FnMut(usize, f32)) {
     let (t, n) = (p.tangent(), p.left_normal());
     around(p, far, w, h, |k, d| {
         let a = d[0] * t[0] + d[1] * t[1];
         let c = d[0] * n[0] + d[1] * n[1];
-        if a.abs() < 0.5 * ALONG - EDGE_EPS && c.abs() >= near && c.abs() < far {
-            f(k, (c < 0.0) as usize);
+        if a.abs() < 0.5 * ALONG - EDGE_EPS && c.abs() < far {
+            f(k, c);
         }
     });
 }
@@ -178,6 +189,7 @@ mod tests {
 
     fn prim(x: f32, y: f32, axis: f32, side: [f32; 2]) -> Primitive {
         Primitive {
+            shift: 0.0,
             x,
             y,
             axis,

@@ -428,6 +428,7 @@ mod tests {
         for k in 0..ORIENTATIONS {
             for (shape, kind) in [(0, Kind::Stream), (1, Kind::Dividing)] {
                 let p = Primitive {
+                    shift: 0.0,
                     x: 20.0,
                     y: 20.0,
                     axis: k as f32 * AXIS_QUANTUM,

@@ -26,6 +26,7 @@ fn line(kind: Kind, x: f32, y: f32, k: i32, n: usize, side: [f32; 2], dirs: [i8;
         kind,
         prims: (0..n)
             .map(|i| Primitive {
+                shift: 0.0,
                 x: x + STEP * i as f32 * a.cos(),
                 y: y + STEP * i as f32 * a.sin(),
                 axis: a.rem_euclid(2.0 * PI),

@@ -121,6 +121,7 @@ fn cz_fill_parity() {
                 kind: Kind::Stream,
                 prims: (0..8)
                     .map(|j| Primitive {
+                        shift: 0.0,
                         x: 3.0 + 5.0 * j as f32 * axis.cos(),
                         y: 4.0 + 15.0 * i as f32 + 5.0 * j as f32 * axis.sin(),
                         axis,

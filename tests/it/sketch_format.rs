@@ -3,7 +3,7 @@
 
 use coif::base::rng::Rng;
 use coif::sketch::format::{
-    czs_sizes, from_czs, from_json, from_svg, load, quantise, save, to_czs, to_json, to_svg,
+    czs_sizes, from_czs, from_json, from_svg, load, on_chain, quantise, save, to_czs, to_json, to_svg,
     validate_json,
 };
 use coif::sketch::{
@@ -54,6 +54,7 @@ fn random_sketch(
                 _ => r.range_f32(-0.5, 2.7),
             });
             prims.push(Primitive {
+                shift: 0.0,
                 x,
                 y,
                 axis: axis.rem_euclid(2.0 * PI),
@@ -63,6 +64,23 @@ fn random_sketch(
         }
         let dirs = [(); 2].map(|_| r.below(3) as i8 - 1);
         curves.push(Curve { kind, prims, dirs });
+    }
+    // Half the occluding lines off their chains (a stream of their own, so the other draws
+    // are as before), some shifts off the ¼ px lattice or past ±2 px for quantising to snap.
+    let mut rs = Rng::new(seed ^ 0x5eed_5417);
+    for c in curves.iter_mut().filter(|c| c.kind == Kind::Occluding) {
+        if rs.below(2) == 0 {
+            for p in &mut c.prims {
+                p.shift = match rs.below(4) {
+                    0 => 0.0,
+                    1 => rs.range_f32(-2.4, 2.4),
+                    _ => (rs.below(17) as f32 - 8.0) * 0.25,
+                };
+                let n = p.left_normal();
+                p.x += p.shift * n[0];
+                p.y += p.shift * n[1];
+            }
+        }
     }
     let bases = (0..n_bases)
         .map(|_| Base {
@@ -158,10 +176,11 @@ fn check_round_trips(s: &Sketch, what: &str) {
         .filter(|c| !c.prims.is_empty())
         .zip(&q.curves)
     {
-        let (pa, pb) = (a.prims[0], b.prims[0]);
+        // (The chain's start: an occluding line's centres lie off it by their shifts.)
+        let (pa, pb) = (on_chain(&a.prims[0]), on_chain(&b.prims[0]));
         assert!(
-            (pa.x.clamp(0.0, s.width as f32) - pb.x).abs() <= 0.5
-                && (pa.y.clamp(0.0, s.height as f32) - pb.y).abs() <= 0.5,
+            (pa[0].clamp(0.0, s.width as f32) - pb[0]).abs() <= 0.5
+                && (pa[1].clamp(0.0, s.height as f32) - pb[1]).abs() <= 0.5,
             "{what}: start moved"
         );
         assert_eq!(a.prims.len(), b.prims.len());
@@ -236,6 +255,7 @@ fn lattice_curves_keep_their_geometry() {
             y += 5.0 * a.sin();
         }
         prims.push(Primitive {
+            shift: 0.0,
             x,
             y,
             axis: (k as f32 * AXIS_QUANTUM).rem_euclid(2.0 * PI),
@@ -406,7 +426,15 @@ fn crc32(data: &[u8]) -> u32 {
 #[test]
 fn bad_json_and_svg_are_refused() {
     let p = Path::new("bad.file");
-    let s = random_sketch(6, 200, 100, 3, 3, 2);
+    let mut s = random_sketch(6, 200, 100, 3, 3, 2);
+    // Curve 0 an occluding line off its chain.
+    s.curves[0].kind = Kind::Occluding;
+    for p in &mut s.curves[0].prims {
+        p.shift = 0.5;
+        let n = p.left_normal();
+        p.x += 0.5 * n[0];
+        p.y += 0.5 * n[1];
+    }
     let good: serde_json::Value = serde_json::from_str(&to_json(&s)).unwrap();
     validate_json(&good).unwrap();
     assert!(err(from_json("{\"format\": ", p)).contains("malformed JSON"));
@@ -424,8 +452,20 @@ fn bad_json_and_svg_are_refused() {
     v["colour"]["uv"].as_array_mut().unwrap().pop();
     cases.push((v, "/colour/uv"));
     let mut v = good.clone();
-    v["version"] = 4.into();
+    v["version"] = 5.into();
     cases.push((v, "/version"));
+    // An occluding line's shift: off the ¼ px lattice, and past ±2 px.
+    let occluding = good["curves"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .position(|c| c["kind"] == "c")
+        .expect("the sketch has an occluding line");
+    for bad in [0.3, 2.25] {
+        let mut v = good.clone();
+        v["curves"][occluding]["prims"][0]["shift"] = bad.into();
+        cases.push((v, "shift"));
+    }
     let mut v = good.clone();
     v["along_across"] = (-0.1).into();
     cases.push((v, "/along_across"));
@@ -455,8 +495,43 @@ fn bad_json_and_svg_are_refused() {
         m.contains("curve 0, primitive 1") && m.contains("turns"),
         "{m}"
     );
+    // Valid by the schema, but a shift on a stream line.
+    let mut v = good.clone();
+    let stream = good["curves"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .position(|c| c["kind"] != "c")
+        .expect("the sketch has a curve of another kind");
+    v["curves"][stream]["prims"][0]["shift"] = 0.5.into();
+    let m = err(from_json(&v.to_string(), p));
+    assert!(
+        m.contains(&format!("curve {stream}, primitive 0")) && m.contains("only occluding"),
+        "{m}"
+    );
     // SVG.
     let svg = to_svg(&s);
+    // An occluding line's data-shift: a number short, off the ¼ px lattice; on a stream line.
+    let key = " data-shift=\"";
+    let at = svg.find(key).expect("an occluding line is off its chain") + key.len();
+    let end = at + svg[at..].find('"').unwrap();
+    let list: Vec<&str> = svg[at..end].split(' ').collect();
+    let with = |l: &[&str]| format!("{}{}{}", &svg[..at], l.join(" "), &svg[end..]);
+    let m = err(from_svg(&with(&list[1..]), p));
+    assert!(m.contains("data-shift") && m.contains("expected"), "{m}");
+    let mut off = list.clone();
+    off[0] = "0.3";
+    let m = err(from_svg(&with(&off), p));
+    assert!(m.contains("data-shift 0.3") && m.contains("multiples"), "{m}");
+    let other = format!(
+        "<polyline class=\"cz-{}\"",
+        good["curves"][stream]["kind"].as_str().unwrap()
+    );
+    let m = err(from_svg(
+        &svg.replacen(&other, &format!("{other} data-shift=\"0.5\""), 1),
+        p,
+    ));
+    assert!(m.contains("only occluding"), "{m}");
     assert!(err(from_svg("<svg", p)).contains("malformed XML"));
     assert!(err(from_svg("<html/>", p)).contains("not an SVG"));
     assert!(
@@ -515,7 +590,9 @@ fn files_load_by_extension_and_the_svg_importer_reads_the_svg() {
         assert_eq!(st.points.len(), c.prims.len() + 2);
         // The importer's points are the centres (between the lead-in and lead-out).
         for (pt, p) in st.points[1..].iter().zip(&c.prims) {
-            assert!((pt[0] - p.x).abs() < 1e-3 && (pt[1] - p.y).abs() < 1e-3);
+            // (An occluding line's chain, under its centres placed off it.)
+            let [x, y] = coif::sketch::format::on_chain(p);
+            assert!((pt[0] - x).abs() < 1e-3 && (pt[1] - y).abs() < 1e-3);
         }
     }
     let other = dir.path().join("sketch.txt");

@@ -16,6 +16,7 @@ use coif::sketch::prim::{self, Side};
 use coif::sketch::pursuit::{chain, pursue, side_angle, Pursuit, PursuitParams};
 use coif::sketch::theta::{self, Field, ThetaParams};
 use coif::sketch::{Curve, Kind, Primitive, AXIS_QUANTUM, AXIS_STEPS, STEP};
+use coif::sketch::format::SHIFT_ZERO;
 use coif::stages::cz_theta_gs::{self, FIXED, FREE, OFF};
 use coif::stages::{cz_window_sums as ws, sep_blur};
 use coif::synth::{synth, Style, SynthCase, SynthParams};
@@ -157,7 +158,8 @@ fn summary(c: &Case, out: &Pursuit, secs: f64) -> String {
     format!(
         "{}: {} curves ({} primitives; a/b/c/d/e {:?}), E(∅) {:.0} → {:.0} after the last \
          curve, {:.0} with the final Θ; Θ error {:.2}° (Gabor {:.2}°); σθ² {:.3}; {:.2} s \
-         ({} births, {} dropped short, {} rebuilds, {} window passes)",
+         ({} births, {} dropped short, {} rebuilds, {} window passes, {} placed off their \
+         chains)",
         c.name,
         out.curves.len(),
         prims,
@@ -173,6 +175,7 @@ fn summary(c: &Case, out: &Pursuit, secs: f64) -> String {
         out.stats.dropped_short,
         out.stats.rebuilds,
         out.stats.window_runs,
+        out.stats.shifted,
     )
 }
 
@@ -221,6 +224,7 @@ fn h01(i: u64, seed: u64) -> f32 {
 /// A stream line along row 40 and an occluding line down column 70 (to clamp some pixels).
 fn two_curves() -> Vec<Curve> {
     let prim = |x: f32, y: f32, axis: i32, side: [f32; 2]| Primitive {
+        shift: 0.0,
         x,
         y,
         axis: axis as f32 * AXIS_QUANTUM,
@@ -611,6 +615,7 @@ fn cz_window_sums_scores_its_windows() {
             }
         };
         let p = Primitive {
+            shift: 0.0,
             x,
             y,
             axis: k as f32 * AXIS_QUANTUM,
@@ -729,10 +734,25 @@ fn window_configs_match_wgsl() {
 /// refinement, no directions yet.
 fn assert_on_lattice(curves: &[Curve], w: u32, h: u32) {
     for (ci, c) in curves.iter().enumerate() {
-        let p0 = c.prims[0];
-        assert!(
-            p0.x.fract() == 0.0 && p0.y.fract() == 0.0,
-            "curve {ci} starts at {p0:?}"
+        // The chain's start: under an occluding line's first centre, less its shift.
+        let code = |p: &Primitive| {
+            let k = coif::sketch::format::shift_code(p.shift);
+            assert_eq!(coif::sketch::format::shift_of(k), p.shift, "curve {ci}: {p:?}");
+            assert!(k == SHIFT_ZERO || c.kind == Kind::Occluding, "curve {ci}: {p:?}");
+            k
+        };
+        let s0 = c.prims[0];
+        let [x0, y0] = coif::sketch::format::on_chain(&s0);
+        let p0 = Primitive {
+            x: x0.round(),
+            y: y0.round(),
+            shift: 0.0,
+            ..s0
+        };
+        assert_eq!(
+            coif::sketch::format::off_chain(p0.x, p0.y, p0.axis, code(&s0)),
+            [s0.x, s0.y],
+            "curve {ci} starts at {s0:?}"
         );
         assert!((0.0..=w as f32).contains(&p0.x) && (0.0..=h as f32).contains(&p0.y));
         assert_eq!(c.dirs, [0, 0]);
@@ -745,7 +765,8 @@ fn assert_on_lattice(curves: &[Curve], w: u32, h: u32) {
         }
         let centres = chain([p0.x, p0.y], &axes);
         for (p, q) in c.prims.iter().zip(&centres) {
-            assert_eq!([p.x, p.y], *q, "curve {ci}");
+            let placed = coif::sketch::format::off_chain(q[0], q[1], p.axis, code(p));
+            assert_eq!([p.x, p.y], placed, "curve {ci}");
             let a = p.axis / AXIS_QUANTUM;
             assert!((a - a.round()).abs() < 1e-4 && p.axis >= 0.0 && p.axis < 2.0 * PI);
             for (s, &v) in p.side.iter().enumerate() {

@@ -449,6 +449,7 @@ fn enumeration_checks_its_input() {
 
 fn prim(x: f32, y: f32, axis: f32, side: [f32; 2]) -> Primitive {
     Primitive {
+        shift: 0.0,
         x,
         y,
         axis: axis.rem_euclid(2.0 * PI),

@@ -143,6 +143,7 @@ fn the_curve_distance_helper_tells_near_from_far() {
         kind: coif::sketch::Kind::Stream,
         prims: (0..6)
             .map(|k| coif::sketch::Primitive {
+                shift: 0.0,
                 x: x0 + 5.0 * k as f32,
                 y,
                 axis: 0.0,

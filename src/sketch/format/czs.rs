@@ -549,7 +549,12 @@ fn get_curves_v2(
                 }
             }
             let rho = r.get(4, &at)? as u8;
-            prims.push(PrimCodes { turn, side, rho });
+            prims.push(PrimCodes {
+                turn,
+                side,
+                rho,
+                shift: SHIFT_ZERO,
+            });
         }
         curves.push(CurveCodes {
             kind,
@@ -756,6 +761,7 @@ mod tests {
                     axis += (rnd() - 0.5) * 0.6;
                     let a = (rnd() - 0.5) * 0.9;
                     Primitive {
+                        shift: 0.0,
                         x: x0 + 3.0 * j as f32,
                         y: 100.0 + rnd() * 100.0,
                         axis,

@@ -40,6 +40,10 @@ struct CurveModel {
     ordered: rc::Prob,
     precede: [rc::Prob; 3],
     step_sign: [[rc::Prob; 3]; 2],
+    /// Version 7: whether an occluding curve lies off its chain, and then each primitive's
+    /// shift code as the step from the previous one's (zigzag; the first from the chain).
+    shifted: rc::Prob,
+    shift_step: [rc::Prob; 64],
 }
 
 /// What an exponent-Golomb count of [`rc_count`] counts: each has its own contexts.
@@ -86,6 +90,8 @@ impl CurveModel {
             ordered: h,
             precede: [h; 3],
             step_sign: [[h; 3]; 2],
+            shifted: h,
+            shift_step: [h; 64],
         })
     }
 }
@@ -255,10 +261,12 @@ enum Field {
     Contrast,
     /// The paint order of overlapping curves.
     Order,
+    /// Occluding lines' offsets off their chains.
+    Shift,
 }
 
 impl Field {
-    const ALL: [(Field, &'static str); 12] = [
+    const ALL: [(Field, &'static str); 13] = [
         (Field::Colour, "colour"),
         (Field::Region, "region"),
         (Field::Curves, "curve_count"),
@@ -271,6 +279,7 @@ impl Field {
         (Field::Side, "side"),
         (Field::Contrast, "contrast"),
         (Field::Order, "order"),
+        (Field::Shift, "shift"),
     ];
 }
 
@@ -396,6 +405,10 @@ fn rc_tail(
             tag(&mut e, Field::Contrast);
             e.tree(&mut m.rho[rc_ctx.min(16)], 4, p.rho as u32);
         }
+        if version >= 7 && cv.kind == Kind::Occluding {
+            tag(&mut e, Field::Shift);
+            rc_shifts(&mut e, &mut m, &cv.prims);
+        }
     }
     if v5 {
         tag(&mut e, Field::Order);
@@ -403,6 +416,44 @@ fn rc_tail(
     }
     let ledger = e.ledger().map(<[f64]>::to_vec);
     (e.finish(), ledger)
+}
+
+/// Version 7: an occluding curve's shift codes ([`CurveModel::shifted`]).
+fn rc_shifts(e: &mut rc::Encoder, m: &mut CurveModel, prims: &[PrimCodes]) {
+    let shifted = prims.iter().any(|p| p.shift != SHIFT_ZERO);
+    e.bit(&mut m.shifted, shifted);
+    if shifted {
+        let mut q = SHIFT_ZERO;
+        for p in prims {
+            e.tree(&mut m.shift_step, 6, zigzag(p.shift as i64 - q as i64) as u32);
+            q = p.shift;
+        }
+    }
+}
+
+/// [`rc_shifts`] read back into `prims`.
+fn un_rc_shifts(
+    d: &mut rc::Decoder,
+    m: &mut CurveModel,
+    prims: &mut [PrimCodes],
+    at: &str,
+) -> std::result::Result<(), String> {
+    if !d.bit(&mut m.shifted) {
+        return Ok(());
+    }
+    let mut q = SHIFT_ZERO as i64;
+    for (k, p) in prims.iter_mut().enumerate() {
+        let v = q + unzigzag(d.tree(&mut m.shift_step, 6) as u64);
+        if !(0..SHIFT_CODES as i64).contains(&v) {
+            return Err(format!(
+                "corrupted: {at}, primitive {k} has shift code {v} (0 to {})",
+                SHIFT_CODES - 1
+            ));
+        }
+        p.shift = v as u8;
+        q = v;
+    }
+    Ok(())
 }
 
 /// Version 5's colour map: each bin's (u, v) codes as the step from the bin before, signed
@@ -639,7 +690,15 @@ pub(super) fn un_rc_curves(
             }
             let rc_ctx = prims.last().map_or(16, |p| p.rho as usize);
             let rho = d.tree(&mut m.rho[rc_ctx.min(16)], 4) as u8;
-            prims.push(PrimCodes { turn, side, rho });
+            prims.push(PrimCodes {
+                turn,
+                side,
+                rho,
+                shift: SHIFT_ZERO,
+            });
+        }
+        if version >= 7 && kind == Kind::Occluding {
+            un_rc_shifts(&mut d, &mut m, &mut prims, &at)?;
         }
         curves.push(CurveCodes {
             kind,

@@ -9,6 +9,14 @@ pub(super) struct JsonPrim {
     /// Degrees.
     pub(super) sides: [f64; 2],
     pub(super) rho: f32,
+    /// Px to the left of the chain, a multiple of ¼ within ±2: an occluding line placed off
+    /// its chain (version 4; absent: on it).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub(super) shift: f32,
+}
+
+fn is_zero(v: &f32) -> bool {
+    *v == 0.0
 }
 
 #[derive(Serialize, Deserialize)]
@@ -94,6 +102,7 @@ pub(super) fn json_of(c: &Codes) -> JsonSketch {
                                     }
                                 }),
                                 rho: p.rho,
+                                shift: p.shift,
                             }
                         })
                         .collect(),
@@ -222,10 +231,31 @@ pub fn from_json(text: &str, path: &Path) -> Result<Sketch> {
                 }
             }
             prev = a;
+            if p.shift != 0.0 && kind != Kind::Occluding {
+                return Err(bad(format!(
+                    "curve {ci}, primitive {k}: a shift of {} px on a curve of kind {}; only \
+                     occluding lines (c) lie off their chains",
+                    p.shift, c.kind
+                )));
+            }
+            let code = shift_code(p.shift);
+            if shift_of(code) != p.shift {
+                return Err(bad(format!(
+                    "curve {ci}, primitive {k}: a shift of {} px; shifts are multiples of \
+                     {SHIFT_QUANTUM} px within ±{} px",
+                    p.shift,
+                    SHIFT_STEPS as f32 * SHIFT_QUANTUM
+                )));
+            }
+            // Only the start's centre is read (the rest follow from the chain), where it is
+            // painted: off the chain by its shift.
+            let axis = axis_of(a as u8);
+            let [x, y] = off_chain(c.start[0] as f32, c.start[1] as f32, axis, code);
             prims.push(Primitive {
-                x: if k == 0 { c.start[0] as f32 } else { 0.0 },
-                y: if k == 0 { c.start[1] as f32 } else { 0.0 },
-                axis: axis_of(a as u8),
+                shift: shift_of(code),
+                x: if k == 0 { x } else { 0.0 },
+                y: if k == 0 { y } else { 0.0 },
+                axis,
                 rho: p.rho,
                 side: p.sides.map(deg_to_rad),
             });

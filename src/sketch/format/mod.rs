@@ -33,7 +33,10 @@ use std::f64::consts::PI;
 use std::path::Path;
 
 pub use order::paint_order;
-pub use rate::{rate_rho, rate_sides, side_sums, RhoStats};
+pub use rate::{
+    rate_rho, rate_shifts, rate_sides, side_sums, RhoStats, SHIFT_CODES, SHIFT_QUANTUM, SHIFT_STEPS,
+    SHIFT_ZERO,
+};
 
 mod czs;
 mod czs_rc;
@@ -51,14 +54,16 @@ pub use validate::{require_curves, validate, MARGIN};
 /// File magic of `.czs`.
 pub const MAGIC: &[u8; 3] = b"CZS";
 /// `.czs` and `sketch.json` format version: 2 adds the hair region, 3 the high band's
-/// along/across ratio (`Sketch::along_across`); version 1 and 2 files (no region: the whole
-/// image; no ratio: no grain) are still read.
-pub const VERSION: u8 = 3;
+/// along/across ratio (`Sketch::along_across`), 4 the occluding lines' offsets off their
+/// chains (`Primitive::shift`); version 1 to 3 files (no region: the whole image; no ratio: no
+/// grain; no offsets: on the chains) are still read.
+pub const VERSION: u8 = 4;
 /// `.czs` container version: 3 range codes the curves (the sketch is that of [`VERSION`]),
 /// 4 with richer contexts (the same fields), 5 the colour map and the region too, and the
 /// curves sorted by start with their paint order as a bit per overlapping pair
-/// ([`order`]), 6 the along/across ratio (one byte); versions 1 to 5 are still read.
-pub const CZS_VERSION: u8 = 6;
+/// ([`order`]), 6 the along/across ratio (one byte), 7 the occluding lines' offsets off their
+/// chains (`Primitive::shift`); versions 1 to 6 are still read.
+pub const CZS_VERSION: u8 = 7;
 /// The JSON Schema `sketch.json` is checked against.
 pub const SCHEMA: &str = include_str!("../../../schemas/sketch.v1.schema.json");
 const SCHEMA_URL: &str = "urn:coif:sketch.v1.schema.json";
@@ -270,6 +275,8 @@ struct PrimCodes {
     /// Per side (dictionary index, refinement code); the right side of a and b unused.
     side: [(u8, u8); 2],
     rho: u8,
+    /// The occluding line's offset off the chain ([`SHIFT_ZERO`]: on it).
+    shift: u8,
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -348,7 +355,8 @@ fn blocks(n: u32) -> u32 {
 pub fn curve_start(c: &Curve, w: u32, h: u32) -> Option<[u32; 2]> {
     let first = c.prims.first()?;
     let r = |v: f32, n: u32| finite_or(v, 0.0).round().clamp(0.0, n as f32) as u32;
-    Some([r(first.x, w), r(first.y, h)])
+    let [x, y] = on_chain(first);
+    Some([r(x, w), r(y, h)])
 }
 
 fn curve_codes(c: &Curve, w: u32, h: u32) -> Option<CurveCodes> {
@@ -386,6 +394,11 @@ fn curve_codes(c: &Curve, w: u32, h: u32) -> Option<CurveCodes> {
                 turn,
                 side,
                 rho: snap_rho(p.rho),
+                shift: if c.kind == Kind::Occluding {
+                    shift_code(p.shift)
+                } else {
+                    SHIFT_ZERO
+                },
             }
         })
         .collect();
@@ -513,6 +526,42 @@ fn region_codes(r: &super::Region, w: u32, h: u32) -> super::Region {
         .collect()
 }
 
+/// The offset of shift code `code` off the chain, px (to the left).
+pub fn shift_of(code: u8) -> f32 {
+    (code as i32 - SHIFT_STEPS) as f32 * SHIFT_QUANTUM
+}
+
+/// The nearest shift code of an offset `shift` px (clamped to ±[`SHIFT_STEPS`] steps).
+pub fn shift_code(shift: f32) -> u8 {
+    let k = (finite_or(shift, 0.0) / SHIFT_QUANTUM).round();
+    (k.clamp(-(SHIFT_STEPS as f32), SHIFT_STEPS as f32) as i32 + SHIFT_STEPS) as u8
+}
+
+/// The centre of a primitive with axis `axis` whose chain point is (x, y), shift code
+/// `code` off it along the left normal (sin a, −cos a): f64, then f32, so that the
+/// pursuit's placement and the decoder's agree to the bit.
+pub fn off_chain(x: f32, y: f32, axis: f32, code: u8) -> [f32; 2] {
+    if code == SHIFT_ZERO {
+        return [x, y];
+    }
+    let (o, a) = (shift_of(code) as f64, axis as f64);
+    [
+        (x as f64 + o * a.sin()) as f32,
+        (y as f64 - o * a.cos()) as f32,
+    ]
+}
+
+/// The point of `p`'s chain under its centre: (x, y) less its shift along the left normal
+/// (the inverse of [`off_chain`] to within f32 rounding).
+pub fn on_chain(p: &Primitive) -> [f32; 2] {
+    let o = finite_or(p.shift, 0.0) as f64;
+    let a = finite_or(p.axis, 0.0) as f64;
+    [
+        (p.x as f64 - o * a.sin()) as f32,
+        (p.y as f64 + o * a.cos()) as f32,
+    ]
+}
+
 fn decode_curve(c: &CurveCodes) -> Curve {
     let mut idx = c.axis as i64;
     let (mut x, mut y) = (c.start[0] as f64, c.start[1] as f64);
@@ -534,10 +583,13 @@ fn decode_curve(c: &CurveCodes) -> Curve {
                     0.0
                 }
             });
+            let axis = axis_of(idx.rem_euclid(AXIS_STEPS as i64) as u8);
+            let [x, y] = off_chain(x as f32, y as f32, axis, p.shift);
             Primitive {
-                x: x as f32,
-                y: y as f32,
-                axis: axis_of(idx.rem_euclid(AXIS_STEPS as i64) as u8),
+                shift: shift_of(p.shift),
+                x,
+                y,
+                axis,
                 rho: RHO_LEVELS[p.rho as usize],
                 side,
             }
@@ -754,6 +806,7 @@ mod tests {
                 &Curve {
                     kind: Kind::Stream,
                     prims: vec![Primitive {
+                        shift: 0.0,
                         x: 1.0,
                         y: 1.0,
                         axis: axis_of(a),

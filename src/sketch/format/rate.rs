@@ -57,9 +57,9 @@ fn bits_of<const N: usize>(counts: &[u32; N]) -> [f32; N] {
     counts.map(|v| -((v as f32 + 0.5) / n).log2())
 }
 
-/// The 16-state path minimising Σ_k unary(k, r_k) + Σ_{k>0} pair(k, r_{k−1}, r_k) over `n`
-/// steps (Viterbi; ties to the lower code).
-fn viterbi(
+/// The N-state path minimising Σ_k unary(k, r_k) + Σ_{k>0} pair(k, r_{k−1}, r_k) over `n`
+/// steps (Viterbi; ties to the lower state).
+fn viterbi<const N: usize>(
     n: usize,
     unary: impl Fn(usize, usize) -> f32,
     pair: impl Fn(usize, usize, usize) -> f32,
@@ -67,11 +67,11 @@ fn viterbi(
     if n == 0 {
         return Vec::new();
     }
-    let mut cost: [f32; 16] = std::array::from_fn(|r| unary(0, r));
-    let mut back = vec![[0u8; 16]; n];
+    let mut cost: [f32; N] = std::array::from_fn(|r| unary(0, r));
+    let mut back = vec![[0u8; N]; n];
     for (k, back) in back.iter_mut().enumerate().skip(1) {
-        let mut next = [0.0f32; 16];
-        for r in 0..16 {
+        let mut next = [0.0f32; N];
+        for r in 0..N {
             let (mut bq, mut bv) = (0u8, f32::INFINITY);
             for (q, &c) in cost.iter().enumerate() {
                 let v = c + pair(k, q, r);
@@ -84,15 +84,103 @@ fn viterbi(
         }
         cost = next;
     }
-    let mut r = (0..16u8)
+    let mut r = (0..N as u8)
         .min_by(|&a, &b| cost[a as usize].total_cmp(&cost[b as usize]))
-        .expect("16 states");
+        .expect("N > 0 states");
     let mut path = vec![0u8; n];
     for k in (0..n).rev() {
         path[k] = r;
         r = back[k][r as usize];
     }
     path
+}
+
+/// Quarter-pixel steps an occluding primitive may lie off its chain, each way.
+pub const SHIFT_STEPS: i32 = 8;
+/// One shift step across the axis, px.
+pub const SHIFT_QUANTUM: f32 = 0.25;
+/// Shift codes: code r lies (r − [`SHIFT_STEPS`])·[`SHIFT_QUANTUM`] px to the left of the chain.
+pub const SHIFT_CODES: usize = 2 * SHIFT_STEPS as usize + 1;
+/// Zigzag steps between consecutive shift codes.
+const SHIFT_DELTAS: usize = 2 * SHIFT_CODES - 1;
+
+/// The shift code on the chain.
+pub const SHIFT_ZERO: u8 = SHIFT_STEPS as u8;
+
+/// Per curve, the shift codes of its primitives chosen by rate and distortion: `costs[c]`
+/// holds per primitive of an occluding curve the energy at each code (None: the curve is not
+/// placed). Along each curve, Viterbi over the codes minimising Σ cost/μ + bits(step from
+/// the previous code; the first from [`SHIFT_ZERO`]) + a flag's bits; a curve stays on its
+/// chain (None out) unless that beats the flag that says so. The bits are −log2 of the
+/// sketch's own frequencies over a few rounds, seeded by each primitive's own best code.
+pub fn rate_shifts(costs: &[Option<Vec<[f32; SHIFT_CODES]>>], mu: f32) -> Vec<Option<Vec<u8>>> {
+    if mu <= 0.0 {
+        return vec![None; costs.len()];
+    }
+    let argmin = |c: &[f32; SHIFT_CODES]| {
+        (0..SHIFT_CODES)
+            .min_by(|&a, &b| c[a].total_cmp(&c[b]).then(a.cmp(&b)))
+            .expect("codes") as u8
+    };
+    let mut out: Vec<Option<Vec<u8>>> = costs
+        .iter()
+        .map(|c| c.as_ref().map(|c| c.iter().map(argmin).collect()))
+        .collect();
+    for _ in 0..ROUNDS {
+        let (flags, deltas) = shift_counts(&out, costs);
+        let (fb, db) = (bits_of(&flags), bits_of(&deltas));
+        for (o, c) in out.iter_mut().zip(costs) {
+            let Some(c) = c else { continue };
+            let unary = |k: usize, r: usize| {
+                let e = (c[k][r] - c[k][SHIFT_ZERO as usize]) / mu;
+                if k == 0 {
+                    e + db[shift_delta(SHIFT_ZERO, r as u8)]
+                } else {
+                    e
+                }
+            };
+            let path = viterbi::<SHIFT_CODES>(c.len(), unary, |_, q, r| {
+                db[shift_delta(q as u8, r as u8)]
+            });
+            let mut total = fb[1];
+            let mut q = SHIFT_ZERO;
+            for (k, &r) in path.iter().enumerate() {
+                total += (c[k][r as usize] - c[k][SHIFT_ZERO as usize]) / mu + db[shift_delta(q, r)];
+                q = r;
+            }
+            *o = (total < fb[0] && path.iter().any(|&r| r != SHIFT_ZERO)).then_some(path);
+        }
+    }
+    out
+}
+
+/// The zigzag index of the step from shift code `q` to `r`.
+pub(crate) fn shift_delta(q: u8, r: u8) -> usize {
+    czs::zigzag(r as i64 - q as i64) as usize
+}
+
+/// Counts of the shift flags (off, on) over the curves with costs, and of the steps along the
+/// curves that are on.
+fn shift_counts(
+    out: &[Option<Vec<u8>>],
+    costs: &[Option<Vec<[f32; SHIFT_CODES]>>],
+) -> ([u32; 2], [u32; SHIFT_DELTAS]) {
+    let (mut flags, mut deltas) = ([0u32; 2], [0u32; SHIFT_DELTAS]);
+    for (o, c) in out.iter().zip(costs) {
+        match o {
+            None if c.is_some() => flags[0] += 1,
+            None => {}
+            Some(path) => {
+                flags[1] += 1;
+                let mut q = SHIFT_ZERO;
+                for &r in path {
+                    deltas[shift_delta(q, r)] += 1;
+                    q = r;
+                }
+            }
+        }
+    }
+    (flags, deltas)
 }
 
 /// The double-angle vector of the flow a side paints: the axis turned by −angle on the
@@ -287,7 +375,7 @@ pub fn rate_rho(curves: &[Curve], stats: &RhoStats, mu: f32) -> Vec<Curve> {
                     d
                 }
             };
-            *c = viterbi(c.len(), unary, |_, q, r| bits[q][r]);
+            *c = viterbi::<16>(c.len(), unary, |_, q, r| bits[q][r]);
         }
     }
     for (curve, c) in out.iter_mut().zip(&codes) {
@@ -372,7 +460,7 @@ fn choose(c: &mut CurveCodes, g: &[[[f32; 2]; 2]], rate: &Rate, mu: f32) {
         }
     }
     // Costs in bits (E1 divided by μ).
-    let path = viterbi(
+    let path = viterbi::<16>(
         n,
         |k, r| unary[k][r],
         |k, q, r| {
@@ -402,6 +490,7 @@ mod tests {
             .iter()
             .enumerate()
             .map(|(k, &r)| Primitive {
+                shift: 0.0,
                 x: 20.0 + STEP * k as f32,
                 y: 20.0,
                 axis: 0.0,
@@ -512,6 +601,7 @@ mod tests {
         let hair = vec![true; 64 * 64];
         // Down the edge at x = 32: its left (+x) is the flow tb, its right ta.
         let p = Primitive {
+            shift: 0.0,
             x: 32.0,
             y: 32.5,
             axis: std::f32::consts::FRAC_PI_2,

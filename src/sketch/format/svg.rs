@@ -16,9 +16,12 @@ fn curve_points(c: &Curve) -> Vec<[f32; 2]> {
     let mut pts = Vec::with_capacity(c.prims.len() + 2);
     let half = 0.5 * STEP;
     let (f, l) = (&c.prims[0], &c.prims[c.prims.len() - 1]);
-    pts.push([f.x - half * f.axis.cos(), f.y - half * f.axis.sin()]);
-    pts.extend(c.prims.iter().map(|p| [p.x, p.y]));
-    pts.push([l.x + half * l.axis.cos(), l.y + half * l.axis.sin()]);
+    let [fx, fy] = on_chain(f);
+    pts.push([fx - half * f.axis.cos(), fy - half * f.axis.sin()]);
+    // The chain's points: an occluding line's offsets off it are in `data-shift`.
+    pts.extend(c.prims.iter().map(on_chain));
+    let [lx, ly] = on_chain(l);
+    pts.push([lx + half * l.axis.cos(), ly + half * l.axis.sin()]);
     pts
 }
 
@@ -100,9 +103,15 @@ pub fn to_svg(s: &Sketch) -> String {
     }
     out.push_str("  </g>\n  <g id=\"cz-curves\">\n");
     for (cv, jc) in q.curves.iter().zip(&j.curves) {
+        // Version 4: an occluding line off its chain lists each primitive's offset.
+        let shift = if cv.prims.iter().any(|p| p.shift != 0.0) {
+            format!(" data-shift=\"{}\"", fmt_list(cv.prims.iter().map(|p| p.shift)))
+        } else {
+            String::new()
+        };
         out.push_str(&format!(
             "    <polyline class=\"cz-{}\" data-dirs=\"{} {}\" data-sides=\"{}\" \
-             data-rho=\"{}\"\n      points=\"{}\"/>\n",
+             data-rho=\"{}\"{shift}\n      points=\"{}\"/>\n",
             cv.kind.letter(),
             cv.dirs[0],
             cv.dirs[1],
@@ -356,6 +365,18 @@ fn parse_svg(text: &str) -> std::result::Result<Sketch, String> {
                     2 * np,
                 )?;
                 let rho = counted(attr(n, "data-rho", &at)?, &format!("{at}: data-rho"), np)?;
+                // Optional (version 4): absent, on the chain.
+                let shift = match n.attribute("data-shift") {
+                    None => vec![0.0; np],
+                    Some(_) if kind != Kind::Occluding => {
+                        return Err(format!(
+                            "{at}: data-shift on a curve of kind {}; only occluding lines \
+                             (cz-c) lie off their chains",
+                            kind.letter()
+                        ))
+                    }
+                    Some(t) => counted(t, &format!("{at}: data-shift"), np)?,
+                };
                 let mut prims = Vec::new();
                 let mut prev = 0i64;
                 for k in 0..np {
@@ -371,10 +392,22 @@ fn parse_svg(text: &str) -> std::result::Result<Sketch, String> {
                         }
                     }
                     prev = a;
+                    let code = shift_code(shift[k] as f32);
+                    if shift_of(code) as f64 != shift[k] {
+                        return Err(format!(
+                            "{at}, primitive {k}: data-shift {}: shifts are multiples of \
+                             {SHIFT_QUANTUM} px within ±{} px",
+                            shift[k],
+                            SHIFT_STEPS as f32 * SHIFT_QUANTUM
+                        ));
+                    }
+                    let axis = axis_of(a.rem_euclid(24) as u8);
+                    let [x, y] = off_chain(pts[k + 1][0] as f32, pts[k + 1][1] as f32, axis, code);
                     prims.push(Primitive {
-                        x: pts[k + 1][0] as f32,
-                        y: pts[k + 1][1] as f32,
-                        axis: axis_of(a.rem_euclid(24) as u8),
+                        shift: shift_of(code),
+                        x,
+                        y,
+                        axis,
                         rho: rho[k] as f32,
                         side: [deg_to_rad(sides[2 * k]), deg_to_rad(sides[2 * k + 1])],
                     });

@@ -22,7 +22,8 @@
 //!
 //! Light sequential checks over a few hundred numbers: CPU.
 
-use super::super::{Sketch, COLOUR_BINS, STEP};
+use super::super::{Kind, Sketch, COLOUR_BINS, STEP};
+use super::{SHIFT_QUANTUM, SHIFT_STEPS};
 use crate::error::{Error, Result};
 use std::path::Path;
 
@@ -82,6 +83,19 @@ pub(crate) fn check(s: &Sketch) -> std::result::Result<(), String> {
             finite(p.rho, || format!("{}: contrast ρ", at()))?;
             finite(p.side[0], || format!("{}: left side angle", at()))?;
             finite(p.side[1], || format!("{}: right side angle", at()))?;
+            finite(p.shift, || format!("{}: shift", at()))?;
+            if p.shift.abs() > SHIFT_STEPS as f32 * SHIFT_QUANTUM
+                || (p.shift != 0.0 && c.kind != Kind::Occluding)
+            {
+                return Err(format!(
+                    "{}: a shift of {} px off the chain on a curve of kind {} (only occluding \
+                     lines lie off their chains, by at most {} px)",
+                    at(),
+                    p.shift,
+                    c.kind.letter(),
+                    SHIFT_STEPS as f32 * SHIFT_QUANTUM
+                ));
+            }
             if p.rho < 0.0 {
                 return Err(format!("{}: contrast ρ = {} is negative", at(), p.rho));
             }
@@ -173,6 +187,7 @@ mod tests {
                 kind: Kind::Stream,
                 prims: (0..3)
                     .map(|i| Primitive {
+                        shift: 0.0,
                         x: 10.0 + 5.0 * i as f32,
                         y: 15.0,
                         axis: 0.0,

@@ -64,6 +64,7 @@ use std::time::Instant;
 
 mod grow;
 mod params;
+mod place;
 mod score;
 pub use params::{Pursuit, PursuitParams, PursuitStats};
 
@@ -129,6 +130,7 @@ impl Cand {
     fn prim(&self) -> Primitive {
         let hair = self.kind.hair_sides();
         Primitive {
+            shift: 0.0,
             x: self.x,
             y: self.y,
             axis: self.axis.rem_euclid(AXIS_STEPS as i32) as f32 * AXIS_QUANTUM,
@@ -238,6 +240,7 @@ impl Stencil {
             .map(|a| {
                 let c = 16;
                 let p = Primitive {
+                    shift: 0.0,
                     x: c as f32,
                     y: c as f32,
                     axis: a as f32 * AXIS_QUANTUM,
@@ -800,6 +803,7 @@ pub fn pursue(
         // Birth order reordered as `.czs` stores it best, with the same painting (every
         // pair of overlapping curves keeps its order).
         let curves = super::format::paint_order(curves, width, height);
+        let curves = s.shift_occluding(curves);
         let curves = s.rate_codes(curves);
         // The final Θ: diffused to convergence with the sketch clamped.
         let t = Instant::now();

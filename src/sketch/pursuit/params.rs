@@ -40,6 +40,9 @@ pub struct PursuitParams {
     pub refit: bool,
     /// Refine side angles by up to ±30° (3.75° steps) around the dictionary. Default true.
     pub refine_sides: bool,
+    /// Place occluding primitives up to ±2 px off their chain, ¼ px steps, where the two
+    /// flows split best (`pursuit::place`; with a rate, `bit_cost` > 0). Default true.
+    pub place_occluding: bool,
     /// Births are ranked by the first primitive's δ without λ_NC, and λ_NC is charged when
     /// the traced curve is scored whole (kept only if its δ, λ_NC included, is positive);
     /// false: the paper's literal rule, the first primitive alone must beat λ_NC. Default
@@ -88,6 +91,7 @@ impl Default for PursuitParams {
             split_quantile: 0.8,
             refit: true,
             refine_sides: true,
+            place_occluding: true,
             birth_lookahead: true,
             contrast_all: false,
             bit_cost: std::f32::consts::LN_2,
@@ -194,6 +198,8 @@ pub struct PursuitStats {
     /// (`bit_cost`; the last pass).
     pub sides_rated: usize,
     pub rho_rated: usize,
+    /// Occluding primitives placed off their chain (the last pass).
+    pub shifted: usize,
 }
 
 impl PursuitStats {
@@ -203,6 +209,7 @@ impl PursuitStats {
         self.births += o.births;
         self.sides_rated = o.sides_rated;
         self.rho_rated = o.rho_rated;
+        self.shifted = o.shifted;
         self.dropped_short += o.dropped_short;
         self.dropped_snapped += o.dropped_snapped;
         self.rebuilds += o.rebuilds;
