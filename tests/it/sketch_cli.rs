@@ -397,7 +397,7 @@ fn the_command_writes_every_file_and_they_agree() {
         assert_eq!(report["bytes"]["total"].as_u64().unwrap(), bytes);
         // The range-coded part by field: every field named, the curves' starts charged.
         let fields = report["bytes"]["fields"].as_object().unwrap();
-        assert_eq!(fields.len(), 12, "{fields:?}");
+        assert_eq!(fields.len(), 13, "{fields:?}");
         assert!(fields["start"].as_f64().unwrap() > 0.0, "{fields:?}");
         // The direction prior the run used.
         let kappa = if name == "prior" { 0.7 } else { 0.2 };

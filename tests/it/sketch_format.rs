@@ -3,8 +3,8 @@
 
 use coif::base::rng::Rng;
 use coif::sketch::format::{
-    czs_sizes, from_czs, from_json, from_svg, load, on_chain, quantise, save, to_czs, to_json, to_svg,
-    validate_json,
+    czs_sizes, from_czs, from_json, from_svg, load, on_chain, quantise, save, to_czs, to_json,
+    to_svg, validate_json,
 };
 use coif::sketch::{
     Base, ColourMap, Curve, Kind, Primitive, RhoPrior, Shading, Sketch, AXIS_QUANTUM, COLOUR_BINS,
@@ -522,7 +522,10 @@ fn bad_json_and_svg_are_refused() {
     let mut off = list.clone();
     off[0] = "0.3";
     let m = err(from_svg(&with(&off), p));
-    assert!(m.contains("data-shift 0.3") && m.contains("multiples"), "{m}");
+    assert!(
+        m.contains("data-shift 0.3") && m.contains("multiples"),
+        "{m}"
+    );
     let other = format!(
         "<polyline class=\"cz-{}\"",
         good["curves"][stream]["kind"].as_str().unwrap()

@@ -12,11 +12,11 @@ use crate::common;
 
 use coif::analyze::orient::{orient, GrayImage, OrientParams};
 use coif::gpu::engine::{Engine, Recording};
+use coif::sketch::format::SHIFT_ZERO;
 use coif::sketch::prim::{self, Side};
 use coif::sketch::pursuit::{chain, pursue, side_angle, Pursuit, PursuitParams};
 use coif::sketch::theta::{self, Field, ThetaParams};
 use coif::sketch::{Curve, Kind, Primitive, AXIS_QUANTUM, AXIS_STEPS, STEP};
-use coif::sketch::format::SHIFT_ZERO;
 use coif::stages::cz_theta_gs::{self, FIXED, FREE, OFF};
 use coif::stages::{cz_window_sums as ws, sep_blur};
 use coif::synth::{synth, Style, SynthCase, SynthParams};
@@ -737,8 +737,15 @@ fn assert_on_lattice(curves: &[Curve], w: u32, h: u32) {
         // The chain's start: under an occluding line's first centre, less its shift.
         let code = |p: &Primitive| {
             let k = coif::sketch::format::shift_code(p.shift);
-            assert_eq!(coif::sketch::format::shift_of(k), p.shift, "curve {ci}: {p:?}");
-            assert!(k == SHIFT_ZERO || c.kind == Kind::Occluding, "curve {ci}: {p:?}");
+            assert_eq!(
+                coif::sketch::format::shift_of(k),
+                p.shift,
+                "curve {ci}: {p:?}"
+            );
+            assert!(
+                k == SHIFT_ZERO || c.kind == Kind::Occluding,
+                "curve {ci}: {p:?}"
+            );
             k
         };
         let s0 = c.prims[0];
@@ -873,10 +880,12 @@ fn pursuit_curve_counts_on_synth_styles() {
 
 /// CZ06 Fig. 10 as a number: the orientation error within 4 px of the fringe's seam with the
 /// sketch, without it (S = ∅, the same diffusion), and for the Gabor field. The issue's
-/// targets (with S ≥ 30% below S = ∅, and below Gabor) are printed as met or not; the test
-/// asserts that the sketch lowers the seam error on every seed. Seeds 1-3 are the ones every
-/// probe of the seam was read on; 4-11 were added later (2026-12-06) as seeds no probe chose
-/// anything on, and are printed with them.
+/// targets (with S ≥ 30% below S = ∅, and below Gabor) are printed per seed; the test
+/// asserts that the sketch lowers the seam error below both on every seed, and by ≥ 30%
+/// pooled over the seeds (Σ error with S against Σ error with S = ∅: the style's figure,
+/// not one draw's). Seeds 1-3 are the ones every probe of the seam was read on; 4-11 were
+/// added later (2026-12-06) as seeds no probe chose anything on. `COIF_FIG10_SEEDS=a-b`
+/// runs other seeds (the README's fresh seeds 12-21).
 /// The image size of the Fig. 10 figure (the bench size: at 256² a seam is a few windows
 /// long and λ_NC, set for curve counts at 512², prunes most of it).
 const FIG10_SIZE: u32 = 512;
@@ -885,7 +894,12 @@ const FIG10_SIZE: u32 = 512;
 fn fig10_sketch_sharpens_the_fringe_seam() {
     let e = Engine::cpu();
     let mut gains = Vec::new();
-    for seed in 1..=11 {
+    let mut pooled = [0.0f64; 2];
+    let seeds = std::env::var("COIF_FIG10_SEEDS").unwrap_or("1-11".into());
+    let (lo, hi) = seeds
+        .split_once('-')
+        .expect("COIF_FIG10_SEEDS: a range a-b");
+    for seed in lo.parse::<u64>().unwrap()..=hi.parse().unwrap() {
         let sp = params(Style::Fringe, seed, FIG10_SIZE);
         let sc = synth(&sp);
         let seam = coif::synth::seam(&sp).expect("fringe has a seam");
@@ -926,11 +940,13 @@ fn fig10_sketch_sharpens_the_fringe_seam() {
             prof(&c.gabor)
         );
         assert!(
-            s < z,
-            "{}: the sketch does not lower the seam error ({s} vs {z})",
+            s < z && s < g,
+            "{}: the sketch does not lower the seam error ({s} vs {z}, Gabor {g})",
             c.name
         );
         gains.push(100.0 * (1.0 - s / z));
+        pooled[0] += s as f64;
+        pooled[1] += z as f64;
     }
     let fmt = |g: &[f32]| {
         let mean = g.iter().sum::<f32>() / g.len() as f32;
@@ -940,10 +956,21 @@ fn fig10_sketch_sharpens_the_fringe_seam() {
             g.len()
         )
     };
+    let n = gains.len().min(3);
+    let pooled = 100.0 * (1.0 - pooled[0] / pooled[1]);
     println!(
-        "seam, seeds 1-3: {}; seeds 4-11: {}",
-        fmt(&gains[..3]),
-        fmt(&gains[3..])
+        "seam, seeds {seeds}: pooled {pooled:.1}% below S = ∅ (target ≥ 30%); first {n} seeds: \
+         {}; the rest: {}",
+        fmt(&gains[..n]),
+        if gains.len() > n {
+            fmt(&gains[n..])
+        } else {
+            "none".into()
+        }
+    );
+    assert!(
+        pooled >= 30.0,
+        "the seam error is {pooled:.1}% below S = ∅ (< 30%)"
     );
 }
 

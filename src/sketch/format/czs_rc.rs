@@ -425,7 +425,11 @@ fn rc_shifts(e: &mut rc::Encoder, m: &mut CurveModel, prims: &[PrimCodes]) {
     if shifted {
         let mut q = SHIFT_ZERO;
         for p in prims {
-            e.tree(&mut m.shift_step, 6, zigzag(p.shift as i64 - q as i64) as u32);
+            e.tree(
+                &mut m.shift_step,
+                6,
+                zigzag(p.shift as i64 - q as i64) as u32,
+            );
             q = p.shift;
         }
     }

@@ -34,8 +34,8 @@ use std::path::Path;
 
 pub use order::paint_order;
 pub use rate::{
-    rate_rho, rate_shifts, rate_sides, side_sums, RhoStats, SHIFT_CODES, SHIFT_QUANTUM, SHIFT_STEPS,
-    SHIFT_ZERO,
+    rate_rho, rate_shifts, rate_sides, side_sums, RhoStats, SHIFT_CODES, SHIFT_QUANTUM,
+    SHIFT_STEPS, SHIFT_ZERO,
 };
 
 mod czs;

@@ -139,13 +139,13 @@ pub fn rate_shifts(costs: &[Option<Vec<[f32; SHIFT_CODES]>>], mu: f32) -> Vec<Op
                     e
                 }
             };
-            let path = viterbi::<SHIFT_CODES>(c.len(), unary, |_, q, r| {
-                db[shift_delta(q as u8, r as u8)]
-            });
+            let path =
+                viterbi::<SHIFT_CODES>(c.len(), unary, |_, q, r| db[shift_delta(q as u8, r as u8)]);
             let mut total = fb[1];
             let mut q = SHIFT_ZERO;
             for (k, &r) in path.iter().enumerate() {
-                total += (c[k][r as usize] - c[k][SHIFT_ZERO as usize]) / mu + db[shift_delta(q, r)];
+                total +=
+                    (c[k][r as usize] - c[k][SHIFT_ZERO as usize]) / mu + db[shift_delta(q, r)];
                 q = r;
             }
             *o = (total < fb[0] && path.iter().any(|&r| r != SHIFT_ZERO)).then_some(path);
@@ -484,6 +484,61 @@ fn choose(c: &mut CurveCodes, g: &[[[f32; 2]; 2]], rate: &Rate, mu: f32) {
 mod tests {
     use super::*;
     use crate::sketch::{Kind, Primitive};
+
+    /// Costs over the shift codes: 0, and −`gain` at code `at`.
+    fn dip(at: usize, gain: f32) -> [f32; SHIFT_CODES] {
+        std::array::from_fn(|r| if r == at { -gain } else { 0.0 })
+    }
+
+    #[test]
+    fn shifts_are_kept_where_the_fit_pays_for_their_bits() {
+        // Ten occluding curves of 8 primitives: three fit far better 3 steps to the left,
+        // the others gain a fraction of a bit there; one curve is of another kind.
+        let mut costs: Vec<Option<Vec<[f32; SHIFT_CODES]>>> = (0..10)
+            .map(|c| Some(vec![dip(11, if c < 3 { 40.0 } else { 0.2 }); 8]))
+            .collect();
+        costs.push(None);
+        let out = rate_shifts(&costs, 1.0);
+        for (c, o) in out.iter().enumerate() {
+            if c < 3 {
+                assert_eq!(o.as_deref(), Some(&[11u8; 8][..]), "curve {c}");
+            } else {
+                assert_eq!(*o, None, "curve {c}");
+            }
+        }
+        // The energy of a bit: at μ = 100 the same gains pay for nothing.
+        assert!(rate_shifts(&costs, 100.0).iter().all(Option::is_none));
+        assert!(rate_shifts(&costs, 0.0).iter().all(Option::is_none));
+    }
+
+    #[test]
+    fn viterbi_finds_the_cheapest_path() {
+        // Brute force over 5^4 paths with random costs.
+        let mut r = crate::base::rng::Rng::new(3);
+        let u: Vec<[f32; 5]> = (0..4)
+            .map(|_| [(); 5].map(|_| r.range_f32(0.0, 3.0)))
+            .collect();
+        let pair: Vec<[[f32; 5]; 5]> = (0..4)
+            .map(|_| [(); 5].map(|_| [(); 5].map(|_| r.range_f32(0.0, 3.0))))
+            .collect();
+        let cost = |p: &[u8]| -> f32 {
+            (0..4).map(|k| u[k][p[k] as usize]).sum::<f32>()
+                + (1..4)
+                    .map(|k| pair[k][p[k - 1] as usize][p[k] as usize])
+                    .sum::<f32>()
+        };
+        let path = viterbi::<5>(4, |k, r| u[k][r], |k, q, r| pair[k][q][r]);
+        let mut best = f32::INFINITY;
+        for i in 0..625u32 {
+            let p: Vec<u8> = (0..4).map(|k| (i / 5u32.pow(k) % 5) as u8).collect();
+            best = best.min(cost(&p));
+        }
+        assert!(
+            (cost(&path) - best).abs() < 1e-5,
+            "{} vs {best}",
+            cost(&path)
+        );
+    }
 
     fn stream(codes: &[u8]) -> Sketch {
         let prims = codes

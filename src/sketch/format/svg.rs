@@ -105,7 +105,10 @@ pub fn to_svg(s: &Sketch) -> String {
     for (cv, jc) in q.curves.iter().zip(&j.curves) {
         // Version 4: an occluding line off its chain lists each primitive's offset.
         let shift = if cv.prims.iter().any(|p| p.shift != 0.0) {
-            format!(" data-shift=\"{}\"", fmt_list(cv.prims.iter().map(|p| p.shift)))
+            format!(
+                " data-shift=\"{}\"",
+                fmt_list(cv.prims.iter().map(|p| p.shift))
+            )
         } else {
             String::new()
         };

@@ -62,18 +62,8 @@ pub(crate) fn split_costs(
         });
         -px.iter()
             .map(|&(c, d)| {
-                let e = z.map(|z| d[0] * z[0] + d[1] * z[1]);
-                if c >= o + GAP {
-                    e[0]
-                } else if c < o - GAP {
-                    e[1]
-                } else {
-                    match std::env::var("COIF_PLACE_MODE").as_deref() {
-                        Ok("max") => e[0].max(e[1]),
-                        Ok("skip") => 0.0,
-                        _ => e[(c < o) as usize],
-                    }
-                }
+                let z = z[(c < o) as usize];
+                d[0] * z[0] + d[1] * z[1]
             })
             .sum::<f32>()
     })
@@ -159,5 +149,67 @@ impl Search<'_> {
                 });
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sketch::format::{shift_of, SHIFT_ZERO};
+
+    /// An occluding primitive along +x centred on a pixel corner of a 40×40 image, and each
+    /// pixel's offset across its axis (+ left, that is up).
+    fn setup() -> (Primitive, Vec<f32>) {
+        let p = Primitive {
+            x: 20.0,
+            y: 20.0,
+            axis: 0.0,
+            rho: 1.0,
+            side: [0.0; 2],
+            shift: 0.0,
+        };
+        let c = (0..1600).map(|i| 20.0 - (i / 40) as f32 - 0.5).collect();
+        (p, c)
+    }
+
+    #[test]
+    fn the_split_is_placed_at_the_edge_between_two_flows() {
+        let (p, c) = setup();
+        // Flow at 0° above the row edge at +1 px, at 90° below it (data ∝ e^{2iθ}).
+        let data: Vec<[f32; 2]> = c
+            .iter()
+            .map(|&c| if c > 1.0 { [1.0, 0.0] } else { [-1.0, 0.0] })
+            .collect();
+        let e = split_costs(&p, 40, 40, &data, &[true; 1600]);
+        let best = e.iter().copied().fold(f32::INFINITY, f32::min);
+        for (r, &v) in e.iter().enumerate() {
+            // Every split between the rows at +0.5 and +1.5 px parts the flows exactly.
+            let o = shift_of(r as u8);
+            if o > 0.5 && o <= 1.5 {
+                assert_eq!(v, best, "{o} px");
+            } else {
+                assert!(v > best + 1.0, "{o} px: {v} vs {best}");
+            }
+        }
+        // On the chain the rows between it and the edge are painted the wrong flow.
+        assert!(e[SHIFT_ZERO as usize] > best + 10.0);
+    }
+
+    #[test]
+    fn a_line_neither_flow_explains_does_not_pull_the_split() {
+        let (p, c) = setup();
+        // One flow everywhere, and a row at +1.5 px across it (strand ends, say): leaving
+        // that row out of the score would draw the split onto it; scored over a fixed set of
+        // pixels every offset costs the same.
+        let data: Vec<[f32; 2]> = c
+            .iter()
+            .map(|&c| if c == 1.5 { [-2.0, 0.0] } else { [1.0, 0.0] })
+            .collect();
+        let e = split_costs(&p, 40, 40, &data, &[true; 1600]);
+        for &v in &e {
+            assert!((v - e[SHIFT_ZERO as usize]).abs() < 1e-3, "{e:?}");
+        }
+        let codes = format::rate_shifts(&[Some(vec![e; 6])], 1.0);
+        assert_eq!(codes, vec![None]);
     }
 }
