@@ -12,7 +12,7 @@ use crate::common;
 
 use coif::analyze::orient::{orient, GrayImage, OrientParams};
 use coif::gpu::engine::{Engine, Recording};
-use coif::sketch::format::SHIFT_ZERO;
+use coif::sketch::format::{self, SHIFT_ZERO};
 use coif::sketch::prim::{self, Side};
 use coif::sketch::pursuit::{chain, pursue, side_angle, Pursuit, PursuitParams};
 use coif::sketch::theta::{self, Field, ThetaParams};
@@ -734,33 +734,21 @@ fn window_configs_match_wgsl() {
 /// refinement, no directions yet.
 fn assert_on_lattice(curves: &[Curve], w: u32, h: u32) {
     for (ci, c) in curves.iter().enumerate() {
-        // The chain's start: under an occluding line's first centre, less its shift.
+        // The chain lies under the centres, an occluding line's off it by their shifts.
         let code = |p: &Primitive| {
-            let k = coif::sketch::format::shift_code(p.shift);
-            assert_eq!(
-                coif::sketch::format::shift_of(k),
-                p.shift,
-                "curve {ci}: {p:?}"
-            );
-            assert!(
-                k == SHIFT_ZERO || c.kind == Kind::Occluding,
-                "curve {ci}: {p:?}"
-            );
+            let k = format::shift_code(p.shift);
+            let ok =
+                format::shift_of(k) == p.shift && (k == SHIFT_ZERO || c.kind == Kind::Occluding);
+            assert!(ok, "curve {ci}: {p:?}");
             k
         };
-        let s0 = c.prims[0];
-        let [x0, y0] = coif::sketch::format::on_chain(&s0);
+        let [x0, y0] = format::on_chain(&c.prims[0]);
+        let (x0, y0) = (x0.round(), y0.round());
         let p0 = Primitive {
-            x: x0.round(),
-            y: y0.round(),
-            shift: 0.0,
-            ..s0
+            x: x0,
+            y: y0,
+            ..c.prims[0]
         };
-        assert_eq!(
-            coif::sketch::format::off_chain(p0.x, p0.y, p0.axis, code(&s0)),
-            [s0.x, s0.y],
-            "curve {ci} starts at {s0:?}"
-        );
         assert!((0.0..=w as f32).contains(&p0.x) && (0.0..=h as f32).contains(&p0.y));
         assert_eq!(c.dirs, [0, 0]);
         let mut axes = vec![(p0.axis / AXIS_QUANTUM).round() as i32];
@@ -772,7 +760,7 @@ fn assert_on_lattice(curves: &[Curve], w: u32, h: u32) {
         }
         let centres = chain([p0.x, p0.y], &axes);
         for (p, q) in c.prims.iter().zip(&centres) {
-            let placed = coif::sketch::format::off_chain(q[0], q[1], p.axis, code(p));
+            let placed = format::off_chain(q[0], q[1], p.axis, code(p));
             assert_eq!([p.x, p.y], placed, "curve {ci}");
             let a = p.axis / AXIS_QUANTUM;
             assert!((a - a.round()).abs() < 1e-4 && p.axis >= 0.0 && p.axis < 2.0 * PI);
