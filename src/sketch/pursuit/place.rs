@@ -17,7 +17,8 @@ use crate::sketch::format::{self, SHIFT_CODES, SHIFT_QUANTUM, SHIFT_STEPS};
 use crate::sketch::{prim, Curve, Kind, Primitive};
 
 /// The pixels a split is scored over: within this far of the chain's axis, px (the largest
-/// offset plus the window's half-width and a pixel).
+/// offset, 2 px, plus the window's half-width, 2.5 px, and a little: at every offset each
+/// side keeps a row or two beyond the gap to read its flow from).
 const REACH: f32 = 5.0;
 /// Each side's flow is read from its pixels at least this far from the split, px.
 const GAP: f32 = 1.0;
