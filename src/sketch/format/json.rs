@@ -238,15 +238,12 @@ pub fn from_json(text: &str, path: &Path) -> Result<Sketch> {
                     p.shift, c.kind
                 )));
             }
-            let code = shift_code(p.shift);
-            if shift_of(code) != p.shift {
-                return Err(bad(format!(
-                    "curve {ci}, primitive {k}: a shift of {} px; shifts are multiples of \
-                     {SHIFT_QUANTUM} px within ±{} px",
-                    p.shift,
-                    SHIFT_STEPS as f32 * SHIFT_QUANTUM
-                )));
-            }
+            let code = exact_shift_code(p.shift as f64).map_err(|e| {
+                bad(format!(
+                    "curve {ci}, primitive {k}: a shift of {} px; {e}",
+                    p.shift
+                ))
+            })?;
             // Only the start's centre is read (the rest follow from the chain), where it is
             // painted: off the chain by its shift.
             let axis = axis_of(a as u8);

@@ -537,6 +537,20 @@ pub fn shift_code(shift: f32) -> u8 {
     (k.clamp(-(SHIFT_STEPS as f32), SHIFT_STEPS as f32) as i32 + SHIFT_STEPS) as u8
 }
 
+/// The shift code of a stored offset `shift` px, which must lie on the code lattice (the
+/// readers' check; the error says what the lattice is).
+pub(super) fn exact_shift_code(shift: f64) -> std::result::Result<u8, String> {
+    let code = shift_code(shift as f32);
+    if shift_of(code) as f64 == shift {
+        Ok(code)
+    } else {
+        Err(format!(
+            "shifts are multiples of {SHIFT_QUANTUM} px within ±{} px",
+            SHIFT_STEPS as f32 * SHIFT_QUANTUM
+        ))
+    }
+}
+
 /// The centre of a primitive with axis `axis` whose chain point is (x, y), shift code
 /// `code` off it along the left normal (sin a, −cos a): f64, then f32, so that the
 /// pursuit's placement and the decoder's agree to the bit.

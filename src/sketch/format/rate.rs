@@ -58,14 +58,14 @@ fn bits_of<const N: usize>(counts: &[u32; N]) -> [f32; N] {
 }
 
 /// The N-state path minimising Σ_k unary(k, r_k) + Σ_{k>0} pair(k, r_{k−1}, r_k) over `n`
-/// steps (Viterbi; ties to the lower state).
+/// steps, and that minimum (Viterbi; ties to the lower state).
 fn viterbi<const N: usize>(
     n: usize,
     unary: impl Fn(usize, usize) -> f32,
     pair: impl Fn(usize, usize, usize) -> f32,
-) -> Vec<u8> {
+) -> (Vec<u8>, f32) {
     if n == 0 {
-        return Vec::new();
+        return (Vec::new(), 0.0);
     }
     let mut cost: [f32; N] = std::array::from_fn(|r| unary(0, r));
     let mut back = vec![[0u8; N]; n];
@@ -87,12 +87,13 @@ fn viterbi<const N: usize>(
     let mut r = (0..N as u8)
         .min_by(|&a, &b| cost[a as usize].total_cmp(&cost[b as usize]))
         .expect("N > 0 states");
+    let least = cost[r as usize];
     let mut path = vec![0u8; n];
     for k in (0..n).rev() {
         path[k] = r;
         r = back[k][r as usize];
     }
-    path
+    (path, least)
 }
 
 /// Quarter-pixel steps an occluding primitive may lie off its chain, each way.
@@ -139,16 +140,10 @@ pub fn rate_shifts(costs: &[Option<Vec<[f32; SHIFT_CODES]>>], mu: f32) -> Vec<Op
                     e
                 }
             };
-            let path =
+            let (path, cost) =
                 viterbi::<SHIFT_CODES>(c.len(), unary, |_, q, r| db[shift_delta(q as u8, r as u8)]);
-            let mut total = fb[1];
-            let mut q = SHIFT_ZERO;
-            for (k, &r) in path.iter().enumerate() {
-                total +=
-                    (c[k][r as usize] - c[k][SHIFT_ZERO as usize]) / mu + db[shift_delta(q, r)];
-                q = r;
-            }
-            *o = (total < fb[0] && path.iter().any(|&r| r != SHIFT_ZERO)).then_some(path);
+            let pays = fb[1] + cost < fb[0];
+            *o = (pays && path.iter().any(|&r| r != SHIFT_ZERO)).then_some(path);
         }
     }
     out
@@ -375,7 +370,7 @@ pub fn rate_rho(curves: &[Curve], stats: &RhoStats, mu: f32) -> Vec<Curve> {
                     d
                 }
             };
-            *c = viterbi::<16>(c.len(), unary, |_, q, r| bits[q][r]);
+            *c = viterbi::<16>(c.len(), unary, |_, q, r| bits[q][r]).0;
         }
     }
     for (curve, c) in out.iter_mut().zip(&codes) {
@@ -471,7 +466,8 @@ fn choose(c: &mut CurveCodes, g: &[[[f32; 2]; 2]], rate: &Rate, mu: f32) {
                 0.0
             }
         },
-    );
+    )
+    .0;
     for (k, &r) in path.iter().enumerate() {
         c.prims[k].side[chained].1 = r;
         if let Some(o) = other {
@@ -527,7 +523,7 @@ mod tests {
                     .map(|k| pair[k][p[k - 1] as usize][p[k] as usize])
                     .sum::<f32>()
         };
-        let path = viterbi::<5>(4, |k, r| u[k][r], |k, q, r| pair[k][q][r]);
+        let path = viterbi::<5>(4, |k, r| u[k][r], |k, q, r| pair[k][q][r]).0;
         let mut best = f32::INFINITY;
         for i in 0..625u32 {
             let p: Vec<u8> = (0..4).map(|k| (i / 5u32.pow(k) % 5) as u8).collect();

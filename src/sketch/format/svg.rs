@@ -395,15 +395,9 @@ fn parse_svg(text: &str) -> std::result::Result<Sketch, String> {
                         }
                     }
                     prev = a;
-                    let code = shift_code(shift[k] as f32);
-                    if shift_of(code) as f64 != shift[k] {
-                        return Err(format!(
-                            "{at}, primitive {k}: data-shift {}: shifts are multiples of \
-                             {SHIFT_QUANTUM} px within ±{} px",
-                            shift[k],
-                            SHIFT_STEPS as f32 * SHIFT_QUANTUM
-                        ));
-                    }
+                    let code = exact_shift_code(shift[k]).map_err(|e| {
+                        format!("{at}, primitive {k}: data-shift {}: {e}", shift[k])
+                    })?;
                     let axis = axis_of(a.rem_euclid(24) as u8);
                     let [x, y] = off_chain(pts[k + 1][0] as f32, pts[k + 1][1] as f32, axis, code);
                     prims.push(Primitive {
